@@ -1,0 +1,29 @@
+# Both `make demo` and `make test` do all the set-up themselves (scripts/bootstrap.sh):
+# create .venv, install the package, make sure drjit's LLVM backend renders.
+VENV := .venv
+BIN := $(VENV)/bin
+
+.PHONY: setup demo test bench lint format clean
+
+setup:
+	@bash scripts/bootstrap.sh
+
+demo: setup
+	$(BIN)/pacam demo
+
+test: setup
+	$(BIN)/python -m pytest -q
+
+bench: setup
+	$(BIN)/python benchmarks/run_all.py
+
+lint: setup
+	$(BIN)/ruff format --check pacam_render tests benchmarks
+	$(BIN)/ruff check pacam_render tests benchmarks
+
+format: setup
+	$(BIN)/ruff format pacam_render tests benchmarks
+	$(BIN)/ruff check --fix pacam_render tests benchmarks
+
+clean:
+	rm -rf $(VENV) .pytest_cache .ruff_cache .hypothesis *.egg-info

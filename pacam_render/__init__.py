@@ -1,0 +1,43 @@
+"""pacam_render: a ray-traced simulator of a programmable-aperture camera that codes
+motion-invariant blur (Sonoda, Nagahara, Taniguchi, IPSJ Trans. CVA 6, 2014).
+
+Units everywhere: scene mm, time ms, image px. Image coordinates are upright (as displayed).
+"""
+
+from importlib.metadata import version
+
+from .backend import select_variant
+from .camera import CameraDesign, preset, prototype
+from .design import solve as solve_design
+from .errors import ParameterError
+from .psf import (
+    PSFTruncationWarning,
+    coded_psf,
+    discrete_coded_psf,
+    flutter_psf,
+    levin_psf,
+    pillbox_psf,
+    short_exposure_psf,
+    static_psf,
+)
+from .report import design_report
+
+__version__ = version("pacam_render")
+
+__all__ = [
+    "CameraDesign",
+    "PSFTruncationWarning",
+    "ParameterError",
+    "coded_psf",
+    "design_report",
+    "discrete_coded_psf",
+    "flutter_psf",
+    "levin_psf",
+    "pillbox_psf",
+    "preset",
+    "prototype",
+    "select_variant",
+    "short_exposure_psf",
+    "solve_design",
+    "static_psf",
+]

@@ -1,0 +1,238 @@
+"""The analytic camera model: one object holding a design and every quantity it implies.
+
+Inputs are what a camera engineer sets (film, field of view, clear aperture, opening, focus,
+exposure, pattern count); every paper quantity of Sections 2.1-2.3 is derived from them, in mm,
+ms and px. The ``prototype`` preset follows Table 1 and Section 4 of the paper.
+
+Modelling decision (documented in the report): as in the paper's Fig. 3, the LCoS is the stop of
+a thin lens, so an opening of n display pixels has radius n x 13.62 um. F-numbers follow the
+paper's own scale, N = N_min R_max / R (F2.8 at the full 512-px disc, F9.85 at 145.5 px).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, field, replace
+
+import numpy as np
+
+from . import optics
+from . import schedule as sch
+from .errors import ParameterError, check_positive
+
+
+@dataclass(frozen=True)
+class CameraDesign:
+    """A programmable-aperture camera focused for one object depth. Lengths mm, times ms."""
+
+    width_px: int = 1280
+    height_px: int = 960
+    fov_deg: float = 46.0
+    R_max_mm: float = optics.lcos_px_to_mm(512)
+    R_mm: float = optics.lcos_px_to_mm(145.5)
+    F_min: float = 2.8
+    focus_distance_mm: float = 751.6
+    object_depth_mm: float = 500.0
+    exposure_ms: float = 45.0
+    n_patterns: int = 16
+    pixel_pitch_mm: float = 0.00645
+    lcos_pitch_mm: float = optics.LCOS_PITCH_MM
+    name: str = "custom"
+    quoted_a_i_px_per_ms2: float | None = field(default=None, compare=False)
+
+    def __post_init__(self) -> None:
+        for k in ("width_px", "height_px"):
+            if int(getattr(self, k)) != getattr(self, k) or getattr(self, k) < 1:
+                raise ParameterError(f"{k} must be a positive integer, got {getattr(self, k)!r}")
+        optics.focal_length_px(self.fov_deg, self.width_px)
+        for k in ("R_max_mm", "R_mm", "F_min", "focus_distance_mm", "object_depth_mm"):
+            check_positive(k, getattr(self, k))
+        check_positive("exposure_ms", self.exposure_ms, "ms")
+        check_positive("pixel_pitch_mm", self.pixel_pitch_mm, "mm")
+        check_positive("lcos_pitch_mm", self.lcos_pitch_mm, "mm")
+        sch.check_n_patterns(self.n_patterns)
+        if self.R_mm > self.R_max_mm:
+            raise ParameterError(
+                f"R_mm must be in (0, R_max_mm = {self.R_max_mm:g}] mm: the opening must fit "
+                f"inside the lens, got {self.R_mm!r}"
+            )
+
+    # --- Section 2.1: projection -------------------------------------------------------------
+    @property
+    def T_ms(self) -> float:
+        """Half the exposure (the paper's exposure is 2T), ms."""
+        return 0.5 * self.exposure_ms
+
+    @property
+    def focal_length_px(self) -> float:
+        """Sensor distance Z_p in pixels, (W/2) / tan(fov/2)."""
+        return optics.focal_length_px(self.fov_deg, self.width_px)
+
+    @property
+    def Z_p_mm(self) -> float:
+        """Sensor distance Z_p (Eqs. 7, 9), mm: focal_length_px x pixel pitch."""
+        return self.focal_length_px * self.pixel_pitch_mm
+
+    @property
+    def lens_focal_length_mm(self) -> float:
+        """Thin-lens f with the sensor at Z_p focused at Z_f: 1/f = 1/Z_f + 1/Z_p (Eq. 7), mm."""
+        return 1.0 / (1.0 / self.focus_distance_mm + 1.0 / self.Z_p_mm)
+
+    @property
+    def alpha(self) -> float:
+        """alpha = -Z_p / Z (Eq. 3), dimensionless."""
+        return optics.alpha(self.object_depth_mm, self.Z_p_mm)
+
+    @property
+    def alpha_px_per_mm(self) -> float:
+        """alpha in image px per scene mm at the object depth."""
+        return -self.focal_length_px / self.object_depth_mm
+
+    @property
+    def beta(self) -> float:
+        """beta (Eq. 9) with the sensor at Z_p, dimensionless (mm of image per mm)."""
+        return optics.beta(self.Z_p_mm, self.lens_focal_length_mm, self.object_depth_mm)
+
+    @property
+    def beta_px_per_mm(self) -> float:
+        """Image shift per mm of aperture offset, px/mm (signed; < 0 beyond the focal plane)."""
+        return optics.beta_px_per_mm(
+            self.object_depth_mm, self.focus_distance_mm, self.fov_deg, self.width_px
+        )
+
+    # --- Section 2.2: static PSF -------------------------------------------------------------
+    @property
+    def r_px(self) -> float:
+        """Static (defocus) PSF radius r = |beta| R (Eq. 12), px."""
+        return optics.defocus_radius_px(self.beta_px_per_mm, self.R_mm)
+
+    @property
+    def F_number(self) -> float:
+        """F-number of the opening on the paper's scale, N_min R_max / R."""
+        return self.F_min * self.R_max_mm / self.R_mm
+
+    @property
+    def f_number_focal_mm(self) -> float:
+        """Focal length that the F-number scale implies at the aperture plane, 2 R N, mm."""
+        return 2.0 * self.R_mm * self.F_number
+
+    @property
+    def open_area_mm2(self) -> float:
+        """Area of the opening, mm^2 (light scales with it)."""
+        return math.pi * self.R_mm**2
+
+    # --- Section 2.3: aperture motion --------------------------------------------------------
+    @property
+    def delta_X_a_mm(self) -> float:
+        """Aperture travel Delta X_a = 2 (R_max - R) (Eq. 15), mm."""
+        return sch.aperture_travel_mm(self.R_max_mm, self.R_mm)
+
+    @property
+    def a_a_mm_per_ms2(self) -> float:
+        """Aperture acceleration a_a = 4 (R_max - R) / T^2 (Eq. 17), mm/ms^2."""
+        return sch.aperture_acceleration(self.R_max_mm, self.R_mm, self.T_ms)
+
+    @property
+    def a_i_px_per_ms2(self) -> float:
+        """Image acceleration a_i = beta a_a (Eq. 18), px/ms^2, signed like beta."""
+        return sch.image_acceleration(self.beta_px_per_mm, self.R_max_mm, self.R_mm, self.T_ms)
+
+    @property
+    def velocity_range_px_per_ms(self) -> float:
+        """Motion-invariant speed range |s| <= |a_i| T, px/ms."""
+        return sch.velocity_range(self.a_i_px_per_ms2, self.T_ms)
+
+    def pattern_table(self) -> list[dict]:
+        """The n-pattern schedule: window, centre (mm, LCoS px) and upright-image offset (px)."""
+        edges = sch.pattern_edges_ms(self.T_ms, self.n_patterns)
+        centres = sch.pattern_centres_mm(self.R_max_mm, self.R_mm, self.T_ms, self.n_patterns)
+        rows = []
+        for k, c in enumerate(centres):
+            rows.append(
+                {
+                    "k": k,
+                    "t_start_ms": float(edges[k]),
+                    "t_end_ms": float(edges[k + 1]),
+                    "centre_mm": float(c),
+                    "centre_lcos_px": float(c / self.lcos_pitch_mm),
+                    "image_offset_px": optics.aperture_mm_to_image_px(c, self.beta_px_per_mm),
+                }
+            )
+        return rows
+
+    def aperture_centre_mm(self, t_ms) -> np.ndarray:
+        """Continuous aperture trajectory X_a(t) (Eq. 11), mm."""
+        return sch.aperture_centre_mm(t_ms, self.R_max_mm, self.R_mm, self.T_ms)
+
+    def require_parallax(self) -> None:
+        """Coded capture needs beta != 0: an in-focus object gets no motion coding."""
+        if self.beta_px_per_mm == 0.0:
+            raise ParameterError(
+                "focus_distance_mm equals object_depth_mm: beta = 0, so moving the aperture "
+                "moves nothing (no parallax, no coding); defocus the lens (r_px > 0)"
+            )
+
+    def summary(self) -> dict:
+        """Every derived quantity, JSON-ready."""
+        out = {
+            "preset": self.name,
+            "r_px": self.r_px,
+            "beta_px_per_mm": self.beta_px_per_mm,
+            "a_i_px_per_ms2": self.a_i_px_per_ms2,
+            "exposure_ms": self.exposure_ms,
+            "T_ms": self.T_ms,
+            "R_mm": self.R_mm,
+            "R_max_mm": self.R_max_mm,
+            "R_lcos_px": self.R_mm / self.lcos_pitch_mm,
+            "R_max_lcos_px": self.R_max_mm / self.lcos_pitch_mm,
+            "F_number": self.F_number,
+            "F_min": self.F_min,
+            "focus_distance_mm": self.focus_distance_mm,
+            "object_depth_mm": self.object_depth_mm,
+            "fov_deg": self.fov_deg,
+            "width_px": self.width_px,
+            "height_px": self.height_px,
+            "velocity_range_px_per_ms": self.velocity_range_px_per_ms,
+            "alpha": self.alpha,
+            "alpha_px_per_mm": self.alpha_px_per_mm,
+            "beta": self.beta,
+            "Z_p_mm": self.Z_p_mm,
+            "focal_length_px": self.focal_length_px,
+            "lens_focal_length_mm": self.lens_focal_length_mm,
+            "f_number_focal_mm": self.f_number_focal_mm,
+            "delta_X_a_mm": self.delta_X_a_mm,
+            "a_a_mm_per_ms2": self.a_a_mm_per_ms2,
+            "n_patterns": self.n_patterns,
+            "open_area_mm2": self.open_area_mm2,
+        }
+        return out
+
+    def with_(self, **changes) -> CameraDesign:
+        """A copy with some inputs changed (derived quantities follow)."""
+        return replace(self, **changes)
+
+    def inputs(self) -> dict:
+        return asdict(self)
+
+
+def prototype(object_depth_mm: float = 500.0, r_px: float = 2.0, side: str = "far") -> CameraDesign:
+    """The paper's prototype: Table 1 and Section 4, with focus derived from r = 2 px at 500 mm.
+
+    The focus distance is not published; it follows from r = |beta| R. ``side="far"`` focuses
+    behind the objects (beta < 0, the sign of Eq. 12's r = -beta R).
+    """
+    base = CameraDesign(name="prototype", quoted_a_i_px_per_ms2=0.089)
+    Zf = optics.focus_for_defocus_mm(
+        object_depth_mm, r_px, base.R_mm, base.fov_deg, base.width_px, side
+    )
+    return base.with_(focus_distance_mm=Zf, object_depth_mm=object_depth_mm)
+
+
+PRESETS = {"prototype": prototype}
+
+
+def preset(name: str) -> CameraDesign:
+    """A named camera design."""
+    if name not in PRESETS:
+        raise ParameterError(f"unknown preset {name!r}; valid: {', '.join(sorted(PRESETS))}")
+    return PRESETS[name]()

@@ -1,0 +1,106 @@
+"""Design solver: the opening, focus, r and a_i that make a speed range motion-invariant.
+
+Coverage needs |a_i| T >= s_max, with (Eq. 18 and r = |beta| R)
+
+    |a_i| = 4 r (R_max / R - 1) / T^2.
+
+Given r, solve for R; given the F-number (hence R), solve for r; given neither, keep the base
+design's F-number (its light budget) and solve for r. Then focus so that |beta| R = r: behind
+the object when possible (``side="auto"``), else in front of it.
+"""
+
+from __future__ import annotations
+
+from .camera import CameraDesign, prototype
+from .errors import ParameterError, check_positive
+from .optics import focus_for_defocus_mm
+
+MIN_OPENING_LCOS_PX = 1.0
+"""Smallest displayable opening radius, LCoS pixels."""
+
+MIN_FOCUS_MM = 100.0
+"""Closest focus of the prototype's 25 mm primary lens (estimate), mm."""
+
+
+def _focus(base: CameraDesign, depth: float, r: float, R: float, side: str) -> float:
+    sides = ("far", "near") if side == "auto" else (side,)
+    last: ParameterError | None = None
+    for sd in sides:
+        try:
+            Zf = focus_for_defocus_mm(depth, r, R, base.fov_deg, base.width_px, sd)
+        except ParameterError as exc:
+            last = exc
+            continue
+        if Zf < MIN_FOCUS_MM:
+            last = ParameterError(
+                f"focus limit: r_px = {r:g} px at {depth:g} mm needs focus at {Zf:.4g} mm, closer "
+                f"than the lens's minimum focus of {MIN_FOCUS_MM:g} mm"
+            )
+            continue
+        return Zf
+    assert last is not None
+    raise last
+
+
+def _opening_for_r(base: CameraDesign, s_max: float, T: float, r: float) -> float:
+    R = base.R_max_mm / (1.0 + s_max * T / (4.0 * r))
+    R_min = MIN_OPENING_LCOS_PX * base.lcos_pitch_mm
+    if R < R_min:
+        raise ParameterError(
+            f"aperture limit: covering {s_max:g} px/ms with r = {r:g} px needs an opening of "
+            f"{R / base.lcos_pitch_mm:.3g} LCoS px, below the {MIN_OPENING_LCOS_PX:g}-px minimum; "
+            "allow a larger r_px or a longer exposure"
+        )
+    return R
+
+
+def _r_for_f_number(base: CameraDesign, s_max: float, T: float, F: float) -> tuple[float, float]:
+    if F <= base.F_min:
+        raise ParameterError(
+            f"f_number must be > F_min = {base.F_min:g}: at full aperture the opening cannot "
+            f"move (Delta X_a = 0), got {F!r}"
+        )
+    R = base.R_max_mm * base.F_min / F
+    r = s_max * T / (4.0 * (base.R_max_mm / R - 1.0))
+    return R, r
+
+
+def solve(
+    max_velocity_px_per_ms: float,
+    exposure_ms: float | None = None,
+    object_depth_mm: float | None = None,
+    f_number: float | None = None,
+    r_px: float | None = None,
+    base: CameraDesign | None = None,
+    side: str = "auto",
+) -> CameraDesign:
+    """A design whose invariant range |s| <= |a_i| T covers ``max_velocity_px_per_ms``.
+
+    Raises :class:`ParameterError` naming the limit hit (opening size, focus, F-number).
+    """
+    base = base or prototype()
+    s_max = check_positive("max_velocity_px_per_ms", max_velocity_px_per_ms, "px/ms")
+    exposure = base.exposure_ms if exposure_ms is None else exposure_ms
+    exposure = check_positive("exposure_ms", exposure, "ms")
+    depth = base.object_depth_mm if object_depth_mm is None else object_depth_mm
+    depth = check_positive("object_depth_mm", depth, "mm")
+    if side not in ("auto", "far", "near"):
+        raise ParameterError(f"side must be 'auto', 'far' or 'near', got {side!r}")
+    if f_number is not None and r_px is not None:
+        raise ParameterError("give f_number or r_px, not both: together they fix a_i")
+    T = 0.5 * exposure
+    if r_px is not None:
+        r = check_positive("r_px", r_px, "px")
+        R = _opening_for_r(base, s_max, T, r)
+    else:
+        F = base.F_number if f_number is None else check_positive("f_number", f_number)
+        R, r = _r_for_f_number(base, s_max, T, F)
+    Zf = _focus(base, depth, r, R, side)
+    return base.with_(
+        R_mm=R,
+        focus_distance_mm=Zf,
+        object_depth_mm=depth,
+        exposure_ms=exposure,
+        name=f"solved for |s| <= {s_max:g} px/ms",
+        quoted_a_i_px_per_ms2=None,
+    )

@@ -1,0 +1,38 @@
+"""The one exception type users see for bad input.
+
+Every check raises :class:`ParameterError` with the parameter's name and its valid range, so the
+CLI can print one clear line instead of a traceback.
+"""
+
+from __future__ import annotations
+
+import math
+
+
+class ParameterError(ValueError):
+    """A parameter is outside its valid range; the message names both."""
+
+
+def check_finite(name: str, value: float) -> float:
+    """Return ``value`` as float, or raise if it is NaN or infinite."""
+    v = float(value)
+    if not math.isfinite(v):
+        raise ParameterError(f"{name} must be a finite number, got {value!r}")
+    return v
+
+
+def check_positive(name: str, value: float, unit: str = "") -> float:
+    """Return ``value`` as float, or raise unless it is finite and > 0."""
+    v = check_finite(name, value)
+    if v <= 0:
+        raise ParameterError(f"{name} must be > 0{(' ' + unit) if unit else ''}, got {value!r}")
+    return v
+
+
+def check_range(name: str, value: float, lo: float, hi: float, unit: str = "") -> float:
+    """Return ``value`` as float, or raise unless lo <= value <= hi."""
+    v = check_finite(name, value)
+    if not lo <= v <= hi:
+        u = f" {unit}" if unit else ""
+        raise ParameterError(f"{name} must be in [{lo:g}, {hi:g}]{u}, got {value!r}")
+    return v

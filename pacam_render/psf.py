@@ -1,0 +1,240 @@
+"""Analytic PSFs on the pixel grid (paper Eqs. 1, 13, 14, and the baselines).
+
+Every kernel is a normalised float64 (h, w) array, odd-sized and centred: pixel
+(h//2, w//2) spans [-1/2, 1/2)^2 around the origin, and each value is the PSF *integrated over the
+pixel*, never sampled at its centre. Motion is along +x (columns). The origin is where the point
+images at mid-exposure, t = 0, so that x(t) = s t + a_i t^2 / 2 (Eq. 2).
+
+How it is computed:
+- the motion part comes from :mod:`pacam_render.trajectory`: the exact time spent in each pixel
+  (closed form, so Eq. 1's vertex singularity is integrated, never sampled);
+- with defocus (r > 0), the trajectory is cut into sub-pixel bins of width ``du_px`` whose exact
+  time and centroid are known, and each bin deposits an exactly integrated pillbox
+  (:mod:`pacam_render.pillbox`) at its centroid. This is exact for the discrete schedule at
+  s = 0 (every pattern is an atom) and second order in ``du_px`` otherwise;
+  ``benchmarks/bench_psf.py`` measures its error against run time.
+
+Units: s in px/ms, a_i in px/ms^2, T (half the exposure, the paper's 2T convention) and
+exposure in ms, r in px.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+
+import numpy as np
+
+from . import schedule as sch
+from .errors import ParameterError, check_finite, check_positive
+from .pillbox import quadrant_area
+from .trajectory import Segment, bin_statistics, extent, total_weight
+
+MAX_AUTO_SIZE = 2049
+"""Largest kernel side chosen automatically, px; larger PSFs are truncated with a warning."""
+
+R_DELTA_PX = 1e-3
+"""Below this radius the pillbox is treated as a delta: the L1 change is < 4 r."""
+
+
+class PSFTruncationWarning(UserWarning):
+    """Part of the PSF's mass falls outside the kernel; the rest was renormalised."""
+
+
+def default_du_px(r_px: float) -> float:
+    """Default quadrature bin for the defocused motion PSF, px (see bench_psf.py)."""
+    return min(0.05, r_px / 4.0)
+
+
+def _auto_size(lo: float, hi: float, r: float) -> int:
+    half = max(abs(lo), abs(hi)) + r
+    n = 2 * math.ceil(half + 0.5) + 1
+    return min(n, MAX_AUTO_SIZE)
+
+
+def _shape(size, lo: float, hi: float, r: float) -> tuple[int, int]:
+    if size is None:
+        n = _auto_size(lo, hi, r)
+        return n, n
+    h, w = (size, size) if np.isscalar(size) else size
+    if int(h) != h or int(w) != w or h < 1 or w < 1:
+        raise ParameterError(f"size must be a positive int or (h, w), got {size!r}")
+    return int(h), int(w)
+
+
+def _deposit_discs(kernel, xe, ye, r, centres, masses) -> None:
+    """Add masses * pillbox(centre) coverage to kernel, touching only the pixels each disc meets."""
+    h, w = kernel.shape
+    nw = math.ceil(2 * r) + 2
+    rows = [i for i in range(h) if ye[i] < r and ye[i + 1] > -r]
+    chunk = max(1, 2_000_000 // (nw * max(1, len(rows))))
+    for k0 in range(0, centres.size, chunk):
+        cx, m = centres[k0 : k0 + chunk], masses[k0 : k0 + chunk]
+        j0 = np.floor(cx - r - xe[0]).astype(np.int64)  # first column a disc can touch
+        cols = j0[:, None] + np.arange(nw + 1)[None, :]
+        dx = (xe[0] + cols) - cx[:, None]  # local column edges relative to each centre
+        for i in rows:
+            cum = quadrant_area(dx, np.full_like(dx, ye[i + 1]), r) - quadrant_area(
+                dx, np.full_like(dx, ye[i]), r
+            )
+            cov = np.maximum(np.diff(cum, axis=1), 0.0) * m[:, None]
+            jj = cols[:, :-1]
+            ok = (jj >= 0) & (jj < w)
+            kernel[i] += np.bincount(jj[ok], weights=cov[ok], minlength=w)
+
+
+def kernel_from_trajectory(
+    segments: list[Segment], r_px: float = 0.0, size=None, du_px: float | None = None
+) -> np.ndarray:
+    """Pixel-integrated PSF of a point moving along ``segments``, blurred by a pillbox r_px."""
+    r = float(r_px)
+    if not math.isfinite(r) or r < 0:
+        raise ParameterError(f"r_px must be a finite radius >= 0 px, got {r_px!r}")
+    if r < R_DELTA_PX:
+        r = 0.0
+    lo, hi = extent(segments)
+    h, w = _shape(size, lo, hi, r)
+    xe = np.arange(w + 1) - w // 2 - 0.5
+    ye = np.arange(h + 1) - h // 2 - 0.5
+    kernel = np.zeros((h, w))
+    if r == 0.0:
+        mass, _ = bin_statistics(segments, xe)
+        kernel[h // 2] = mass
+    else:
+        du = default_du_px(r) if du_px is None else check_positive("du_px", du_px, "px")
+        ulo, uhi = max(lo, xe[0] - r), min(hi, xe[-1] + r)
+        if ulo <= uhi:
+            n = max(1, math.ceil((uhi - ulo) / du))
+            ue = np.linspace(ulo - 0.5 * du, uhi + 0.5 * du, n + 2)
+            mass, moment = bin_statistics(segments, ue)
+            keep = mass > 0.0
+            centres = moment[keep] / mass[keep]
+            _deposit_discs(kernel, xe, ye, r, centres, mass[keep] / (math.pi * r * r))
+    return _normalise(kernel, total_weight(segments))
+
+
+def _normalise(kernel: np.ndarray, expected: float) -> np.ndarray:
+    got = float(kernel.sum())
+    if not got > 0.0:
+        raise ParameterError(
+            f"no part of the PSF falls inside the {kernel.shape[0]}x{kernel.shape[1]} kernel; "
+            "enlarge size"
+        )
+    lost = 1.0 - got / expected
+    if lost > 1e-9:
+        warnings.warn(
+            f"{lost:.3%} of the PSF's mass lies outside the {kernel.shape[0]}x{kernel.shape[1]} "
+            "kernel; the rest was renormalised",
+            PSFTruncationWarning,
+            stacklevel=3,
+        )
+    return kernel / got
+
+
+def _check_motion(s: float, a_i: float, T_ms: float) -> tuple[float, float, float]:
+    return (
+        check_finite("s (px/ms)", s),
+        check_finite("a_i (px/ms^2)", a_i),
+        check_positive("T_ms", T_ms, "ms"),
+    )
+
+
+def parabola_segments(s: float, a_i: float, T_ms: float) -> list[Segment]:
+    """Eq. 2 over the whole exposure: x(t) = s t + a_i t^2 / 2, t in [-T, T]."""
+    s, a, T = _check_motion(s, a_i, T_ms)
+    return [Segment(-T, T, 0.0, s, a)]
+
+
+def discrete_segments(s: float, a_i: float, T_ms: float, n_patterns: int = 16) -> list[Segment]:
+    """What the LCoS really shows: n held positions a_i t_k^2 / 2, while the object moves."""
+    s, a, T = _check_motion(s, a_i, T_ms)
+    edges = sch.pattern_edges_ms(T, n_patterns)
+    mids = sch.pattern_mid_times_ms(T, n_patterns)
+    return [
+        Segment(e0, e1, 0.5 * a * tk * tk, s, 0.0)
+        for e0, e1, tk in zip(edges[:-1], edges[1:], mids)
+    ]
+
+
+def levin_psf(s: float, a_i: float, T_ms: float, size=None) -> np.ndarray:
+    """phi (Eq. 1): parabolic motion, in focus. Also Levin et al.'s camera-motion baseline."""
+    return kernel_from_trajectory(parabola_segments(s, a_i, T_ms), 0.0, size)
+
+
+def pillbox_psf(r_px: float, size=None, centre=(0.0, 0.0)) -> np.ndarray:
+    """psi (Eq. 13): a uniform disc of radius r_px with exact pixel coverage."""
+    r = float(r_px)
+    if not math.isfinite(r) or r < 0:
+        raise ParameterError(f"r_px must be a finite radius >= 0 px, got {r_px!r}")
+    cx = check_finite("centre x (px)", centre[0])
+    cy = check_finite("centre y (px)", centre[1])
+    from .pillbox import disc_coverage
+
+    n = _auto_size(-abs(cx) - abs(cy), abs(cx) + abs(cy), r)
+    shape = _shape(size if size is not None else n, 0, 0, r)
+    cov = disc_coverage(r if r >= R_DELTA_PX else 0.0, shape, (cx, cy))
+    return _normalise(cov, 1.0 if r < R_DELTA_PX else math.pi * r * r)
+
+
+def coded_psf(
+    s: float, a_i: float, r_px: float, T_ms: float, size=None, du_px: float | None = None
+) -> np.ndarray:
+    """Phi = phi * psi (Eq. 14): the paper's continuous model of the coded capture."""
+    return kernel_from_trajectory(parabola_segments(s, a_i, T_ms), r_px, size, du_px)
+
+
+def discrete_coded_psf(
+    s: float,
+    a_i: float,
+    r_px: float,
+    T_ms: float,
+    n_patterns: int = 16,
+    size=None,
+    du_px: float | None = None,
+) -> np.ndarray:
+    """The coded capture's exact PSF: n pillboxes, each held 2T/n and smeared by the motion."""
+    segs = discrete_segments(s, a_i, T_ms, n_patterns)
+    return kernel_from_trajectory(segs, r_px, size, du_px)
+
+
+def static_psf(s: float, T_ms: float, r_px: float = 0.0, size=None) -> np.ndarray:
+    """A normal camera: a box of length |s| 2T, blurred by defocus r_px if any."""
+    return kernel_from_trajectory(parabola_segments(s, 0.0, T_ms), r_px, size)
+
+
+def short_exposure_psf(s: float, exposure_ms: float, r_px: float = 0.0, size=None) -> np.ndarray:
+    """A short exposure (the paper's 0.679 ms at F2.8): a box of length |s| exposure."""
+    T = 0.5 * check_positive("exposure_ms", exposure_ms, "ms")
+    return static_psf(s, T, r_px, size)
+
+
+def flutter_psf(
+    s: float, T_ms: float, code: str = sch.RASKAR_2006_CODE, r_px: float = 0.0, size=None
+) -> np.ndarray:
+    """Raskar et al. 2006: the shutter opens and closes per chop of ``code`` over [-T, T]."""
+    s, _, T = _check_motion(s, 0.0, T_ms)
+    bits = sch.flutter_code(code)
+    edges = np.linspace(-T, T, bits.size + 1)
+    segs = [Segment(e0, e1, 0.0, s, 0.0, b) for e0, e1, b in zip(edges[:-1], edges[1:], bits)]
+    return kernel_from_trajectory(segs, r_px, size)
+
+
+def invariance_tail_l1(s: float, a_i: float, T_ms: float) -> float:
+    """L1 distance between the s-PSF (shifted back by s^2 / 2a_i) and the s = 0 PSF.
+
+    Completing the square in Eq. 2, x(t) = a_i (t + s/a_i)^2 / 2 - s^2 / (2 a_i): inside the
+    range |s| <= |a_i| T the motion is the s = 0 parabola seen through a time window shifted by
+    s/a_i, so a fraction |s| / (2 |a_i| T) of the exposure leaves one wing and the same enters
+    the other. The two tails do not overlap, so the L1 distance is |s| / (|a_i| T), at most 1.
+    """
+    s, a, T = _check_motion(s, a_i, T_ms)
+    if a == 0.0 or abs(s) > abs(a) * T:
+        raise ParameterError(
+            f"s = {s:g} px/ms is outside the invariant range |s| <= |a_i| T = {abs(a) * T:g}"
+        )
+    return abs(s) / (abs(a) * T)
+
+
+def vertex_shift_px(s: float, a_i: float) -> float:
+    """Shift of the motion-invariant PSF at speed s: -s^2 / (2 a_i), px."""
+    return -s * s / (2.0 * a_i)
