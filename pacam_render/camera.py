@@ -12,7 +12,7 @@ paper's own scale, N = N_min R_max / R (F2.8 at the full 512-px disc, F9.85 at 1
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass, field, replace
+from dataclasses import asdict, dataclass, field, fields, replace
 
 import numpy as np
 
@@ -212,7 +212,19 @@ class CameraDesign:
         return replace(self, **changes)
 
     def inputs(self) -> dict:
+        """The constructor arguments, JSON-ready (round-trips through :meth:`from_inputs`)."""
         return asdict(self)
+
+    @classmethod
+    def from_inputs(cls, inputs: dict) -> CameraDesign:
+        """Rebuild a design from :meth:`inputs` (e.g. a capture's JSON)."""
+        known = {f.name for f in fields(cls)}
+        unknown = set(inputs) - known
+        if unknown:
+            raise ParameterError(
+                f"unknown camera parameters {sorted(unknown)}; valid: {sorted(known)}"
+            )
+        return cls(**inputs)
 
 
 def prototype(object_depth_mm: float = 500.0, r_px: float = 2.0, side: str = "far") -> CameraDesign:

@@ -6,10 +6,18 @@ import argparse
 import json
 import sys
 from collections.abc import Sequence
+from pathlib import Path
 
-from .camera import PRESETS, CameraDesign, prototype
+import numpy as np
+
+from .camera import PRESETS, CameraDesign, preset, prototype
+from .deconvolve import BM3D_LICENCE, METHODS, deconvolve
 from .design import solve
-from .errors import ParameterError, check_positive
+from .errors import ParameterError, check_finite, check_positive
+from .exrio import read_exr, read_layer, write_exr
+from .outputs import check_writable, prepare_out_dir, write_json
+from .preview import srgb8, write_png
+from .psf import MODES_WITH_PSF, design_psf
 from .report import design_report
 
 
@@ -50,6 +58,89 @@ def _cmd_demo(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_psf(args: argparse.Namespace) -> int:
+    check_positive("--depth", args.depth, "mm")
+    check_finite("--velocity", args.velocity)
+    out = prepare_out_dir(args.out, args.force)
+    cam = preset(args.preset).with_(object_depth_mm=args.depth)
+    size = None if args.size is None else _odd_size(args.size)
+    k = design_psf(cam, args.mode, args.velocity, size)
+    write_exr(out / "psf_analytic.exr", {"psf": k}, force=args.force)
+    write_png(out / "psf_analytic.png", srgb8(k), force=args.force)
+    meta = {
+        **cam.summary(),
+        "mode": args.mode,
+        "velocity_px_per_ms": args.velocity,
+        "size_px": list(k.shape),
+        "psf_origin": "centre pixel = where the point images at mid-exposure (t = 0)",
+    }
+    write_json(out / "psf.json", meta, force=args.force)
+    print(
+        f"wrote {out}/psf_analytic.exr ({k.shape[0]}x{k.shape[1]} px), psf_analytic.png, psf.json"
+    )
+    return 0
+
+
+def _odd_size(n: int) -> int:
+    if n < 1 or n % 2 == 0:
+        raise ParameterError(f"--size must be a positive odd number of px, got {n}")
+    return n
+
+
+def _capture_meta(capture: Path) -> dict:
+    path = capture.with_suffix(".json")
+    if not path.is_file():
+        raise ParameterError(f"--psf analytic needs the capture's parameters in {path}")
+    try:
+        return json.loads(path.read_text())
+    except json.JSONDecodeError as exc:
+        raise ParameterError(f"{path} is not valid JSON ({exc})") from exc
+
+
+def _load_psf(spec: str, capture: Path, meta: dict | None) -> np.ndarray:
+    if spec == "analytic":
+        meta = meta or _capture_meta(capture)
+        cam = CameraDesign.from_inputs(meta["camera"])
+        return design_psf(cam, meta.get("mode", "coded"), 0.0)
+    path = capture.parent / "psf_rendered.exr" if spec == "rendered" else Path(spec)
+    if path.suffix == ".npy":
+        if not path.is_file():
+            raise ParameterError(f"--psf file {path} does not exist")
+        return np.load(path)
+    layers = read_exr(path)
+    if "psf" in layers:
+        return layers["psf"]
+    if len(layers) == 1:
+        return next(iter(layers.values()))
+    raise ParameterError(f"{path} has no 'psf' layer; it has: {', '.join(sorted(layers))}")
+
+
+def _cmd_deconvolve(args: argparse.Namespace) -> int:
+    capture = Path(args.capture)
+    image = read_layer(capture, args.layer)
+    meta = _capture_meta(capture) if capture.with_suffix(".json").is_file() else None
+    k = _load_psf(args.psf, capture, meta)
+    kw = {}
+    if args.method in ("wiener", "bm3d"):
+        sigma = (
+            args.noise_sigma if args.noise_sigma is not None else (meta or {}).get("noise_sigma")
+        )
+        kw["noise_sigma"] = sigma
+    if args.method == "bm3d":
+        print(f"note: {BM3D_LICENCE}", file=sys.stderr)
+    out = Path(args.out)
+    if out.suffix not in (".exr", ".png"):
+        raise ParameterError(f"--out must end in .exr or .png, got {out}")
+    check_writable(out, args.force)
+    est = deconvolve(image, k, args.method, **kw)
+    if out.suffix == ".exr":
+        write_exr(out, {"deconvolved": est}, force=args.force)
+    else:
+        write_png(out, srgb8(est), force=args.force)
+    print(f"wrote {out} ({args.method}, PSF {k.shape[0]}x{k.shape[1]} px from {args.psf})")
+    return 0
+
+
 def _add_design_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--preset", default="prototype", help="base camera (default: prototype)")
     p.add_argument("--depth", type=float, metavar="MM", help="object depth Z, mm (default 500)")
@@ -77,6 +168,31 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("design", help="derive the camera's optics, schedule, r and a_i")
     _add_design_args(p)
     p.set_defaults(func=_cmd_design)
+    p = sub.add_parser("psf", help="write an analytic PSF (EXR, PNG preview, JSON)")
+    p.add_argument("--preset", default="prototype")
+    p.add_argument("--depth", type=float, required=True, metavar="MM", help="point depth, mm")
+    p.add_argument("--velocity", type=float, required=True, metavar="PX_PER_MS")
+    p.add_argument("--mode", default="coded", choices=MODES_WITH_PSF)
+    p.add_argument("--size", type=int, metavar="PX", help="odd kernel side (default: fits the PSF)")
+    p.add_argument("--out", required=True, metavar="DIR")
+    p.add_argument("--force", action="store_true", help="overwrite existing results")
+    p.set_defaults(func=_cmd_psf)
+    p = sub.add_parser("deconvolve", help="deblur a capture with one PSF")
+    p.add_argument("capture", metavar="CAPTURE.exr")
+    p.add_argument("--psf", default="analytic", help="analytic | rendered | PATH (.exr or .npy)")
+    p.add_argument(
+        "--method",
+        default="wiener",
+        choices=METHODS,
+        help=f"bm3d is optional: pip install bm3d ({BM3D_LICENCE})",
+    )
+    p.add_argument("--layer", default="capture", help="EXR layer to deconvolve")
+    p.add_argument(
+        "--noise-sigma", type=float, help="noise std (default: capture JSON or estimate)"
+    )
+    p.add_argument("--out", required=True, metavar="FILE", help=".exr (float) or .png (preview)")
+    p.add_argument("--force", action="store_true", help="overwrite an existing FILE")
+    p.set_defaults(func=_cmd_deconvolve)
     p = sub.add_parser("demo", help="the main job on built-in defaults")
     p.set_defaults(func=_cmd_demo)
     return parser

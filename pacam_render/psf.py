@@ -238,3 +238,30 @@ def invariance_tail_l1(s: float, a_i: float, T_ms: float) -> float:
 def vertex_shift_px(s: float, a_i: float) -> float:
     """Shift of the motion-invariant PSF at speed s: -s^2 / (2 a_i), px."""
     return -s * s / (2.0 * a_i)
+
+
+MODES_WITH_PSF = ("coded", "coded_continuous", "levin", "normal", "short", "flutter")
+
+
+def design_psf(design, mode: str = "coded", s: float = 0.0, size=None, short_exposure_ms=0.679):
+    """The analytic PSF of a :class:`~pacam_render.camera.CameraDesign` capture at speed s px/ms.
+
+    ``coded`` is the discrete n-pattern schedule the camera really shows; ``coded_continuous``
+    is Eq. 14; ``levin`` moves the camera body (in focus); ``normal``, ``short`` and ``flutter``
+    keep the aperture still and use the design's defocus r (zero when focused on the object).
+    """
+    T, r, a = design.T_ms, design.r_px, design.a_i_px_per_ms2
+    if mode in ("coded", "coded_continuous"):
+        design.require_parallax()
+        if mode == "coded":
+            return discrete_coded_psf(s, a, r, T, design.n_patterns, size)
+        return coded_psf(s, a, r, T, size)
+    if mode == "levin":
+        return levin_psf(s, a, T, size)
+    if mode == "normal":
+        return static_psf(s, T, r, size)
+    if mode == "short":
+        return short_exposure_psf(s, short_exposure_ms, r, size)
+    if mode == "flutter":
+        return flutter_psf(s, T, r_px=r, size=size)
+    raise ParameterError(f"unknown mode {mode!r}; valid: {', '.join(MODES_WITH_PSF)}")

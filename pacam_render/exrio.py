@@ -1,0 +1,87 @@
+"""Multi-layer float32 OpenEXR files: layer "name" holds channels name.R/G/B, or name.Y for a
+single-channel layer. Reading a missing or corrupt file, or a missing layer, is a clear error."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+
+from .errors import ParameterError
+from .outputs import atomic_save
+
+RGB = ("R", "G", "B")
+
+
+def _channels(layers: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    out = {}
+    for name, arr in layers.items():
+        a = np.asarray(arr)
+        if not np.all(np.isfinite(a)):
+            raise ParameterError(f"layer {name!r} contains NaN or infinite values; not written")
+        a = np.ascontiguousarray(a, dtype=np.float32)
+        if a.ndim == 2:
+            out[f"{name}.Y"] = a
+        elif a.ndim == 3 and a.shape[2] == 3:
+            for c, ch in enumerate(RGB):
+                out[f"{name}.{ch}"] = np.ascontiguousarray(a[..., c])
+        elif a.ndim == 3 and a.shape[2] == 1:
+            out[f"{name}.Y"] = np.ascontiguousarray(a[..., 0])
+        else:
+            raise ParameterError(
+                f"layer {name!r} must be (H, W), (H, W, 1) or (H, W, 3), got {a.shape}"
+            )
+    return out
+
+
+def write_exr(path: str | os.PathLike, layers: dict[str, np.ndarray], force: bool = False) -> Path:
+    """Write float32 layers atomically (temporary file + rename)."""
+    import OpenEXR
+
+    chans = _channels(layers)
+    header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
+
+    def save(tmp: str) -> None:
+        with OpenEXR.File(header, dict(chans)) as f:  # OpenEXR replaces the dict's arrays: copy
+            f.write(tmp)
+
+    return atomic_save(path, save, force)
+
+
+def read_exr(path: str | os.PathLike) -> dict[str, np.ndarray]:
+    """All layers of an EXR, as float32 (H, W) or (H, W, 3) arrays."""
+    import OpenEXR
+
+    p = Path(path)
+    if not p.is_file():
+        raise ParameterError(f"EXR file {p} does not exist")
+    try:
+        with OpenEXR.File(str(p), separate_channels=True) as f:
+            raw = {k: np.array(v.pixels, dtype=np.float32) for k, v in f.channels().items()}
+    except Exception as exc:  # OpenEXR raises RuntimeError for corrupt files
+        raise ParameterError(f"{p} is not a readable OpenEXR file ({exc})") from exc
+    groups: dict[str, dict[str, np.ndarray]] = {}
+    for key, arr in raw.items():
+        layer, _, ch = key.rpartition(".")
+        groups.setdefault(layer, {})[ch] = arr
+    out = {}
+    for layer, chans in groups.items():
+        if set(RGB) <= set(chans):
+            out[layer] = np.stack([chans[c] for c in RGB], axis=-1)
+        elif len(chans) == 1:
+            out[layer] = next(iter(chans.values()))
+        else:
+            for ch, arr in chans.items():
+                out[f"{layer}.{ch}" if layer else ch] = arr
+    return out
+
+
+def read_layer(path: str | os.PathLike, name: str) -> np.ndarray:
+    """One layer, or an error naming the layers the file has."""
+    layers = read_exr(path)
+    if name not in layers:
+        raise ParameterError(
+            f"{path} has no layer {name!r}; it has: {', '.join(sorted(layers)) or '(none)'}"
+        )
+    return layers[name]

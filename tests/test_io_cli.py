@@ -1,0 +1,139 @@
+"""EXR I/O, safe outputs, and the psf / deconvolve commands end to end."""
+
+import json
+
+import numpy as np
+import pytest
+from scipy.signal import fftconvolve
+from skimage import data
+
+from pacam_render import exrio, psf
+from pacam_render.camera import CameraDesign, prototype
+from pacam_render.cli import main
+from pacam_render.deconvolve import psnr
+from pacam_render.errors import ParameterError
+
+
+def test_exr_round_trip_is_bit_exact(tmp_path):
+    rng = np.random.default_rng(3)
+    layers = {"capture": rng.random((6, 7, 3)).astype(np.float32), "depth": rng.random((6, 7))}
+    p = exrio.write_exr(tmp_path / "a.exr", layers)
+    back = exrio.read_exr(p)
+    assert np.array_equal(back["capture"], layers["capture"])
+    assert np.array_equal(back["depth"], layers["depth"].astype(np.float32))
+
+
+def test_exr_errors(tmp_path):
+    p = exrio.write_exr(tmp_path / "a.exr", {"capture": np.zeros((4, 4))})
+    with pytest.raises(ParameterError, match="already exists"):
+        exrio.write_exr(p, {"capture": np.ones((4, 4))})
+    assert exrio.read_layer(p, "capture").max() == 0.0  # the refused write changed nothing
+    with pytest.raises(ParameterError, match="no layer 'psf'; it has: capture"):
+        exrio.read_layer(p, "psf")
+    bad = tmp_path / "bad.exr"
+    bad.write_bytes(b"not an exr at all")
+    with pytest.raises(ParameterError, match="not a readable OpenEXR"):
+        exrio.read_exr(bad)
+    with pytest.raises(ParameterError, match="NaN"):
+        exrio.write_exr(tmp_path / "n.exr", {"x": np.full((2, 2), np.nan)})
+    assert not (tmp_path / "n.exr").exists()
+    assert [f.name for f in tmp_path.iterdir() if f.name.startswith(".")] == []  # no temp left
+
+
+def test_camera_inputs_round_trip():
+    cam = prototype()
+    assert CameraDesign.from_inputs(json.loads(json.dumps(cam.inputs()))) == cam
+    with pytest.raises(ParameterError, match="unknown camera parameters"):
+        CameraDesign.from_inputs({"bogus": 1})
+
+
+def test_cli_psf_writes_registered_kernel(tmp_path, capsys):
+    out = tmp_path / "p"
+    assert (
+        main(["psf", "--depth", "500", "--velocity", "0.5", "--size", "51", "--out", str(out)]) == 0
+    )
+    k = exrio.read_layer(out / "psf_analytic.exr", "psf")
+    meta = json.loads((out / "psf.json").read_text())
+    ref = psf.discrete_coded_psf(0.5, meta["a_i_px_per_ms2"], meta["r_px"], 22.5, 16, size=51)
+    assert k.shape == (51, 51) and np.allclose(k, ref, atol=1e-7)
+    for key in (
+        "r_px",
+        "beta_px_per_mm",
+        "a_i_px_per_ms2",
+        "R_mm",
+        "focus_distance_mm",
+        "fov_deg",
+        "width_px",
+    ):
+        assert key in meta
+    assert main(["psf", "--depth", "500", "--velocity", "0.5", "--out", str(out)]) == 2
+    assert "already holds results" in capsys.readouterr().err
+    assert main(["psf", "--depth", "-5", "--velocity", "0.5", "--out", str(tmp_path / "q")]) == 2
+    assert (
+        main(
+            [
+                "psf",
+                "--depth",
+                "500",
+                "--velocity",
+                "0",
+                "--size",
+                "4",
+                "--out",
+                str(tmp_path / "q"),
+            ]
+        )
+        == 2
+    )
+
+
+def test_cli_deconvolve_analytic(tmp_path, capsys):
+    cam = prototype()
+    x = data.camera()[::4, ::4] / 255.0
+    k = psf.design_psf(cam, "coded", 0.0)
+    pad = k.shape[0]
+    y = fftconvolve(np.pad(x, pad, mode="reflect"), k, mode="same")[pad:-pad, pad:-pad]
+    y = y + np.random.default_rng(0).normal(0, 0.01, y.shape)
+    cap = tmp_path / "capture.exr"
+    exrio.write_exr(cap, {"capture": y})
+    (tmp_path / "capture.json").write_text(
+        json.dumps({"camera": cam.inputs(), "mode": "coded", "noise_sigma": 0.01})
+    )
+    out = tmp_path / "deblurred.exr"
+    assert main(["deconvolve", str(cap), "--psf", "analytic", "--out", str(out)]) == 0
+    est = exrio.read_layer(out, "deconvolved")
+    assert psnr(est, x) > psnr(y, x) + 3.0
+    # errors: missing layer, missing file, wrong suffix, no overwrite
+    assert main(["deconvolve", str(cap), "--layer", "nope", "--out", str(tmp_path / "o.exr")]) == 2
+    assert "no layer 'nope'" in capsys.readouterr().err
+    assert (
+        main(["deconvolve", str(tmp_path / "missing.exr"), "--out", str(tmp_path / "o.exr")]) == 2
+    )
+    assert main(["deconvolve", str(cap), "--out", str(tmp_path / "o.txt")]) == 2
+    assert main(["deconvolve", str(cap), "--out", str(out)]) == 2
+    assert "already exists" in capsys.readouterr().err
+
+
+def test_cli_deconvolve_psf_from_file(tmp_path):
+    x = data.camera()[::8, ::8] / 255.0
+    k = psf.pillbox_psf(2.0, size=7)
+    y = fftconvolve(np.pad(x, 7, mode="reflect"), k, mode="same")[7:-7, 7:-7]
+    exrio.write_exr(tmp_path / "c.exr", {"capture": y})
+    np.save(tmp_path / "k.npy", k)
+    out = tmp_path / "d.png"
+    assert (
+        main(
+            [
+                "deconvolve",
+                str(tmp_path / "c.exr"),
+                "--psf",
+                str(tmp_path / "k.npy"),
+                "--method",
+                "rl",
+                "--out",
+                str(out),
+            ]
+        )
+        == 0
+    )
+    assert out.stat().st_size > 0
