@@ -141,6 +141,19 @@ def _cmd_deconvolve(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_reproduce(args: argparse.Namespace) -> int:
+    from . import reproduce
+
+    names = list(reproduce.FIGURES) if args.figure == "all" else [args.figure]
+    out = Path(args.out)
+    if out.exists() and not out.is_dir():
+        raise ParameterError(f"--out {out} exists and is not a folder")
+    out.mkdir(parents=True, exist_ok=True)
+    for fig in reproduce.run(names, out, args.quick, args.force, args.seed):
+        print(f"{fig.name}: {out / fig.name}.csv .png .md ({fig.seconds:.1f} s)")
+    return 0
+
+
 def _add_design_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--preset", default="prototype", help="base camera (default: prototype)")
     p.add_argument("--depth", type=float, metavar="MM", help="object depth Z, mm (default 500)")
@@ -193,6 +206,15 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", required=True, metavar="FILE", help=".exr (float) or .png (preview)")
     p.add_argument("--force", action="store_true", help="overwrite an existing FILE")
     p.set_defaults(func=_cmd_deconvolve)
+    from .reproduce import FIGURES
+
+    p = sub.add_parser("reproduce", help="the paper's simulation figures: CSV, PNG, Markdown")
+    p.add_argument("figure", choices=[*FIGURES, "all"])
+    p.add_argument("--quick", action="store_true", help="fewer images and points (< 1 min each)")
+    p.add_argument("--out", required=True, metavar="DIR")
+    p.add_argument("--seed", type=int, default=0, help="noise seed (default 0)")
+    p.add_argument("--force", action="store_true", help="overwrite existing figure files")
+    p.set_defaults(func=_cmd_reproduce)
     p = sub.add_parser("demo", help="the main job on built-in defaults")
     p.set_defaults(func=_cmd_demo)
     return parser

@@ -150,18 +150,23 @@ def prior_spectrum(Y: np.ndarray, H2: np.ndarray, shape, sigma: float) -> np.nda
     return c * g
 
 
-def _wiener2d(y: np.ndarray, k: np.ndarray, sigma: float, nsr, scale: float) -> np.ndarray:
-    yp, keep = taper_pad(y, pad_width(k.shape))
-    H = psf_to_otf(k, yp.shape)
-    Y = sfft.rfft2(yp, workers=WORKERS)
+def wiener_spectrum(Y, H, shape, sigma: float, nsr="prior", scale: float = 1.0) -> np.ndarray:
+    """Wiener estimate in the Fourier domain: H* Y / (|H|^2 + NSR(f)), rfft layout."""
     H2 = (H * H.conj()).real
     if isinstance(nsr, str):
-        reg = scale * sigma**2 / np.maximum(prior_spectrum(Y, H2, yp.shape, sigma), 1e-300)
+        reg = scale * sigma**2 / np.maximum(prior_spectrum(Y, H2, shape, sigma), 1e-300)
         reg[0, 0] = 0.0  # the mean is measured, not guessed: no regularisation at DC
         denom = H2 + reg
     else:
         denom = H2 + scale * float(nsr)
-    X = H.conj() * Y / np.maximum(denom, 1e-300)
+    return H.conj() * Y / np.maximum(denom, 1e-300)
+
+
+def _wiener2d(y: np.ndarray, k: np.ndarray, sigma: float, nsr, scale: float) -> np.ndarray:
+    yp, keep = taper_pad(y, pad_width(k.shape))
+    H = psf_to_otf(k, yp.shape)
+    Y = sfft.rfft2(yp, workers=WORKERS)
+    X = wiener_spectrum(Y, H, yp.shape, sigma, nsr, scale)
     return sfft.irfft2(X, s=yp.shape, workers=WORKERS)[keep]
 
 

@@ -1,0 +1,332 @@
+"""``pacam reproduce``: the paper's simulation figures (Figs. 6-9), each as CSV, PNG and a
+Markdown summary that sets the paper's claim beside our numbers.
+
+Shared set-up (Section 3): scikit-image photographs instead of the paper's 30 Flickr images
+(:data:`pacam_render.experiments.IMAGE_NAMES`), Wiener deconvolution, Gaussian noise sigma = 0.01
+on [0, 1] images unless the photon budget matters, exposure 2T = 45 ms, r = 2 px unless swept.
+Every curve is computed twice where it matters: with the paper's continuous model (Eq. 14) and
+with the 16 held patterns the camera really shows.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from . import experiments as E
+from . import psf as P
+from .camera import prototype
+from .errors import ParameterError
+from .outputs import atomic_save, write_text
+
+T_MS = 22.5
+SIGMA = 0.01
+R_PX = 2.0
+MODELS = {"Eq. 14 (continuous)": "continuous", "16 patterns (camera)": "discrete"}
+
+
+@dataclass
+class Figure:
+    """One reproduced figure: its rows, its plot and its summary."""
+
+    name: str
+    rows: list[dict]
+    plot: Callable[[Path], None]
+    summary: str
+    seconds: float = 0.0
+    extra: dict = field(default_factory=dict)
+
+
+def _scale(quick: bool) -> dict:
+    return (
+        {"images": 4, "speeds": 8, "radii": 7, "depths": 9}
+        if quick
+        else {"images": None, "speeds": 20, "radii": 14, "depths": 21}
+    )
+
+
+def coded_kernel(model: str, s: float, a: float, r: float, n: int = 16) -> np.ndarray:
+    if model == "continuous":
+        return P.coded_psf(s, a, r, T_MS)
+    return P.discrete_coded_psf(s, a, r, T_MS, n)
+
+
+def _pad_for(kernels: list[np.ndarray]) -> int:
+    return max(max(k.shape) for k in kernels) // 2 + 1
+
+
+def _mean_sem(v: np.ndarray) -> tuple[float, float]:
+    return E.summarise(v)
+
+
+# --- Fig. 6 -------------------------------------------------------------------------------------
+FIG6_A = (0.008, 0.016, 0.032, 0.064, 0.128, 0.256)
+
+
+def fig6(quick: bool, seed: int = 0) -> Figure:
+    sc = _scale(quick)
+    imgs = E.load_images(sc["images"])
+    speeds = np.geomspace(0.01, 4.0, sc["speeds"])
+    rows = []
+    for label, model in MODELS.items():
+        for a in FIG6_A:
+            k0 = coded_kernel(model, 0.0, a, R_PX)
+            ks = [coded_kernel(model, s, a, R_PX) for s in speeds]
+            scenes = E.Scenes(imgs, _pad_for([k0, *ks]))
+            for s, k in zip(speeds, ks):
+                p = E.simulate(scenes, k, k0, E.gaussian_noise(SIGMA), seed, margin_px=16)
+                m, se = _mean_sem(p)
+                rows.append(
+                    {
+                        "model": label,
+                        "a_i_px_per_ms2": a,
+                        "velocity_px_per_ms": float(s),
+                        "psnr_db": m,
+                        "psnr_sem_db": se,
+                        "in_range": bool(s <= a * T_MS),
+                    }
+                )
+    return Figure("fig6", rows, lambda path: _plot_fig6(rows, path), _summary_fig6(rows))
+
+
+def _curves(rows, key_model, xkey, gkey):
+    out = {}
+    for r in rows:
+        if r["model"] == key_model:
+            out.setdefault(r[gkey], []).append((r[xkey], r["psnr_db"]))
+    return {g: np.array(v) for g, v in out.items()}
+
+
+def _plot_fig6(rows, path: Path) -> None:
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4), sharey=True)
+    for ax, label in zip(axes, MODELS):
+        for a, c in _curves(rows, label, "velocity_px_per_ms", "a_i_px_per_ms2").items():
+            ax.semilogx(c[:, 0], c[:, 1], "o-", ms=3, label=f"a_i = {a:g}")
+        ax.set_title(label)
+        ax.set_xlabel("object speed s_i (px/ms)")
+        ax.grid(True, which="both", alpha=0.3)
+    axes[0].set_ylabel("PSNR (dB)")
+    axes[1].legend(fontsize=8)
+    fig.suptitle("Fig. 6: PSNR vs object speed, deconvolved with the s = 0 PSF")
+    _save_fig(fig, path)
+
+
+def flattening_db(curve: np.ndarray) -> float:
+    """How far PSNR falls from its peak to the fastest speed, dB (small = flat)."""
+    return float(curve[:, 1].max() - curve[-1, 1])
+
+
+def _summary_fig6(rows) -> str:
+    lines = [
+        "| model | a_i | range (px/ms) | peak PSNR (dB) | PSNR at 4 px/ms | fall (dB) |",
+        "|---|---|---|---|---|---|",
+    ]
+    stats = {}
+    for label in MODELS:
+        curves = _curves(rows, label, "velocity_px_per_ms", "a_i_px_per_ms2")
+        stats[label] = [(c[:, 1].max(), flattening_db(c)) for c in curves.values()]
+        for a, c in curves.items():
+            lines.append(
+                f"| {label} | {a:g} | {a * T_MS:.2f} | {c[:, 1].max():.2f} | "
+                f"{c[-1, 1]:.2f} | {flattening_db(c):.2f} |"
+            )
+    label = next(iter(MODELS))
+    peaks, falls = np.array(stats[label]).T
+    agree = bool(np.all(np.diff(peaks) < 0) and falls[-1] < falls[0])
+    return "\n".join(
+        [
+            "# Fig. 6: PSNR vs object speed",
+            "",
+            "**Paper:** PSNR is high for slow objects; a higher a_i flattens the curve over a wider "
+            "range of speeds and lowers its peak.",
+            "",
+            f"**Ours ({label}):** the peak falls from {peaks[0]:.1f} dB (a_i = {FIG6_A[0]:g}) to "
+            f"{peaks[-1]:.1f} dB (a_i = {FIG6_A[-1]:g}), and the fall from the peak to 4 px/ms "
+            f"shrinks from {falls[0]:.1f} to {falls[-1]:.1f} dB. **{'Agrees' if agree else 'Differs'}.**",
+            "",
+            "**Where the camera differs from the model:** the 16 held patterns jump by up to "
+            "a_i T (2T/16) px between patterns (8 px at a_i = 0.128), so at high a_i the PSF is 16 "
+            "separate discs whose spectrum has near-zeros that move with speed: PSNR dips by "
+            "several dB at some speeds inside the range, which Eq. 14 does not predict.",
+            "",
+            "Set-up: r = 2 px, 2T = 45 ms, Gaussian sigma = 0.01, Wiener with the 1/f^2 prior; each "
+            "estimate is aligned (sub-pixel) before PSNR because the invariant PSF shifts the image "
+            "by -s^2/(2 a_i). Mean over the images (standard error in the CSV).",
+            "",
+            *lines,
+        ]
+    )
+
+
+# --- Fig. 9 -------------------------------------------------------------------------------------
+FIG9_ASSUMED_MM = (300.0, 500.0, 1000.0, 2000.0, 3000.0)
+
+
+def fig9(quick: bool, seed: int = 0) -> Figure:
+    sc = _scale(quick)
+    imgs = E.load_images(sc["images"])
+    rows = []
+    assumed = FIG9_ASSUMED_MM[::2] if quick else FIG9_ASSUMED_MM
+    for Za in assumed:
+        cam = prototype(object_depth_mm=Za, side="near")  # the far side is impossible past ~750 mm
+        k_assumed = P.design_psf(cam, "coded", 0.0)
+        depths = Za * np.geomspace(0.8, 1.25, sc["depths"])
+        kernels = [P.design_psf(cam.with_(object_depth_mm=float(Z)), "coded", 0.0) for Z in depths]
+        scenes = E.Scenes(imgs, _pad_for([k_assumed, *kernels]))
+        for Z, k in zip(depths, kernels):
+            p = E.simulate(scenes, k, k_assumed, E.gaussian_noise(SIGMA), seed, margin_px=16)
+            m, se = _mean_sem(p)
+            cz = cam.with_(object_depth_mm=float(Z))
+            rows.append(
+                {
+                    "assumed_depth_mm": Za,
+                    "depth_mm": float(Z),
+                    "displacement": float(Z / Za),
+                    "r_px": cz.r_px,
+                    "a_i_px_per_ms2": cz.a_i_px_per_ms2,
+                    "psnr_db": m,
+                    "psnr_sem_db": se,
+                }
+            )
+    return Figure("fig9", rows, lambda path: _plot_fig9(rows, path), _summary_fig9(rows))
+
+
+def _by_assumed(rows):
+    out = {}
+    for r in rows:
+        out.setdefault(r["assumed_depth_mm"], []).append((r["depth_mm"], r["psnr_db"]))
+    return {k: np.array(v) for k, v in out.items()}
+
+
+def tolerated_range_mm(curve: np.ndarray, drop_db: float = 1.0) -> tuple[float, float]:
+    """Depths where PSNR stays within drop_db of the peak, interpolated linearly in log depth."""
+    lz, p = np.log(curve[:, 0]), curve[:, 1]
+    level = p.max() - drop_db
+    k = int(np.argmax(p))
+    lo, hi = lz[0], lz[-1]
+    for i in range(k, 0, -1):
+        if p[i - 1] < level:
+            lo = lz[i - 1] + (level - p[i - 1]) / (p[i] - p[i - 1]) * (lz[i] - lz[i - 1])
+            break
+    for i in range(k, lz.size - 1):
+        if p[i + 1] < level:
+            hi = lz[i] + (p[i] - level) / (p[i] - p[i + 1]) * (lz[i + 1] - lz[i])
+            break
+    return float(np.exp(lo)), float(np.exp(hi))
+
+
+def peak_gap_db(curve: np.ndarray, assumed_mm: float) -> float:
+    """Best PSNR minus PSNR at the assumed depth, dB (0 when the peak is there)."""
+    at = curve[np.argmin(np.abs(np.log(curve[:, 0] / assumed_mm))), 1]
+    return float(curve[:, 1].max() - at)
+
+
+def _plot_fig9(rows, path: Path) -> None:
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(7, 4))
+    for Za, c in _by_assumed(rows).items():
+        (line,) = ax.semilogx(c[:, 0], c[:, 1], "o-", ms=3, label=f"assumed {Za:g} mm")
+        ax.axvline(Za, ls=":", color=line.get_color())
+    ax.set_xlabel("object depth (mm, log)")
+    ax.set_ylabel("PSNR (dB)")
+    ax.set_title("Fig. 9: PSNR vs object depth, deconvolved with the assumed-depth PSF")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=8)
+    _save_fig(fig, path)
+
+
+def _summary_fig9(rows) -> str:
+    lines = [
+        "| assumed depth (mm) | best depth (mm) | PSNR gap at assumed (dB) | 1-dB range (mm) "
+        "| range / assumed |",
+        "|---|---|---|---|---|",
+    ]
+    widths, gaps = [], []
+    for Za, c in _by_assumed(rows).items():
+        lo, hi = tolerated_range_mm(c)
+        widths.append((hi - lo) / Za)
+        gaps.append(peak_gap_db(c, Za))
+        zpk = c[np.argmax(c[:, 1]), 0]
+        lines.append(
+            f"| {Za:g} | {zpk:.0f} | {gaps[-1]:.2f} | {lo:.0f}-{hi:.0f} | {widths[-1]:.3f} |"
+        )
+    agree = max(gaps) < 0.25 and widths[-1] > widths[0]
+    return "\n".join(
+        [
+            "# Fig. 9: PSNR vs object depth",
+            "",
+            "**Paper:** PSNR peaks where the object is at the assumed depth; the tolerated range is "
+            "narrow near the camera and wider far away, like depth of field.",
+            "",
+            f"**Ours:** PSNR at the assumed depth is within {max(gaps):.2f} dB of each curve's best; "
+            f"the 1-dB range grows from {widths[0]:.3f} to {widths[-1]:.3f} of the assumed depth. "
+            f"**{'Agrees' if agree else 'Differs'}.**",
+            "",
+            "Why it widens: r and a_i depend on depth through 1/Z (Eqs. 9, 12, 18), so a fixed "
+            "relative displacement changes them less when Z is large. Why the best depth can sit "
+            "slightly nearer than the assumed one far away: there the curve is flat, and an object "
+            "closer to the focal plane is captured sharper (smaller r), which can outweigh the small "
+            "PSF mismatch. Nearer than the focal plane itself, beta changes sign, the parabola is "
+            "mirrored and PSNR collapses.",
+            "",
+            "Set-up: the prototype refocused for each assumed depth so that r = 2 px there "
+            "(focus in front of the objects: beyond about 750 mm a 2-px blur cannot be made by "
+            "focusing behind them), s = 0, 16 patterns, Gaussian sigma = 0.01.",
+            "",
+            *lines,
+        ]
+    )
+
+
+# --- writing ------------------------------------------------------------------------------------
+def _save_fig(fig, path: Path) -> None:
+    import matplotlib.pyplot as plt
+
+    fig.tight_layout()
+    atomic_save(path, lambda tmp: fig.savefig(tmp, dpi=110, format="png"), force=True)
+    plt.close(fig)
+
+
+def _csv(rows: list[dict]) -> str:
+    buf = io.StringIO()
+    w = csv.DictWriter(buf, fieldnames=list(rows[0]))
+    w.writeheader()
+    w.writerows(rows)
+    return buf.getvalue()
+
+
+FIGURES: dict[str, Callable[[bool, int], Figure]] = {"fig6": fig6, "fig9": fig9}
+
+
+def run(names: list[str], out: Path, quick: bool, force: bool, seed: int = 0) -> list[Figure]:
+    """Compute and write each figure: NAME.csv, NAME.png, NAME.md in ``out``."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    unknown = [n for n in names if n not in FIGURES]
+    if unknown:
+        raise ParameterError(f"unknown figure {unknown}; valid: {', '.join(FIGURES)}, all")
+    for n in names:  # refuse before computing anything
+        for ext in ("csv", "png", "md"):
+            if (out / f"{n}.{ext}").exists() and not force:
+                raise ParameterError(f"{out / f'{n}.{ext}'} exists; pass --force to overwrite it")
+    done = []
+    for n in names:
+        t0 = time.perf_counter()
+        fig = FIGURES[n](quick, seed)
+        fig.seconds = time.perf_counter() - t0
+        write_text(out / f"{n}.csv", _csv(fig.rows), force=True)
+        fig.plot(out / f"{n}.png")
+        stamp = f"\n\nComputed in {fig.seconds:.1f} s ({'--quick' if quick else 'full'} run).\n"
+        write_text(out / f"{n}.md", fig.summary + stamp, force=True)
+        done.append(fig)
+    return done
