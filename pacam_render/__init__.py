@@ -21,10 +21,28 @@ from .psf import (
     static_psf,
 )
 from .report import design_report
+from .sensor_model import (
+    DEFAULT_LIGHT_LEVEL,
+    SensorCapture,
+    SensorModel,
+    aperture_area_mm2,
+    available_presets,
+    photons_from_render,
+    photons_per_unit,
+    simulate_capture,
+)
 
 __version__ = version("pacam_render")
 
 __all__ = [
+    "DEFAULT_LIGHT_LEVEL",
+    "SensorCapture",
+    "SensorModel",
+    "aperture_area_mm2",
+    "available_presets",
+    "photons_from_render",
+    "photons_per_unit",
+    "simulate_capture",
     "CameraDesign",
     "PSFTruncationWarning",
     "ParameterError",
