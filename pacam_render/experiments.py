@@ -24,7 +24,7 @@ import numpy as np
 import scipy.fft as sfft
 
 from .deconvolve import WORKERS, pad_width, psf_to_otf, taper_pad, wiener_spectrum
-from .errors import ParameterError
+from .errors import ParameterError, check_positive
 
 IMAGE_NAMES = (
     "astronaut",
@@ -157,6 +157,27 @@ def gaussian_noise(sigma: float) -> NoiseFn:
 
     def add(clean: np.ndarray, rng: np.random.Generator) -> tuple[np.ndarray, float]:
         return clean + rng.normal(0.0, sigma, clean.shape), sigma
+
+    return add
+
+
+def sensor_noise(model, electrons_per_white: float, exposure_ms: float) -> NoiseFn:
+    """A physical capture through :class:`~pacam_render.sensor_model.SensorModel`.
+
+    A [0, 1] image (1.0 = white) becomes ``electrons_per_white / qe`` photons per unit, is
+    captured to DN, and is brought back to the same scale. The sigma handed to the deconvolver
+    is the model's temporal noise at the image's mean level, on that scale.
+    """
+    e_white = check_positive("electrons_per_white", electrons_per_white, "e-")
+
+    def add(clean: np.ndarray, rng: np.random.Generator) -> tuple[np.ndarray, float]:
+        photons = np.clip(clean, 0.0, None) * (e_white / model.qe)
+        seed = int(rng.integers(2**62))
+        dn = model.capture(photons, exposure_ms=exposure_ms, seed=seed)
+        out = model.electrons_from_dn(dn, exposure_ms) / e_white
+        mean_e = float(clean.mean()) * e_white
+        sigma = float(np.mean(model.temporal_noise_e(mean_e, exposure_ms))) / e_white
+        return out, sigma
 
     return add
 

@@ -91,3 +91,33 @@ def test_tolerated_range_interpolates():
     lo, hi = R.tolerated_range_mm(c, drop_db=5.0)
     assert lo == pytest.approx(np.exp(0.5 * (np.log(100) + np.log(200))))
     assert hi == pytest.approx(np.exp(0.5 * (np.log(200) + np.log(400))))
+
+
+def test_fig7_interior_peak_moves_with_acceleration(quick_dir):
+    by = {}
+    for r in rows(quick_dir / "fig7.csv"):
+        by.setdefault(float(r["a_i_px_per_ms2"]), []).append(
+            (float(r["r_px"]), float(r["psnr_db"]))
+        )
+    peaks = []
+    for _, pts in sorted(by.items()):
+        c = np.array(pts)
+        k = int(np.argmax(c[:, 1]))
+        assert 0 < k < len(c) - 1  # an interior optimum: too little light vs too much defocus
+        peaks.append(R.peak_radius_px(c))
+    assert peaks == sorted(peaks)  # the best r grows with a_i, as in the paper
+
+
+def test_fig8_ratio_rises_with_noise_and_crosses_one(quick_dir):
+    by = {}
+    for r in rows(quick_dir / "fig8.csv"):
+        by.setdefault((r["curve"], float(r["a_i_px_per_ms2"])), []).append(
+            (float(r["noise_level"]), float(r["quality_ratio"]))
+        )
+    for (curve, a), pts in by.items():
+        c = np.array(pts)
+        assert c[-1, 1] > 1 > c[0, 1], (curve, a)  # short exposure wins when bright only
+        assert np.isfinite(R.crossing_noise_level(c))
+        assert np.all(np.diff(c[:, 1]) > -0.05), (curve, a)  # rises (up to MC wiggle)
+    for a in R.FIG7_A:  # Levin's camera, with no defocus, does better at high noise
+        assert by[("Levin (same aperture)", a)][-1][1] > by[("proposed", a)][-1][1]
