@@ -6,6 +6,8 @@ Units everywhere: scene mm, time ms, image px. Image coordinates are upright (as
 
 from importlib.metadata import version
 
+from .aperture_camera import install as _install_aperture_camera
+from .aperture_camera import sensor_dict
 from .backend import select_variant
 from .camera import CameraDesign, preset, prototype
 from .design import solve as solve_design
@@ -34,6 +36,10 @@ from .sensor_model import (
 
 __version__ = version("pacam_render")
 
+# Registers the `programmable_aperture` sensor for the active Mitsuba variant, and again after
+# every variant switch; it never chooses a variant itself, so importing stays light.
+_install_aperture_camera()
+
 __all__ = [
     "DEFAULT_LIGHT_LEVEL",
     "SensorCapture",
@@ -55,6 +61,7 @@ __all__ = [
     "preset",
     "prototype",
     "select_variant",
+    "sensor_dict",
     "short_exposure_psf",
     "solve_design",
     "static_psf",

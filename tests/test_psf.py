@@ -122,11 +122,11 @@ def monte_carlo_coded(s, a, r, T, w, n=2_000_000, discrete=None):
 def test_coded_psf_matches_monte_carlo(discrete):
     s, a, r = 0.4, 0.04, 2.0
     k = (
-        psf.discrete_coded_psf(s, a, r, T, 16, size=41)
+        psf.discrete_coded_psf(s, a, r, T, 16, size=49)
         if discrete
-        else psf.coded_psf(s, a, r, T, size=41)
+        else psf.coded_psf(s, a, r, T, size=49)
     )
-    mc = monte_carlo_coded(s, a, r, T, 41, discrete=discrete)
+    mc = monte_carlo_coded(s, a, r, T, 49, discrete=discrete)
     noise = np.sqrt(k / 2_000_000).sum()  # expected L1 of the MC estimate, roughly
     assert np.abs(k - mc).sum() < 2.5 * noise
 
