@@ -139,26 +139,29 @@ def _check_motion(s: float, a_i: float, T_ms: float) -> tuple[float, float, floa
     )
 
 
-def parabola_segments(s: float, a_i: float, T_ms: float) -> list[Segment]:
-    """Eq. 2 over the whole exposure: x(t) = s t + a_i t^2 / 2, t in [-T, T]."""
+def parabola_segments(s: float, a_i: float, T_ms: float, x0_px: float = 0.0) -> list[Segment]:
+    """Eq. 2 over the whole exposure: x(t) = x0 + s t + a_i t^2 / 2, t in [-T, T]."""
     s, a, T = _check_motion(s, a_i, T_ms)
-    return [Segment(-T, T, 0.0, s, a)]
+    return [Segment(-T, T, check_finite("x0_px", x0_px), s, a)]
 
 
-def discrete_segments(s: float, a_i: float, T_ms: float, n_patterns: int = 16) -> list[Segment]:
-    """What the LCoS really shows: n held positions a_i t_k^2 / 2, while the object moves."""
+def discrete_segments(
+    s: float, a_i: float, T_ms: float, n_patterns: int = 16, x0_px: float = 0.0
+) -> list[Segment]:
+    """What the LCoS really shows: n held positions x0 + a_i t_k^2 / 2, while the object moves."""
     s, a, T = _check_motion(s, a_i, T_ms)
+    x0 = check_finite("x0_px", x0_px)
     edges = sch.pattern_edges_ms(T, n_patterns)
     mids = sch.pattern_mid_times_ms(T, n_patterns)
     return [
-        Segment(e0, e1, 0.5 * a * tk * tk, s, 0.0)
+        Segment(e0, e1, x0 + 0.5 * a * tk * tk, s, 0.0)
         for e0, e1, tk in zip(edges[:-1], edges[1:], mids)
     ]
 
 
-def levin_psf(s: float, a_i: float, T_ms: float, size=None) -> np.ndarray:
+def levin_psf(s: float, a_i: float, T_ms: float, size=None, x0_px: float = 0.0) -> np.ndarray:
     """phi (Eq. 1): parabolic motion, in focus. Also Levin et al.'s camera-motion baseline."""
-    return kernel_from_trajectory(parabola_segments(s, a_i, T_ms), 0.0, size)
+    return kernel_from_trajectory(parabola_segments(s, a_i, T_ms, x0_px), 0.0, size)
 
 
 def pillbox_psf(r_px: float, size=None, centre=(0.0, 0.0)) -> np.ndarray:
@@ -177,10 +180,16 @@ def pillbox_psf(r_px: float, size=None, centre=(0.0, 0.0)) -> np.ndarray:
 
 
 def coded_psf(
-    s: float, a_i: float, r_px: float, T_ms: float, size=None, du_px: float | None = None
+    s: float,
+    a_i: float,
+    r_px: float,
+    T_ms: float,
+    size=None,
+    du_px: float | None = None,
+    x0_px: float = 0.0,
 ) -> np.ndarray:
     """Phi = phi * psi (Eq. 14): the paper's continuous model of the coded capture."""
-    return kernel_from_trajectory(parabola_segments(s, a_i, T_ms), r_px, size, du_px)
+    return kernel_from_trajectory(parabola_segments(s, a_i, T_ms, x0_px), r_px, size, du_px)
 
 
 def discrete_coded_psf(
@@ -191,9 +200,10 @@ def discrete_coded_psf(
     n_patterns: int = 16,
     size=None,
     du_px: float | None = None,
+    x0_px: float = 0.0,
 ) -> np.ndarray:
     """The coded capture's exact PSF: n pillboxes, each held 2T/n and smeared by the motion."""
-    segs = discrete_segments(s, a_i, T_ms, n_patterns)
+    segs = discrete_segments(s, a_i, T_ms, n_patterns, x0_px)
     return kernel_from_trajectory(segs, r_px, size, du_px)
 
 
@@ -243,21 +253,37 @@ def vertex_shift_px(s: float, a_i: float) -> float:
 MODES_WITH_PSF = ("coded", "coded_continuous", "levin", "normal", "short", "flutter")
 
 
-def design_psf(design, mode: str = "coded", s: float = 0.0, size=None, short_exposure_ms=0.679):
+def design_psf(
+    design,
+    mode: str = "coded",
+    s: float = 0.0,
+    size=None,
+    short_exposure_ms: float = 0.679,
+    origin: str = "t0",
+):
     """The analytic PSF of a :class:`~pacam_render.camera.CameraDesign` capture at speed s px/ms.
 
     ``coded`` is the discrete n-pattern schedule the camera really shows; ``coded_continuous``
     is Eq. 14; ``levin`` moves the camera body (in focus); ``normal``, ``short`` and ``flutter``
     keep the aperture still and use the design's defocus r (zero when focused on the object).
+
+    ``origin``: the image position the kernel's centre pixel stands for. ``"t0"``: where the
+    point images at mid-exposure (x(0) = 0 in Eq. 2). ``"pinhole"``: where a pinhole at the
+    lens centre images it at mid-exposure, as the ``reference`` capture does; the moving
+    aperture (and Levin's moving body) start from an edge, which shifts the coded image by
+    -a_i T^2 / 4 relative to it. Deconvolve with ``"pinhole"`` to register with the scene.
     """
+    if origin not in ("t0", "pinhole"):
+        raise ParameterError(f"origin must be 't0' or 'pinhole', got {origin!r}")
     T, r, a = design.T_ms, design.r_px, design.a_i_px_per_ms2
+    x0 = -0.25 * a * T * T if origin == "pinhole" else 0.0
     if mode in ("coded", "coded_continuous"):
         design.require_parallax()
         if mode == "coded":
-            return discrete_coded_psf(s, a, r, T, design.n_patterns, size)
-        return coded_psf(s, a, r, T, size)
+            return discrete_coded_psf(s, a, r, T, design.n_patterns, size, x0_px=x0)
+        return coded_psf(s, a, r, T, size, x0_px=x0)
     if mode == "levin":
-        return levin_psf(s, a, T, size)
+        return levin_psf(s, a, T, size, x0_px=x0)
     if mode == "normal":
         return static_psf(s, T, r, size)
     if mode == "short":

@@ -1,0 +1,441 @@
+"""Captures: a scene rendered through the programmable-aperture camera over a whole exposure.
+
+Exposure integration. A static scene is one render: each ray's time selects the pattern in the
+sensor, so there is no loop and no geometry update. A moving scene is split at the pattern
+boundaries, and each pattern window into ``m`` time steps, so that nothing moves more than
+``max_step_px`` (default 0.5 px) between steps: m = ceil(v_max dt / max_step_px), v_max the
+fastest image speed of any moving shape. Each step moves the geometry to its mid-time (one BVH
+rebuild) and renders only its own time window (the sensor's ``time_window``: windows that tile
+the exposure sum to the full image). The spp budget is shared among the steps in proportion
+to their duration, at least 1 each, so the total stays the request unless there are more steps
+than samples. Every step has its own seed, so an interrupted capture resumes from the steps
+already on disk and gives the same image as an uninterrupted run.
+
+Units. Pixel values are Mitsuba radiance x (open area / full aperture) x (exposure / 45 ms):
+a white diffuse surface seen through the full F2.8 aperture for 45 ms reads about its
+reflectance. So a capture is proportional to the light it collects, and captures of different
+modes compare directly (``light_factor`` in the JSON is that scale for each mode).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import shutil
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from .camera import CameraDesign, preset
+from .errors import ParameterError, check_positive
+from .outputs import write_json
+
+MODES = ("normal", "coded", "short", "levin", "flutter", "reference")
+REFERENCE_EXPOSURE_MS = 45.0
+SHORT_EXPOSURE_MS = 0.679
+SHORT_F_NUMBER = 2.8
+PARTIAL = ".partial"
+
+
+@dataclass(frozen=True)
+class CaptureSpec:
+    """What to capture. Sizes in px, ``max_step_px`` in px of motion between time steps."""
+
+    scene: str = "train"
+    mode: str = "coded"
+    width: int = 320
+    height: int = 240
+    spp: int = 64
+    seed: int = 0
+    max_step_px: float = 0.5
+    per_pattern: bool = False
+    preset: str = "prototype"
+    cover_px_per_ms: float | None = None
+
+    def __post_init__(self) -> None:
+        if self.mode not in MODES:
+            raise ParameterError(f"unknown mode {self.mode!r}; valid: {', '.join(MODES)}")
+        for k, lo in (("width", 2), ("height", 2), ("spp", 1)):
+            v = getattr(self, k)
+            if not isinstance(v, (int, np.integer)) or v < lo:
+                raise ParameterError(f"{k} must be an integer >= {lo}, got {v!r}")
+        if not isinstance(self.seed, (int, np.integer)) or not 0 <= self.seed < 2**31:
+            raise ParameterError(f"seed must be an integer in [0, 2^31), got {self.seed!r}")
+        check_positive("max_step_px", self.max_step_px, "px")
+        if self.cover_px_per_ms is not None:
+            check_positive("cover_px_per_ms", self.cover_px_per_ms, "px/ms")
+
+    def key(self) -> str:
+        """A hash of everything that changes the image (for resuming)."""
+        return hashlib.sha256(json.dumps(asdict(self), sort_keys=True).encode()).hexdigest()[:16]
+
+
+def capture_design(spec: CaptureSpec) -> CameraDesign:
+    """The preset's optics at the capture's resolution (pixel quantities scale with width).
+
+    With ``cover_px_per_ms`` (a speed in the preset's own pixels), the design solver first
+    picks the defocus that makes that speed motion-invariant at the preset's F-number.
+    """
+    base = preset(spec.preset)
+    if spec.cover_px_per_ms is not None:
+        from .design import solve
+
+        base = solve(spec.cover_px_per_ms, base=base)
+    return base.with_(width_px=spec.width, height_px=spec.height)
+
+
+def mode_camera(design: CameraDesign, mode: str) -> tuple[CameraDesign, dict]:
+    """The camera a mode uses (for its analytic PSF) and the sensor's schedule parameters.
+
+    normal, levin and flutter keep the coded capture's opening R, so every 45 ms mode collects
+    the same light, and focus on the objects; short opens fully (F2.8) for 0.679 ms.
+    """
+    focused = design.with_(focus_distance_mm=design.object_depth_mm)
+    common = {"lens_radius": design.R_max_mm, "aperture_radius": design.R_mm}
+    if mode == "coded":
+        design.require_parallax()
+        return design, {
+            **common,
+            "schedule": "parabolic",
+            "n_patterns": design.n_patterns,
+            "focus_distance": design.focus_distance_mm,
+        }
+    if mode == "normal":
+        return focused, {
+            **common,
+            "schedule": "static",
+            "focus_distance": focused.focus_distance_mm,
+        }
+    if mode == "short":
+        cam = focused.with_(R_mm=design.R_max_mm, exposure_ms=SHORT_EXPOSURE_MS)
+        return cam, {
+            "lens_radius": design.R_max_mm,
+            "aperture_radius": design.R_max_mm,
+            "schedule": "static",
+            "focus_distance": cam.focus_distance_mm,
+        }
+    if mode == "levin":
+        return focused.with_(focus_distance_mm=design.focus_distance_mm), {
+            **common,
+            "schedule": "camera_parabolic",
+            "image_acceleration": design.a_i_px_per_ms2,
+            "focus_distance": focused.focus_distance_mm,
+        }
+    if mode == "flutter":
+        return focused, {
+            **common,
+            "schedule": "flutter",
+            "focus_distance": focused.focus_distance_mm,
+        }
+    return focused, {}  # reference: a pinhole (Mitsuba's perspective sensor)
+
+
+def sensor_entry(spec: CaptureSpec, design: CameraDesign, params: dict, exposure_ms: float):
+    """The scene's sensor: programmable_aperture, or a pinhole for the reference."""
+    from .aperture_camera import sensor_dict
+
+    film = {
+        "type": "hdrfilm",
+        "width": spec.width,
+        "height": spec.height,
+        "rfilter": {"type": "box"},  # samples stay in their pixel, as the analytic PSFs assume
+        "pixel_format": "rgb",
+        "component_format": "float32",
+    }
+    sampler = {"type": "independent", "sample_count": spec.spp}
+    if spec.mode == "reference":
+        return {"type": "perspective", "fov": design.fov_deg, "film": film, "sampler": sampler}
+    return sensor_dict(
+        fov=design.fov_deg,
+        shutter_open=0.0,
+        shutter_close=exposure_ms,
+        reference_exposure=REFERENCE_EXPOSURE_MS,
+        film=film,
+        sampler=sampler,
+        **params,
+    )
+
+
+@dataclass(frozen=True)
+class Step:
+    """One render of a moving scene: shutter window [t0, t1] ms, geometry at t_mid_ms."""
+
+    pattern: int
+    t0: float
+    t1: float
+    spp: int
+
+    @property
+    def t_mid_paper_ms(self) -> float:
+        return 0.5 * (self.t0 + self.t1)
+
+
+def plan_steps(edges: np.ndarray, is_open: np.ndarray, speed_px_per_ms: float, spec) -> list[Step]:
+    """Time steps within each open pattern window, and their share of the spp budget."""
+    windows = [(k, a, b) for k, (a, b, o) in enumerate(zip(edges[:-1], edges[1:], is_open)) if o]
+    pieces = []
+    for k, a, b in windows:
+        m = max(1, math.ceil(speed_px_per_ms * (b - a) / spec.max_step_px - 1e-9))
+        e = np.linspace(a, b, m + 1)
+        pieces += [(k, float(x), float(y)) for x, y in zip(e[:-1], e[1:])]
+    dur = np.array([y - x for _, x, y in pieces])
+    share = spec.spp * dur / dur.sum()
+    spp = np.maximum(1, np.floor(share)).astype(int)
+    left = spec.spp - spp.sum()
+    if left > 0:  # largest remainders get the samples still to give
+        spp[np.argsort(-(share - np.floor(share)), kind="stable")[:left]] += 1
+    return [Step(k, x, y, int(n)) for (k, x, y), n in zip(pieces, spp)]
+
+
+def _step_seed(seed: int, index: int) -> int:
+    return int(np.random.SeedSequence([seed, index]).generate_state(1)[0] >> 1)
+
+
+@dataclass
+class Capture:
+    """A finished capture: the image, optional per-pattern images, and its metadata."""
+
+    image: np.ndarray
+    patterns: dict[int, np.ndarray]
+    meta: dict
+    extra_layers: dict[str, np.ndarray] = field(default_factory=dict)
+
+
+class _Partial:
+    """Finished steps kept on disk so an interrupted capture resumes where it stopped."""
+
+    def __init__(self, folder: Path | None, key: str):
+        self.folder, self.key = folder, key
+
+    def load(self, shape) -> tuple[int, np.ndarray, dict[int, np.ndarray]] | None:
+        if self.folder is None or not (self.folder / "state.json").is_file():
+            return None
+        state = json.loads((self.folder / "state.json").read_text())
+        if state.get("key") != self.key:
+            return None
+        acc = np.load(self.folder / "accum.npy")
+        if acc.shape != shape:
+            return None
+        pats = {}
+        if (self.folder / "patterns.npz").is_file():
+            with np.load(self.folder / "patterns.npz") as z:
+                pats = {int(k): z[k] for k in z.files}
+        return int(state["done"]), acc, pats
+
+    def save(self, done: int, acc: np.ndarray, pats: dict[int, np.ndarray]) -> None:
+        if self.folder is None:
+            return
+        self.folder.mkdir(parents=True, exist_ok=True)
+        tmp = self.folder / "accum.tmp.npy"
+        np.save(tmp, acc)
+        tmp.replace(self.folder / "accum.npy")
+        if pats:
+            tmpz = self.folder / "patterns.tmp.npz"
+            np.savez(tmpz, **{str(k): v for k, v in pats.items()})
+            tmpz.replace(self.folder / "patterns.npz")
+        state = self.folder / "state.tmp.json"  # written last: it vouches for the arrays
+        state.write_text(json.dumps({"key": self.key, "done": done}))
+        state.replace(self.folder / "state.json")
+
+    def clear(self) -> None:
+        if self.folder is not None and self.folder.exists():
+            shutil.rmtree(self.folder)
+
+
+def render_capture(
+    spec: CaptureSpec,
+    partial_dir: Path | None = None,
+    progress: bool = True,
+    save_every_s: float = 5.0,
+    stop_after_steps: int | None = None,
+    description=None,
+) -> Capture:
+    """Render one capture. ``partial_dir`` keeps finished steps for resuming;
+    ``stop_after_steps`` interrupts deliberately (for tests of resuming); ``description`` (a
+    :class:`~pacam_render.scenes.SceneDescription`, e.g. a PSF scene) replaces ``spec.scene``."""
+    import mitsuba as mi
+
+    from .backend import select_variant
+    from .scenes import fastest_image_speed_px_per_ms, load_scene
+
+    variant = select_variant()
+    design = capture_design(spec)
+    cam, params = mode_camera(design, spec.mode)
+    exposure = SHORT_EXPOSURE_MS if spec.mode == "short" else design.exposure_ms
+    desc = description if description is not None else load_scene(spec.scene)
+    t_start = time.perf_counter()
+    scene = desc.load(sensor=sensor_entry(spec, cam, params, exposure))
+    sensor = scene.sensors()[0]
+    moving = not desc.is_static and spec.mode != "reference"
+    shape = (spec.height, spec.width, 3)
+    meta = {"n_steps": 1, "n_geometry_updates": 0, "effective_spp": spec.spp}
+    if not moving:
+        image = np.array(mi.render(scene, spp=spec.spp, seed=spec.seed), dtype=np.float64)
+        patterns = {}
+    else:
+        plan = sensor.plan
+        speed = fastest_image_speed_px_per_ms(desc, design, (-0.5 * exposure, 0.5 * exposure))
+        steps = plan_steps(plan.pattern_edges, plan.is_open, speed, spec)
+        image, patterns, meta = _integrate(
+            scene,
+            sensor,
+            desc,
+            steps,
+            spec,
+            shape,
+            exposure,
+            partial_dir,
+            progress,
+            save_every_s,
+            stop_after_steps,
+        )
+        meta["fastest_image_speed_px_per_ms"] = speed
+    meta.update(
+        _metadata(
+            spec, design, cam, params, exposure, sensor, variant, time.perf_counter() - t_start
+        )
+    )
+    return Capture(image, patterns, meta)
+
+
+class CaptureInterrupted(RuntimeError):
+    """Raised by ``stop_after_steps``: the finished steps are on disk."""
+
+
+def _integrate(
+    scene,
+    sensor,
+    desc,
+    steps,
+    spec,
+    shape,
+    exposure,
+    partial_dir,
+    progress,
+    save_every_s,
+    stop_after_steps,
+):
+    import mitsuba as mi
+    from tqdm import tqdm
+
+    anim = desc.animator(scene)
+    store = _Partial(partial_dir, spec.key())
+    resumed = store.load(shape)
+    done, acc, pats = resumed if resumed else (0, np.zeros(shape), {})
+    mid = 0.5 * exposure  # paper time t = shutter time - mid
+    last_save = time.perf_counter()
+    bar = tqdm(
+        total=len(steps),
+        initial=done,
+        disable=not progress,
+        unit="step",
+        desc=f"{spec.mode} {spec.scene}",
+        leave=False,
+    )
+    for i in range(done, len(steps)):
+        st = steps[i]
+        anim.set_time(st.t_mid_paper_ms - mid)
+        sensor.configure(time_window=(st.t0, st.t1))
+        img = np.array(
+            mi.render(scene, spp=st.spp, seed=_step_seed(spec.seed, i)), dtype=np.float64
+        )
+        acc += img
+        if spec.per_pattern:
+            pats[st.pattern] = pats.get(st.pattern, 0.0) + img
+        bar.update(1)
+        finished = i + 1
+        if stop_after_steps is not None and finished >= stop_after_steps:
+            store.save(finished, acc, pats)
+            bar.close()
+            raise CaptureInterrupted(f"stopped after {finished} of {len(steps)} steps")
+        if time.perf_counter() - last_save > save_every_s and finished < len(steps):
+            store.save(finished, acc, pats)
+            last_save = time.perf_counter()
+    bar.close()
+    sensor.configure(time_window=None)
+    store.clear()
+    meta = {
+        "n_steps": len(steps),
+        "n_geometry_updates": anim.n_updates,
+        "resumed_from_step": done,
+        "effective_spp": int(sum(s.spp for s in steps)),
+    }
+    return acc, pats, meta
+
+
+def _metadata(spec, design, cam, params, exposure, sensor, variant, seconds) -> dict:
+    import drjit
+    import mitsuba
+
+    from . import __version__
+
+    weight = 1.0 if spec.mode == "reference" else float(sensor.plan.mean_weight())
+    return {
+        "spec": asdict(spec),
+        "mode": spec.mode,
+        "camera": cam.inputs(),
+        "optics": cam.summary(),
+        "coded_design": design.summary(),
+        "sensor_params": {k: v for k, v in params.items() if not hasattr(v, "shape")},
+        "exposure_ms": exposure,
+        "reference_exposure_ms": REFERENCE_EXPOSURE_MS,
+        "light_factor": weight,
+        "pixel_unit": "radiance x (open area / full aperture) x (exposure / 45 ms)",
+        "render_seconds": seconds,
+        "variant": variant,
+        "versions": {
+            "pacam_render": __version__,
+            "mitsuba": mitsuba.__version__,
+            "drjit": drjit.__version__,
+            "numpy": np.__version__,
+        },
+    }
+
+
+def write_capture(cap: Capture, out: Path, force: bool) -> list[Path]:
+    """capture.exr (float32 layers), capture.png (sRGB preview), capture.json."""
+    from .exrio import write_exr
+    from .preview import srgb8, write_png
+
+    layers = {"capture": cap.image, **cap.extra_layers}
+    for k, img in sorted(cap.patterns.items()):
+        layers[f"sub{k:02d}"] = img
+    exposure = 1.0 / cap.meta["light_factor"] if cap.meta["light_factor"] > 0 else None
+    return [
+        write_exr(out / "capture.exr", layers, force=force),
+        write_png(out / "capture.png", srgb8(cap.image, exposure), force=force),
+        write_json(out / "capture.json", cap.meta, force=force),
+    ]
+
+
+def apply_sensor(cap: Capture, model, light_level: float | None, seed: int):
+    """Raw DN and the noisy linear image (in the capture's units) of a capture.
+
+    ``light_level``: photons/px/ms that a white diffuse surface delivers through the full
+    aperture. The render already carries the open-area and exposure factors relative to the
+    full aperture and 45 ms, so photons = value x light_level x 45 ms. Without a light level
+    (the ``paper`` preset) the capture is first divided by its light factor, so that white
+    reads 1.0 and the noise sigma is relative to white, as in the paper.
+    """
+    from .sensor_model import simulate_capture
+
+    exposure = cap.meta["exposure_ms"]
+    if light_level is None:
+        lf = cap.meta["light_factor"]
+        res = simulate_capture(cap.image / lf, model, exposure_ms=exposure, seed=seed)
+        return res.raw_dn, res.linear * lf, res.photons_per_unit
+    level = check_positive("light_level", light_level, "photons/px/ms")
+    scale = REFERENCE_EXPOSURE_MS / exposure  # undo the render's exposure factor ...
+    res = simulate_capture(
+        cap.image * scale,
+        model,
+        exposure_ms=exposure,
+        seed=seed,
+        light_level=level,
+        open_area_mm2=1.0,
+        reference_area_mm2=1.0,  # ... the area factor is already in it
+    )
+    return res.raw_dn, res.linear / scale, res.photons_per_unit
