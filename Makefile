@@ -9,7 +9,7 @@ setup:
 	@bash scripts/bootstrap.sh
 
 demo: setup
-	$(BIN)/pacam demo
+	$(BIN)/pacam demo --out demo_out --force
 
 test: setup
 	$(BIN)/python -m pytest -q

@@ -439,3 +439,11 @@ def apply_sensor(cap: Capture, model, light_level: float | None, seed: int):
         reference_area_mm2=1.0,  # ... the area factor is already in it
     )
     return res.raw_dn, res.linear / scale, res.photons_per_unit
+
+
+def sensor_sigma(cap: Capture, model, light_level: float, level: float) -> float:
+    """Temporal noise sigma of a sensor capture at a grey ``level`` (white = 1), in the same
+    white = 1 units: what a deconvolver should assume for it."""
+    e_white = model.qe * cap.meta["light_factor"] * light_level * REFERENCE_EXPOSURE_MS
+    e = float(model.temporal_noise_e(level * e_white, cap.meta["exposure_ms"]))
+    return e / e_white

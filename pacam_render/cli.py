@@ -54,7 +54,14 @@ def _cmd_design(args: argparse.Namespace) -> int:
 
 
 def _cmd_demo(args: argparse.Namespace) -> int:
+    from .demo import check_size, run_demo
+
+    check_size(args.width, args.height, args.spp)
     print(design_report(prototype()))
+    print(f"\nrendering the train set ({args.width}x{args.height}, {args.spp} spp) ...")
+    fig = run_demo(Path(args.out), args.width, args.height, args.spp, args.force)
+    print((fig.parent / "demo.md").read_text())
+    print(f"figure: {fig}")
     return 0
 
 
@@ -315,6 +322,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=_cmd_render)
     p = sub.add_parser("demo", help="the main job on built-in defaults")
+    p.add_argument("--out", default="demo_out", metavar="DIR", help="default demo_out/")
+    p.add_argument("--width", type=int, default=480)
+    p.add_argument("--height", type=int, default=360)
+    p.add_argument("--spp", type=int, default=256)
+    p.add_argument("--force", action="store_true", help="overwrite a previous demo in DIR")
     p.set_defaults(func=_cmd_demo)
     return parser
 

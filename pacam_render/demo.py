@@ -1,0 +1,225 @@
+"""``pacam demo``: the train set captured as in the paper's Figs. 12-15, and deblurred.
+
+Renders the train scene in ``reference``, ``normal``, ``coded`` and ``short`` modes, plus a
+second coded capture whose design covers the near train's 1.4 px/ms (the published prototype
+covers only |s| <= 0.9 px/ms, see the design report). Every capture except the reference goes
+through the Grasshopper sensor model at a modest light level, so the short exposure is as noisy
+as it would be. The coded captures are deconvolved with their analytic PSF (Wiener). One
+side-by-side figure shows the full frames and magnified crops of both trains and the backdrop,
+with PSNR and SSIM against the reference.
+
+Alignment: a motion-invariant PSF moves each object by a speed-dependent amount (-s^2 / 2 a_i),
+so each crop's PSNR is taken at the best whole-pixel horizontal shift within +-12 px; the
+full-frame PSNR is not aligned.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from .capture import CaptureSpec, apply_sensor, render_capture, sensor_sigma, write_capture
+from .deconvolve import psnr, wiener
+from .errors import ParameterError
+from .outputs import prepare_out_dir, write_text
+from .psf import design_psf
+
+LIGHT_LEVEL = 300.0
+"""photons/px/ms of white through F2.8: a dim indoor scene, dark enough that the short
+exposure is noisy (Fig. 8: coding pays off when the coded capture's noise exceeds ~0.015)."""
+
+CROPS = {  # (row0, row1, col0, col1) as fractions of the frame
+    "far train": (0.27, 0.45, 0.10, 0.45),
+    "near train": (0.57, 0.75, 0.15, 0.50),
+    "backdrop": (0.02, 0.20, 0.02, 0.37),
+}
+MAX_SHIFT_PX = 12
+
+
+@dataclass
+class Panel:
+    title: str
+    image: np.ndarray  # normalised: white ~ reflectance, like the reference
+    note: str = ""
+
+
+def _crop(img: np.ndarray, frac) -> np.ndarray:
+    h, w = img.shape[:2]
+    r0, r1, c0, c1 = frac
+    return img[int(r0 * h) : int(r1 * h), int(c0 * w) : int(c1 * w)]
+
+
+def aligned_psnr(est: np.ndarray, ref: np.ndarray, frac) -> float:
+    """Best PSNR of a crop over whole-pixel horizontal shifts of the estimate."""
+    h, w = ref.shape[:2]
+    r0, r1, c0, c1 = frac
+    rows = slice(int(r0 * h), int(r1 * h))
+    a, b = max(int(c0 * w), MAX_SHIFT_PX), min(int(c1 * w), w - MAX_SHIFT_PX)
+    target = ref[rows, a:b]
+    return max(
+        psnr(est[rows, a + d : b + d], target, 1.0) for d in range(-MAX_SHIFT_PX, MAX_SHIFT_PX + 1)
+    )
+
+
+def _ssim(est: np.ndarray, ref: np.ndarray) -> float:
+    from skimage.metrics import structural_similarity
+
+    return float(
+        structural_similarity(
+            np.clip(est, 0, 1), np.clip(ref, 0, 1), channel_axis=-1, data_range=1.0
+        )
+    )
+
+
+def _capture(spec: CaptureSpec, out: Path, seed: int):
+    """Render one capture; pass all but the reference through the sensor model."""
+    from .sensor_model import SensorModel
+
+    cap = render_capture(spec, partial_dir=out / ".partial")
+    if spec.mode == "reference":
+        return cap
+    model = SensorModel.from_preset("grasshopper-icx285")
+    raw, noisy, ppu = apply_sensor(cap, model, LIGHT_LEVEL, seed)
+    level = float(np.mean(noisy)) / cap.meta["light_factor"]
+    sigma = sensor_sigma(cap, model, LIGHT_LEVEL, level)
+    cap.extra_layers.update({"raw": raw.astype(np.float32), "noisy": noisy})
+    cap.meta["sensor"] = {
+        "preset": "grasshopper-icx285",
+        "light_level": LIGHT_LEVEL,
+        "photons_per_unit": ppu,
+        "seed": seed,
+        "noise_sigma_white_units": sigma,
+    }
+    cap.meta["noise_sigma"] = sigma * cap.meta["light_factor"]  # in the capture's own units
+    return cap
+
+
+LABELS = {
+    "normal": "normal, 45 ms F9.85",
+    "coded": "coded, prototype (F9.85, r=2)",
+    "coded_1.4": "coded, covers 1.4 px/ms",
+    "short": "short, 0.679 ms F2.8",
+}
+
+
+def run_demo(
+    out: Path,
+    width: int = 480,
+    height: int = 360,
+    spp: int = 256,
+    force: bool = False,
+    seed: int = 0,
+) -> Path:
+    """Render, deconvolve, compose; returns the figure's path."""
+    from .camera import CameraDesign
+
+    out = prepare_out_dir(out, force)
+    t0 = time.perf_counter()
+    size = {"width": width, "height": height, "spp": spp, "seed": seed}
+    runs = {
+        "reference": CaptureSpec(mode="reference", **size),
+        "normal": CaptureSpec(mode="normal", **size),
+        "coded": CaptureSpec(mode="coded", **size),
+        "coded_1.4": CaptureSpec(mode="coded", cover_px_per_ms=1.4, **size),
+        "short": CaptureSpec(mode="short", **size),
+    }
+    caps = {}
+    for name, spec in runs.items():
+        sub = out / name
+        sub.mkdir(exist_ok=True)
+        caps[name] = _capture(spec, sub, seed)
+        write_capture(caps[name], sub, force=True)  # the folder was cleared or created above
+    ref = caps["reference"].image
+    panels = [Panel("reference (pinhole, frozen)", ref)]
+    for name, label in LABELS.items():
+        cap = caps[name]
+        noisy = cap.extra_layers["noisy"] / cap.meta["light_factor"]
+        panels.append(Panel(label, noisy))
+        if name.startswith("coded"):
+            cam = CameraDesign.from_inputs(cap.meta["camera"])
+            k = design_psf(cam, "coded", 0.0, origin="pinhole")
+            sigma = cap.meta["sensor"]["noise_sigma_white_units"]  # known from the sensor
+            est = wiener(noisy, k, noise_sigma=sigma)
+            panels.append(Panel(label.replace("coded", "deconvolved"), est))
+    seconds = time.perf_counter() - t0
+    fig_path = out / "demo.png"
+    _figure(panels, ref, fig_path)
+    write_text(out / "demo.md", _table(panels, ref, caps, width, height, spp, seconds), force=True)
+    return fig_path
+
+
+def _figure(panels: list[Panel], ref: np.ndarray, path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from .outputs import atomic_save
+
+    n = len(panels)
+    fig, axes = plt.subplots(1 + len(CROPS), n, figsize=(2.6 * n, 2.2 * (1 + len(CROPS))))
+    for j, p in enumerate(panels):
+        img = np.clip(p.image, 0, 1) ** (1 / 2.2)  # display gamma only
+        axes[0, j].imshow(img)
+        full = psnr(p.image, ref, 1.0)
+        axes[0, j].set_title(f"{p.title}\n{'' if j == 0 else f'{full:.1f} dB'}", fontsize=7)
+        for i, (cname, frac) in enumerate(CROPS.items(), start=1):
+            axes[i, j].imshow(_crop(img, frac), interpolation="nearest")
+            if j:
+                axes[i, j].set_title(
+                    f"{cname}: {aligned_psnr(p.image, ref, frac):.1f} dB", fontsize=7
+                )
+            else:
+                axes[i, j].set_title(cname, fontsize=7)
+    for ax in axes.ravel():
+        ax.set_xticks([])
+        ax.set_yticks([])
+    fig.tight_layout()
+    atomic_save(path, lambda tmp: fig.savefig(tmp, dpi=80, format="png"), force=True)
+    plt.close(fig)
+
+
+def _table(panels, ref, caps, width, height, spp, seconds) -> str:
+    head = (
+        "| capture | PSNR full (dB) | SSIM full | "
+        + " | ".join(f"{c} (dB, aligned)" for c in CROPS)
+        + " |"
+    )
+    lines = [head, "|" + "---|" * (3 + len(CROPS))]
+    for p in panels[1:]:
+        crops = " | ".join(f"{aligned_psnr(p.image, ref, f):.2f}" for f in CROPS.values())
+        lines.append(
+            f"| {p.title} | {psnr(p.image, ref, 1.0):.2f} | {_ssim(p.image, ref):.3f} | {crops} |"
+        )
+    proto = caps["coded"].meta["optics"]
+    cover = caps["coded_1.4"].meta["optics"]
+    far, near = 1.0 * width / 1280, 1.4 * width / 1280
+    text = [
+        "# pacam demo: the train set (Figs. 12-15)",
+        "",
+        f"{width}x{height} px, {spp} spp, Grasshopper ICX285 sensor model at {LIGHT_LEVEL:g} "
+        "photons/px/ms (white, F2.8), Wiener deconvolution with the analytic PSF and the "
+        f"sensor's noise sigma; {seconds:.0f} s in all.",
+        "",
+        f"The prototype's coded design (r = {proto['r_px']:.2f} px, a_i = "
+        f"{proto['a_i_px_per_ms2']:.4f} px/ms^2 at this size) keeps speeds up to "
+        f"{proto['velocity_range_px_per_ms']:.3f} px/ms invariant, less than the trains' "
+        f"{far:.3f} and {near:.3f} px/ms here, so its trains stay blurred. The design that "
+        f"covers 1.4 px/ms at full size (r = {cover['r_px']:.2f} px, a_i = "
+        f"{cover['a_i_px_per_ms2']:.4f}) takes more defocus to reach them.",
+        "",
+        "Crop PSNRs are taken at the best whole-pixel horizontal shift within +-12 px, "
+        "because a motion-invariant PSF moves each object by -s^2 / (2 a_i).",
+        "",
+        *lines,
+    ]
+    return "\n".join(text) + "\n"
+
+
+def check_size(width: int, height: int, spp: int) -> None:
+    for k, v in (("width", width), ("height", height), ("spp", spp)):
+        if v < 16:
+            raise ParameterError(f"--{k} must be >= 16 for the demo, got {v}")
