@@ -3,7 +3,7 @@
 VENV := .venv
 BIN := $(VENV)/bin
 
-.PHONY: setup demo test bench lint format clean
+.PHONY: setup demo test bench bless lint format clean
 
 setup:
 	@bash scripts/bootstrap.sh
@@ -16,6 +16,10 @@ test: setup
 
 bench: setup
 	$(BIN)/python benchmarks/run_all.py
+
+# Re-create the regression images in tests/regression/ (after an intended change to renders).
+bless: setup
+	$(BIN)/python -m pacam_render.regression --bless
 
 lint: setup
 	$(BIN)/ruff format --check pacam_render tests benchmarks

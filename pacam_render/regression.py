@@ -1,0 +1,146 @@
+"""Regression images: small stored renders and a noise-aware comparison with fresh ones.
+
+Each case is rendered with two seeds and stored as one EXR (layers ``seed0``, ``seed1``) in
+``tests/regression/``. A fresh render with a third seed is compared with their mean, pixel by
+pixel, in units of the Monte Carlo standard error that the two stored seeds estimate:
+
+    z = (fresh - mean) / sqrt(1.5 v),   v = mean box5((seed0 - seed1)^2 / 2) / box5(mean)
+
+(the fresh image carries one render's variance v, the mean half of it; Monte Carlo variance
+grows with the signal, so the 5x5 box smooths the one-degree-of-freedom estimate relative to the
+signal). Pixels darker than 1e-4 of the brightest are left out (a PSF scene is mostly black). The fresh image matches when mean(min(z^2, 25)) < 1.5, fewer
+than 1 % of pixels have |z| > 5, and its total brightness agrees within 4 standard errors
+(estimated from 15x15-pixel tile sums of seed0 - seed1, which keeps correlated noise). So
+Monte Carlo noise passes, while a one-pixel shift or a 2 % change of brightness fails.
+
+Re-create the references with ``make bless`` after an intended change to what is rendered.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import numpy as np
+from scipy.ndimage import uniform_filter
+
+from .capture import CaptureSpec, capture_design, render_capture
+from .errors import ParameterError
+
+FOLDER = Path(__file__).resolve().parent.parent / "tests" / "regression"
+SIZE = {"width": 120, "height": 90, "spp": 64}
+CASES = {
+    f"train_{m}": CaptureSpec(scene="train", mode=m, **SIZE)
+    for m in ("normal", "coded", "short", "levin", "flutter", "reference")
+}
+CASES["psf_coded"] = CaptureSpec(scene="psf", mode="coded", width=64, height=24, spp=256)
+FRESH_SEED = 2
+
+
+def render_case(name: str, seed: int) -> np.ndarray:
+    """A case's image for one seed, float64 (H, W, 3)."""
+    if name not in CASES:
+        raise ParameterError(f"unknown regression case {name!r}; valid: {', '.join(CASES)}")
+    spec = replace(CASES[name], seed=seed)
+    desc = None
+    if spec.scene == "psf":
+        from .scenes import psf_scene
+
+        desc = psf_scene(500.0, 0.3, camera=capture_design(spec), radius_mm=0.2)
+    return render_capture(spec, progress=False, description=desc).image
+
+
+@dataclass
+class Verdict:
+    mean_z2: float
+    frac_outliers: float
+    brightness_ratio: float
+    brightness_z: float
+
+    @property
+    def ok(self) -> bool:
+        return self.mean_z2 < 1.5 and self.frac_outliers < 0.01 and abs(self.brightness_z) < 4
+
+    def __str__(self) -> str:
+        return (
+            f"mean z^2 = {self.mean_z2:.3f} (< 1.5), |z| > 5: {self.frac_outliers:.2%} "
+            f"(< 1 %), brightness x{self.brightness_ratio:.4f} ({self.brightness_z:+.1f} SE)"
+        )
+
+
+def _tile_variance(diff: np.ndarray, tile: int = 15) -> float:
+    """Variance of diff.sum() from sums over tiles: keeps noise correlated between pixels."""
+    h, w = diff.shape[:2]
+    sums = [
+        diff[i : i + tile, j : j + tile].sum() for i in range(0, h, tile) for j in range(0, w, tile)
+    ]
+    return float(np.sum(np.square(sums)))
+
+
+def compare(fresh: np.ndarray, seed0: np.ndarray, seed1: np.ndarray) -> Verdict:
+    """Noise-aware comparison of a fresh render with two stored seeds."""
+    if not fresh.shape == seed0.shape == seed1.shape:
+        raise ParameterError(f"shapes differ: {fresh.shape}, {seed0.shape}, {seed1.shape}")
+    mean = 0.5 * (seed0 + seed1)
+    # Monte Carlo variance grows with the signal: smooth variance / signal, then scale back
+    box = {"size": (5, 5, 1), "mode": "nearest"}
+    level = np.maximum(mean, 0.0)
+    ratio = uniform_filter(0.5 * (seed0 - seed1) ** 2, **box) / (
+        uniform_filter(level, **box) + 1e-30
+    )
+    v = ratio * level
+    floor = 1e-12 + 1e-6 * float(np.mean(v))  # black pixels of a PSF scene have v = 0
+    var = 1.5 * v + floor
+    lit = (mean + np.abs(fresh)) > 1e-4 * float(mean.max())  # a PSF scene is mostly black
+    z2 = ((fresh - mean) ** 2 / var)[lit]
+    total_se = float(np.sqrt(1.5 * _tile_variance(seed0 - seed1) / 2.0))
+    diff = float(fresh.sum() - mean.sum())
+    return Verdict(
+        mean_z2=float(np.minimum(z2, 25.0).mean()),
+        frac_outliers=float((z2 > 25.0).mean()),
+        brightness_ratio=float(fresh.sum() / mean.sum()),
+        brightness_z=diff / total_se,
+    )
+
+
+def load_reference(name: str, folder: Path = FOLDER) -> tuple[np.ndarray, np.ndarray]:
+    from .exrio import read_exr
+
+    layers = read_exr(folder / f"{name}.exr")
+    return layers["seed0"].astype(np.float64), layers["seed1"].astype(np.float64)
+
+
+def bless(folder: Path = FOLDER, names=None) -> list[Path]:
+    """Re-render and store the references (seeds 0 and 1). Overwrites: that is its purpose."""
+    from .exrio import write_exr
+
+    folder.mkdir(parents=True, exist_ok=True)
+    out = []
+    for name in names or CASES:
+        layers = {f"seed{s}": render_case(name, s) for s in (0, 1)}
+        out.append(write_exr(folder / f"{name}.exr", layers, force=True))
+        print(f"blessed {out[-1]}")
+    return out
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description="Regression images: bless or check")
+    ap.add_argument("--bless", action="store_true", help="re-create the stored references")
+    ap.add_argument("--folder", default=str(FOLDER))
+    args = ap.parse_args(argv)
+    folder = Path(args.folder)
+    if args.bless:
+        bless(folder)
+        return 0
+    bad = 0
+    for name in CASES:
+        v = compare(render_case(name, FRESH_SEED), *load_reference(name, folder))
+        print(f"{name}: {'ok' if v.ok else 'CHANGED'}  {v}")
+        bad += not v.ok
+    return 1 if bad else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
