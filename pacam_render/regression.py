@@ -8,10 +8,11 @@ pixel, in units of the Monte Carlo standard error that the two stored seeds esti
 
 (the fresh image carries one render's variance v, the mean half of it; Monte Carlo variance
 grows with the signal, so the 5x5 box smooths the one-degree-of-freedom estimate relative to the
-signal). Pixels darker than 1e-4 of the brightest are left out (a PSF scene is mostly black). The fresh image matches when mean(min(z^2, 25)) < 1.5, fewer
-than 1 % of pixels have |z| > 5, and its total brightness agrees within 4 standard errors
-(estimated from 15x15-pixel tile sums of seed0 - seed1, which keeps correlated noise). So
-Monte Carlo noise passes, while a one-pixel shift or a 2 % change of brightness fails.
+signal). Pixels darker than 1e-4 of the brightest are left out (a PSF scene is mostly black).
+The fresh image matches when mean(min(z^2, 25)) < 1.5, fewer than 1 % of pixels have |z| > 5,
+and its total brightness agrees within 4 standard errors (estimated from 15x15-pixel tile sums
+of seed0 - seed1, which keeps correlated noise). So Monte Carlo noise passes, while a one-pixel
+shift or a 2 % change of brightness fails.
 
 Re-create the references with ``make bless`` after an intended change to what is rendered.
 """
