@@ -36,9 +36,13 @@ def median_spread(xs: Sequence[float]) -> tuple[float, float]:
 
 
 def machine() -> str:
-    variant = os.environ.get("PACAM_BENCH_VARIANT", "")
-    return f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores" + (
-        f", {variant}" if variant else ""
+    """CPU, cores, and the Mitsuba variant when the benchmark rendered anything."""
+    variant = ""
+    if "mitsuba" in sys.modules:
+        variant = sys.modules["mitsuba"].variant() or ""
+    cpu = platform.processor() or platform.machine()
+    return f"{cpu}, {os.cpu_count()} cores, Python {platform.python_version()}" + (
+        f", {variant}" if variant else ", no rendering"
     )
 
 
