@@ -68,10 +68,21 @@ def _cmd_demo(args: argparse.Namespace) -> int:
 def _cmd_psf(args: argparse.Namespace) -> int:
     check_positive("--depth", args.depth, "mm")
     check_finite("--velocity", args.velocity)
-    out = prepare_out_dir(args.out, args.force)
     cam = preset(args.preset).with_(object_depth_mm=args.depth)
     size = None if args.size is None else _odd_size(args.size)
-    k = design_psf(cam, args.mode, args.velocity, size)
+    seed = 0 if args.seed is None else args.seed
+    if args.render:  # check everything before computing or writing anything
+        from .psf_render import check_request, plan_render, rel_l1, render_psf
+
+        check_request(cam, args.spp, seed, args.film)
+    elif args.spp is not None or args.seed is not None:
+        raise ParameterError("--spp and --seed need --render")
+    k = design_psf(cam, args.mode, args.velocity, size, origin=args.origin)
+    if args.render:
+        plan_render(
+            cam, args.mode, args.velocity, k.shape, args.spp, seed, args.film, origin=args.origin
+        )
+    out = prepare_out_dir(args.out, args.force)
     write_exr(out / "psf_analytic.exr", {"psf": k}, force=args.force)
     write_png(out / "psf_analytic.png", srgb8(k), force=args.force)
     meta = {
@@ -79,12 +90,34 @@ def _cmd_psf(args: argparse.Namespace) -> int:
         "mode": args.mode,
         "velocity_px_per_ms": args.velocity,
         "size_px": list(k.shape),
-        "psf_origin": "centre pixel = where the point images at mid-exposure (t = 0)",
+        "psf_origin": "centre pixel = where the point images at mid-exposure (t = 0)"
+        if args.origin == "t0"
+        else "centre pixel = where a pinhole at the lens centre images the point at t = 0",
     }
+    written = "psf_analytic.exr, psf_analytic.png"
+    if args.render:
+        r = render_psf(
+            cam,
+            args.mode,
+            args.velocity,
+            size=k.shape,
+            spp=args.spp,
+            seed=seed,
+            film=args.film,
+            origin=args.origin,
+            progress=not args.quiet,
+        )
+        write_exr(out / "psf_rendered.exr", {"psf": r.kernel}, force=args.force)
+        write_png(out / "psf_rendered.png", srgb8(r.kernel), force=args.force)
+        meta["rendered"] = {**r.to_json(), "l1_vs_analytic": rel_l1(r.kernel, k)}
+        written += ", psf_rendered.exr, psf_rendered.png"
+        print(
+            f"rendered in {r.seconds:.1f} s ({r.particles} particles, spp {r.spp}, seed "
+            f"{r.seed}): L1 to the analytic PSF {rel_l1(r.kernel, k):.4f}, fitted a_i "
+            f"{r.fitted_a_i:.5g} px/ms^2 (Eq. 18: {r.model_a_i:.5g})"
+        )
     write_json(out / "psf.json", meta, force=args.force)
-    print(
-        f"wrote {out}/psf_analytic.exr ({k.shape[0]}x{k.shape[1]} px), psf_analytic.png, psf.json"
-    )
+    print(f"wrote {out}/: {written}, psf.json ({k.shape[0]}x{k.shape[1]} px)")
     return 0
 
 
@@ -220,6 +253,22 @@ def _cmd_render(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_validate_psf(args: argparse.Namespace) -> int:
+    from . import validate
+
+    grid = validate.QUICK if args.quick else validate.FULL
+    s = validate.run(grid, args.out, args.force, progress=not args.quiet)
+    print(
+        f"validate-psf ({grid.name}): {s['points']} points in {s['seconds']:.1f} s; r within "
+        f"1 %: {s['r_pass']}/{s['r_points']} (max {s['r_max_err_pct']:.3f} %); a_i within 1 %: "
+        f"{s['a_i_pass']}/{s['points']} (max {s['a_i_max_err_pct']:.3f} %); L1 at the noise "
+        f"floor: {s['l1_pass']}/{s['points']} (L1/floor median {s['l1_ratio_median']:.2f}); "
+        f"Eq. 14 vs 16 patterns up to L1 {s['eq14_vs_discrete_max']:.3f}"
+    )
+    print(f"wrote {Path(args.out)}/: {', '.join(s['files'])}")
+    return 0
+
+
 def _add_design_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--preset", default="prototype", help="base camera (default: prototype)")
     p.add_argument("--depth", type=float, metavar="MM", help="object depth Z, mm (default 500)")
@@ -253,6 +302,32 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--velocity", type=float, required=True, metavar="PX_PER_MS")
     p.add_argument("--mode", default="coded", choices=MODES_WITH_PSF)
     p.add_argument("--size", type=int, metavar="PX", help="odd kernel side (default: fits the PSF)")
+    p.add_argument(
+        "--render", action="store_true", help="also ray-trace it (ptracer): psf_rendered.exr"
+    )
+    p.add_argument(
+        "--spp",
+        type=int,
+        metavar="N",
+        help="with --render: samples per film pixel per pattern window (default: about 2^18 "
+        "particles per window)",
+    )
+    p.add_argument("--seed", type=int, metavar="S", help="with --render: seed (default 0)")
+    p.add_argument(
+        "--film",
+        default="window",
+        choices=("window", "crop"),
+        help="with --render: a kernel-sized film (default) or a crop of the 1280x960 film "
+        "(ptracer then traces the whole film's spp x 1280 x 960 particles per window)",
+    )
+    p.add_argument(
+        "--origin",
+        default="t0",
+        choices=("t0", "pinhole"),
+        help="what the centre pixel stands for: the t = 0 image (default) or the pinhole image "
+        "(as 'deconvolve --psf analytic' registers captures)",
+    )
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.add_argument("--out", required=True, metavar="DIR")
     p.add_argument("--force", action="store_true", help="overwrite existing results")
     p.set_defaults(func=_cmd_psf)
@@ -321,6 +396,14 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--force", action="store_true", help="overwrite an existing capture")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=_cmd_render)
+    p = sub.add_parser(
+        "validate-psf", help="rendered PSFs against Eqs. 12, 14, 18 on a grid: CSV, PNG, Markdown"
+    )
+    p.add_argument("--quick", action="store_true", help="small grid, modest budget (~30 s)")
+    p.add_argument("--out", required=True, metavar="DIR")
+    p.add_argument("--force", action="store_true", help="overwrite results in DIR")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.set_defaults(func=_cmd_validate_psf)
     p = sub.add_parser("demo", help="the main job on built-in defaults")
     p.add_argument("--out", default="demo_out", metavar="DIR", help="default demo_out/")
     p.add_argument("--width", type=int, default=480)

@@ -15,6 +15,7 @@ full-frame PSNR is not aligned.
 
 from __future__ import annotations
 
+import textwrap
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -97,12 +98,89 @@ def _capture(spec: CaptureSpec, out: Path, seed: int):
     return cap
 
 
-LABELS = {
-    "normal": "normal, 45 ms F9.85",
-    "coded": "coded, prototype (F9.85, r=2)",
-    "coded_1.4": "coded, covers 1.4 px/ms",
-    "short": "short, 0.679 ms F2.8",
-}
+@dataclass(frozen=True)
+class Coded:
+    """A coded design to capture: ``cover`` px/ms (preset pixels) or None for the preset."""
+
+    label: str
+    cover: float | None = None
+
+
+DEMO_CODED = (Coded("prototype (F9.85, r=2)"), Coded("covers 1.4 px/ms", 1.4))
+
+
+def _deconvolve(cap, rendered_psf: bool, spp_psf: int):
+    """Wiener estimates of a noisy coded capture: analytic PSF, and rendered if asked."""
+    from .camera import CameraDesign
+
+    noisy = cap.extra_layers["noisy"] / cap.meta["light_factor"]
+    cam = CameraDesign.from_inputs(cap.meta["camera"])
+    sigma = cap.meta["sensor"]["noise_sigma_white_units"]  # known from the sensor
+    k = design_psf(cam, "coded", 0.0, origin="pinhole")
+    out = {"analytic PSF": wiener(noisy, k, noise_sigma=sigma)}
+    if rendered_psf:
+        from .psf_render import render_psf
+
+        rk = render_psf(cam, "coded", 0.0, size=k.shape, spp=spp_psf, origin="pinhole").kernel
+        out["rendered PSF"] = wiener(noisy, rk, noise_sigma=sigma)
+    return out
+
+
+def run_train(
+    out: Path,
+    width: int,
+    height: int,
+    spp: int,
+    seed: int = 0,
+    coded: tuple[Coded, ...] = DEMO_CODED,
+    rendered_psf: bool = False,
+    spp_psf: int = 1024,
+    name: str = "demo",
+    force: bool = False,
+) -> tuple[Path, list[Panel], dict]:
+    """Captures of the train set, deblurred, in one figure: returns (figure, panels, captures)."""
+    out = prepare_out_dir(out, force)
+    t0 = time.perf_counter()
+    size = {"width": width, "height": height, "spp": spp, "seed": seed}
+    runs = {
+        "reference": CaptureSpec(mode="reference", **size),
+        "normal": CaptureSpec(mode="normal", **size),
+        **{
+            f"coded_{i}": CaptureSpec(mode="coded", cover_px_per_ms=c.cover, **size)
+            for i, c in enumerate(coded)
+        },
+        "short": CaptureSpec(mode="short", **size),
+    }
+    caps = {}
+    for key, spec in runs.items():
+        sub = out / key
+        sub.mkdir(exist_ok=True)
+        caps[key] = _capture(spec, sub, seed)
+        write_capture(caps[key], sub, force=True)  # the folder was cleared or created above
+    ref = caps["reference"].image
+    panels = [Panel("reference (pinhole, frozen)", ref)]
+    panels.append(
+        Panel(
+            "normal, 45 ms F9.85",
+            caps["normal"].extra_layers["noisy"] / caps["normal"].meta["light_factor"],
+        )
+    )
+    for i, c in enumerate(coded):
+        cap = caps[f"coded_{i}"]
+        panels.append(
+            Panel(f"coded, {c.label}", cap.extra_layers["noisy"] / cap.meta["light_factor"])
+        )
+        for how, est in _deconvolve(cap, rendered_psf, spp_psf).items():
+            panels.append(Panel(f"deconvolved ({how}), {c.label}", est))
+    short = caps["short"]
+    panels.append(
+        Panel("short, 0.679 ms F2.8", short.extra_layers["noisy"] / short.meta["light_factor"])
+    )
+    seconds = time.perf_counter() - t0
+    fig_path = out / f"{name}.png"
+    _figure(panels, ref, fig_path)
+    caps["_seconds"] = seconds
+    return fig_path, panels, caps
 
 
 def run_demo(
@@ -113,42 +191,11 @@ def run_demo(
     force: bool = False,
     seed: int = 0,
 ) -> Path:
-    """Render, deconvolve, compose; returns the figure's path."""
-    from .camera import CameraDesign
-
-    out = prepare_out_dir(out, force)
-    t0 = time.perf_counter()
-    size = {"width": width, "height": height, "spp": spp, "seed": seed}
-    runs = {
-        "reference": CaptureSpec(mode="reference", **size),
-        "normal": CaptureSpec(mode="normal", **size),
-        "coded": CaptureSpec(mode="coded", **size),
-        "coded_1.4": CaptureSpec(mode="coded", cover_px_per_ms=1.4, **size),
-        "short": CaptureSpec(mode="short", **size),
-    }
-    caps = {}
-    for name, spec in runs.items():
-        sub = out / name
-        sub.mkdir(exist_ok=True)
-        caps[name] = _capture(spec, sub, seed)
-        write_capture(caps[name], sub, force=True)  # the folder was cleared or created above
-    ref = caps["reference"].image
-    panels = [Panel("reference (pinhole, frozen)", ref)]
-    for name, label in LABELS.items():
-        cap = caps[name]
-        noisy = cap.extra_layers["noisy"] / cap.meta["light_factor"]
-        panels.append(Panel(label, noisy))
-        if name.startswith("coded"):
-            cam = CameraDesign.from_inputs(cap.meta["camera"])
-            k = design_psf(cam, "coded", 0.0, origin="pinhole")
-            sigma = cap.meta["sensor"]["noise_sigma_white_units"]  # known from the sensor
-            est = wiener(noisy, k, noise_sigma=sigma)
-            panels.append(Panel(label.replace("coded", "deconvolved"), est))
-    seconds = time.perf_counter() - t0
-    fig_path = out / "demo.png"
-    _figure(panels, ref, fig_path)
-    write_text(out / "demo.md", _table(panels, ref, caps, width, height, spp, seconds), force=True)
-    return fig_path
+    """The demo: normal, two coded designs (deblurred with the analytic PSF), short."""
+    fig, panels, caps = run_train(out, width, height, spp, seed, force=force)
+    text = _table(panels, caps["reference"].image, caps, width, height, spp, caps["_seconds"])
+    write_text(out / "demo.md", text, force=True)
+    return fig
 
 
 def _figure(panels: list[Panel], ref: np.ndarray, path: Path) -> None:
@@ -165,7 +212,8 @@ def _figure(panels: list[Panel], ref: np.ndarray, path: Path) -> None:
         img = np.clip(p.image, 0, 1) ** (1 / 2.2)  # display gamma only
         axes[0, j].imshow(img)
         full = psnr(p.image, ref, 1.0)
-        axes[0, j].set_title(f"{p.title}\n{'' if j == 0 else f'{full:.1f} dB'}", fontsize=7)
+        title = textwrap.fill(p.title, 26) + ("" if j == 0 else f"\n{full:.1f} dB")
+        axes[0, j].set_title(title, fontsize=7)
         for i, (cname, frac) in enumerate(CROPS.items(), start=1):
             axes[i, j].imshow(_crop(img, frac), interpolation="nearest")
             if j:
@@ -194,8 +242,8 @@ def _table(panels, ref, caps, width, height, spp, seconds) -> str:
         lines.append(
             f"| {p.title} | {psnr(p.image, ref, 1.0):.2f} | {_ssim(p.image, ref):.3f} | {crops} |"
         )
-    proto = caps["coded"].meta["optics"]
-    cover = caps["coded_1.4"].meta["optics"]
+    proto = caps["coded_0"].meta["optics"]
+    cover = caps["coded_1"].meta["optics"]
     far, near = 1.0 * width / 1280, 1.4 * width / 1280
     text = [
         "# pacam demo: the train set (Figs. 12-15)",

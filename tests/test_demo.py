@@ -9,9 +9,9 @@ def test_demo_runs_small(tmp_path, capsys):
     assert main(argv) == 0
     assert (out / "demo.png").stat().st_size > 10_000
     table = (out / "demo.md").read_text()
-    for row in ("normal", "coded, prototype", "deconvolved, covers 1.4", "short"):
+    for row in ("normal", "coded, prototype", "deconvolved (analytic PSF), covers 1.4", "short"):
         assert row in table
-    for sub in ("reference", "normal", "coded", "coded_1.4", "short"):
+    for sub in ("reference", "normal", "coded_0", "coded_1", "short"):
         assert (out / sub / "capture.exr").is_file()
     assert "design report" in capsys.readouterr().out
     assert main(argv) == 2  # a second run needs --force

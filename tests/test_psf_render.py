@@ -1,0 +1,243 @@
+"""Rendered PSFs (ptracer) against the analytic model: registration, r (Eq. 12), a_i (Eq. 18),
+shape at the Monte Carlo noise floor, the moving-source sensor, and the CLI (issue 6).
+
+Kept small: every render here is a few 10^5 to 10^7 particles (well under a second each)."""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+
+import numpy as np
+import pytest
+
+from pacam_render import exrio
+from pacam_render import psf_render as prd
+from pacam_render.backend import select_variant
+from pacam_render.camera import prototype
+from pacam_render.cli import main
+from pacam_render.errors import ParameterError
+from pacam_render.psf import design_psf, pillbox_psf
+
+
+@pytest.fixture(scope="module")
+def renderer():
+    select_variant()
+    return prd.PSFRenderer()
+
+
+def _pair(renderer, cam, mode, s, **kw):
+    a = renderer.render(cam, mode, s, seed=1, **kw)
+    b = renderer.render(cam, mode, s, seed=2, **kw)
+    return a, b, 0.5 * (a.kernel + b.kernel), prd.rel_l1(a.kernel, b.kernel) / 2
+
+
+# ------------------------------------------------------------------------------------------
+# registration, r and a_i
+# ------------------------------------------------------------------------------------------
+@pytest.mark.parametrize("depth", [500.0, 3000.0])  # both sides of the focal plane (751.5 mm)
+def test_registration_and_trajectory(renderer, depth):
+    cam = prototype().with_(object_depth_mm=depth)
+    s = 0.6 * cam.velocity_range_px_per_ms
+    a, b, mean, floor = _pair(renderer, cam, "coded", s)
+    k = design_psf(cam, "coded", s)
+    assert a.kernel.shape == k.shape and a.model is not None
+    assert abs(a.kernel.sum() - 1.0) < 1e-12
+    # the same kernel pixel is the same image position: centroids agree
+    cu, cv = prd.kernel_centroid(mean)
+    ku, kv = prd.kernel_centroid(k)
+    assert abs(cu - ku) < 0.05 and abs(cv - kv) < 0.05
+    # every pattern window lands where Eq. 8 + the motion put it
+    traj = 0.5 * (a.centroid_u_px + b.centroid_u_px)
+    assert np.abs(traj - a.model_u_px).max() < 0.05
+    assert np.allclose(a.mass, 1 / 16, rtol=0.01)
+    # a_i (Eq. 18, sign included: < 0 in front of the focal plane) within 1 %
+    a_fit = prd.fit_acceleration(a.t_mid_ms, traj)
+    assert a_fit == pytest.approx(cam.a_i_px_per_ms2, rel=0.01)
+    assert np.sign(a_fit) == (-1 if depth < cam.focus_distance_mm else 1)
+    # shape at the noise floor of two seeds
+    assert prd.rel_l1(mean, k) < 1.3 * floor
+    assert floor < 0.01
+
+
+def test_crop_of_the_prototype_film_matches_the_window_film(renderer):
+    """The crop of the 1280x960 film (the brief's set-up) and the kernel-sized film agree."""
+    cam = prototype()
+    s = 0.5
+    crop = renderer.render(cam, "coded", s, spp=1, seed=4, film="crop")
+    assert crop.film["crop"]["width"] == crop.kernel.shape[1]
+    # the kernel's centre pixel is a film pixel whose centre is the t = 0 image
+    u0 = 640 - cam.beta_px_per_mm * (cam.R_max_mm - cam.R_mm)
+    assert crop.film["kernel_origin_on_film_px"][0] == math.floor(u0) + 0.5
+    assert crop.film["crop"]["offset_x"] + crop.kernel.shape[1] // 2 == math.floor(u0)
+    assert crop.film["crop"]["offset_y"] + crop.kernel.shape[0] // 2 == 480
+    win = renderer.render(cam, "coded", s, seed=5, spp=512)
+    k = design_psf(cam, "coded", s)
+    noise = prd.rel_l1(crop.kernel, k) + prd.rel_l1(win.kernel, k)
+    assert prd.rel_l1(crop.kernel, win.kernel) < 1.2 * noise
+    assert np.allclose(prd.kernel_centroid(crop.kernel), prd.kernel_centroid(win.kernel), atol=0.03)
+
+
+@pytest.mark.parametrize("mode", ["coded", "levin"])
+def test_pinhole_origin_registration(renderer, mode):
+    """origin='pinhole' (how deconvolve registers captures) shifts both kernels alike."""
+    cam = prototype()
+    r = renderer.render(cam, mode, 0.3, origin="pinhole", spp=64)
+    k = design_psf(cam, mode, 0.3, origin="pinhole")
+    assert r.kernel.shape == k.shape
+    assert np.allclose(prd.kernel_centroid(r.kernel), prd.kernel_centroid(k), atol=0.05)
+    pin, t0 = (design_psf(cam, mode, 0.3, size=101, origin=o) for o in ("pinhole", "t0"))
+    shift = prd.kernel_centroid(pin)[0] - prd.kernel_centroid(t0)[0]  # a_i T^2 / 4 px apart
+    assert shift == pytest.approx(-cam.a_i_px_per_ms2 * cam.T_ms**2 / 4, abs=0.05)
+    if mode == "coded":  # levin's in-focus line: pixel centroids are quantised near the vertex
+        assert np.abs(r.centroid_u_px - r.model_u_px).max() < 0.1
+
+
+def test_static_disc_radius_is_eq12(renderer):
+    cam = prototype().with_(object_depth_mm=1000.0)  # behind the focal plane, r ~ 1 px
+    shape = (15, 15)
+    a, b, mean, floor = _pair(renderer, cam, "normal", 0.0, size=shape, per_window=False)
+    r = prd.fit_disc_radius(mean, cam.r_px)
+    assert r == pytest.approx(cam.r_px, rel=0.01)
+    assert prd.rel_l1(mean, pillbox_psf(cam.r_px, size=shape)) < 1.3 * floor + 2e-3
+    # the source's own size is negligible (second order in its radius)
+    assert prd.source_blur_l1(cam.r_px, prd.DEFAULT_SOURCE_RADIUS_PX) < 5e-4
+    assert prd.source_blur_l1(cam.r_px, 0.25) > 0.01  # psf_scene's default would show
+
+
+@pytest.mark.parametrize("mode", ["levin", "normal", "flutter", "coded_continuous"])
+def test_other_modes_match_their_analytic_psf(renderer, mode):
+    cam = prototype()
+    a, b, mean, floor = _pair(renderer, cam, mode, 0.4)
+    assert prd.rel_l1(mean, design_psf(cam, mode, 0.4)) < 1.3 * floor + 2e-3
+    if mode == "flutter":  # closed chops are skipped: no light, no centroid
+        assert np.isnan(a.centroid_u_px[~(a.mass > 0)]).all() and (a.mass == 0).any()
+    if mode in ("levin", "coded_continuous"):
+        assert a.fitted_a_i == pytest.approx(cam.a_i_px_per_ms2, rel=0.01)
+
+
+def test_same_seed_is_bit_identical(renderer):
+    cam = prototype()
+    a = renderer.render(cam, "coded", 0.3, seed=7, spp=16)
+    b = renderer.render(cam, "coded", 0.3, seed=7, spp=16)
+    c = renderer.render(cam, "coded", 0.3, seed=8, spp=16)
+    assert np.array_equal(a.kernel, b.kernel)  # one Dr.Jit thread: deterministic atomics
+    assert not np.array_equal(a.kernel, c.kernel)
+
+
+# ------------------------------------------------------------------------------------------
+# the moving-scene sensor, exactly
+# ------------------------------------------------------------------------------------------
+def test_scene_velocity_moves_rays_and_connections(renderer):
+    import drjit as dr
+    import mitsuba as mi
+
+    cam = prototype()
+    renderer.render(cam, "coded", 0.0, spp=1)  # loads a scene
+    scene, _ = next(iter(renderer._scenes.values()))
+    sensor = scene.sensors()[0]
+    v = (0.3, -0.2, 0.0)
+    n = 5
+    time_ = mi.Float(np.linspace(1.0, 44.0, n).astype(np.float32))
+    u = mi.Point2f(mi.Float(np.full(n, 0.3, np.float32)), mi.Float(np.full(n, 0.6, np.float32)))
+    sensor.set_scene_velocity((0.0, 0.0, 0.0))
+    r0, _ = sensor.sample_ray(time_, mi.Float(0.5), u, u)
+    sensor.set_scene_velocity(v)
+    r1, _ = sensor.sample_ray(time_, mi.Float(0.5), u, u)
+    tau = np.array(r1.time) - 22.5
+    shift = np.array(r1.o) - np.array(r0.o)  # (3, n)
+    assert np.allclose(shift, -np.outer(v, tau), atol=1e-4)
+    assert np.allclose(np.array(r1.d), np.array(r0.d))
+    # particle tracing: a point seen at time t lands where the moved point images
+    it = dr.zeros(mi.Interaction3f, n)
+    it.p = mi.Point3f(0.0, 0.0, 500.0)
+    it.time = time_
+    ds1, _ = sensor.sample_direction(it, u)
+    sensor.set_scene_velocity((0.0, 0.0, 0.0))
+    moved = dr.zeros(mi.Interaction3f, n)
+    moved.p = mi.Point3f(mi.Float(v[0] * tau), mi.Float(v[1] * tau), mi.Float(np.full(n, 500.0)))
+    moved.time = time_
+    ds2, _ = sensor.sample_direction(moved, u)
+    assert np.allclose(np.array(ds1.uv), np.array(ds2.uv), atol=1e-3)
+    with pytest.raises(ParameterError, match="3 components"):
+        sensor.set_scene_velocity((1.0, 2.0))
+
+
+# ------------------------------------------------------------------------------------------
+# validation grid (quick) and the CLI
+# ------------------------------------------------------------------------------------------
+def test_validate_psf_quick(tmp_path, capsys):
+    out = tmp_path / "v"
+    assert main(["validate-psf", "--quick", "--quiet", "--out", str(out)]) == 0
+    printed = capsys.readouterr().out
+    assert "validate-psf (quick)" in printed
+    rows = list(csv.DictReader((out / "validate_psf.csv").open()))
+    assert len(rows) == 18
+    for r in rows:
+        assert r["r_pass"] == "True" and r["a_i_pass"] == "True" and r["l1_pass"] == "True", r
+        assert abs(float(r["centroid_du_px"])) < 0.05 and abs(float(r["centroid_dv_px"])) < 0.05
+        assert abs(float(r["r_err_pct"])) < 1.0
+        if float(r["a_i_model"]) != 0.0:
+            assert abs(float(r["a_i_err_pct"])) < 1.0
+            assert float(r["l1_model_eq14_vs_discrete"]) > 0.02  # Eq. 14 is not 16 patterns
+    assert {r["side"] for r in rows} == {"near", "far"}
+    md = (out / "validate_psf.md").read_text()
+    assert "Eq. 14 (continuous) against 16 patterns" in md
+    for name in ("validate_psf_r_ai.png", "validate_psf_l1.png", "validate_psf_examples.png"):
+        assert (out / name).stat().st_size > 1000
+    assert main(["validate-psf", "--quick", "--quiet", "--out", str(out)]) == 2  # no overwrite
+    assert "already holds results" in capsys.readouterr().err
+
+
+def test_cli_psf_render(tmp_path):
+    out = tmp_path / "p"
+    args = ["psf", "--depth", "500", "--velocity", "0.5", "--render", "--quiet"]
+    assert main([*args, "--spp", "32", "--seed", "3", "--out", str(out)]) == 0
+    k = exrio.read_layer(out / "psf_analytic.exr", "psf")
+    layers = exrio.read_exr(out / "psf_rendered.exr")
+    assert list(layers) == ["psf"]  # one single-channel layer
+    r = layers["psf"]
+    assert r.shape == k.shape and r.dtype == np.float32
+    assert abs(float(r.sum(dtype=np.float64)) - 1) < 1e-5
+    assert prd.rel_l1(r, k) < 0.05
+    meta = json.loads((out / "psf.json").read_text())
+    rend = meta["rendered"]
+    assert rend["spp"] == 32 and rend["seed"] == 3 and rend["run_time_s"] > 0
+    assert len(rend["centroid_trajectory"]) == 16
+    assert rend["fitted_a_i_px_per_ms2"] == pytest.approx(meta["a_i_px_per_ms2"], rel=0.01)
+    assert rend["integrator"].startswith("ptracer") and rend["rfilter"] == "box"
+
+
+@pytest.mark.parametrize(
+    "extra, message",
+    [
+        (["--render", "--spp", "0"], "spp"),
+        (["--render", "--spp", "-3"], "spp"),
+        (["--render", "--seed", "-1"], "seed"),
+        (["--spp", "16"], "need --render"),
+        (["--render", "--size", "1001"], "must fit the 1280x960 film"),
+        (["--render", "--depth", "5"], "depth must be in"),
+        (["--render", "--depth", "-5"], "--depth must be > 0"),
+        (["--render", "--depth", "0"], "--depth must be > 0"),
+    ],
+)
+def test_cli_psf_render_errors(tmp_path, capsys, extra, message):
+    out = tmp_path / "e"
+    args = ["psf", "--depth", "500", "--velocity", "0.5", "--quiet", "--out", str(out), *extra]
+    assert main(args) == 2
+    assert message in capsys.readouterr().err
+    assert not out.exists()  # nothing written
+
+
+def test_in_focus_depth_is_a_clear_error(tmp_path, capsys):
+    zf = prototype().focus_distance_mm
+    out = tmp_path / "f"
+    assert main(["psf", "--depth", repr(zf), "--velocity", "0", "--render", "--out", str(out)]) == 2
+    assert "beta = 0" in capsys.readouterr().err
+    with pytest.raises(ParameterError, match="spp"):
+        prd.plan_render(prototype(), spp=2.5)
+    with pytest.raises(ParameterError, match="integrator"):
+        prd.plan_render(prototype(), integrator="bdpt")
+    with pytest.raises(ParameterError, match="mode"):
+        prd.plan_render(prototype(), "bogus")
