@@ -681,7 +681,12 @@ def _summary_train(rows, w, h, spp, spp_psf, caps) -> str:
                 "though the windows and wheels reappear in the crops: the sensor and Monte "
                 "Carlo noise that Wiener must not amplify cap it, and at a_i = 0.089 the 16 "
                 "held patterns jump by several pixels (Fig. 6's dips)."
-            ),
+            )
+            + f" The static backdrop goes from {get('coded, prototype', 'backdrop'):.1f} dB "
+            f"(coded) to {get('deconvolved (analytic PSF), prototype', 'backdrop'):.1f} dB "
+            "(deconvolved): Wiener assumes white noise, and a demosaicked Bayer capture's noise "
+            "is neither white nor equal across colours, so the filter's balance is only "
+            "approximate here (BM3D deblurring, the paper's choice, is `--method bm3d`).",
             "",
             "Alignment: a motion-invariant PSF moves each object by -s^2 / (2 a_i) (the trains by "
             "different amounts, the background not at all), so each crop is scored at its best "
