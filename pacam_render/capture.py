@@ -279,19 +279,8 @@ def render_capture(
         plan = sensor.plan
         speed = fastest_image_speed_px_per_ms(desc, design, (-0.5 * exposure, 0.5 * exposure))
         steps = plan_steps(plan.pattern_edges, plan.is_open, speed, spec)
-        image, patterns, meta = _integrate(
-            scene,
-            sensor,
-            desc,
-            steps,
-            spec,
-            shape,
-            exposure,
-            partial_dir,
-            progress,
-            save_every_s,
-            stop_after_steps,
-        )
+        run = _Run(partial_dir, progress, save_every_s, stop_after_steps)
+        image, patterns, meta = _integrate(scene, sensor, desc, steps, spec, shape, exposure, run)
         meta["fastest_image_speed_px_per_ms"] = speed
     meta.update(
         _metadata(
@@ -305,21 +294,22 @@ class CaptureInterrupted(RuntimeError):
     """Raised by ``stop_after_steps``: the finished steps are on disk."""
 
 
-def _integrate(
-    scene,
-    sensor,
-    desc,
-    steps,
-    spec,
-    shape,
-    exposure,
-    partial_dir,
-    progress,
-    save_every_s,
-    stop_after_steps,
-):
+@dataclass(frozen=True)
+class _Run:
+    """How to run the steps: where to keep finished ones, progress, deliberate interruption."""
+
+    partial_dir: Path | None
+    progress: bool
+    save_every_s: float
+    stop_after_steps: int | None
+
+
+def _integrate(scene, sensor, desc, steps, spec, shape, exposure, run: _Run):
     import mitsuba as mi
     from tqdm import tqdm
+
+    partial_dir, progress = run.partial_dir, run.progress
+    save_every_s, stop_after_steps = run.save_every_s, run.stop_after_steps
 
     anim = desc.animator(scene)
     store = _Partial(partial_dir, spec.key())
