@@ -185,6 +185,8 @@ def _cmd_reproduce(args: argparse.Namespace) -> int:
     from . import reproduce
 
     names = list(reproduce.FIGURES) if args.figure == "all" else [args.figure]
+    if not 0 <= args.seed < 2**31:
+        raise ParameterError(f"--seed must be an integer in [0, 2^31), got {args.seed}")
     out = Path(args.out)
     if out.exists() and not out.is_dir():
         raise ParameterError(f"--out {out} exists and is not a folder")
@@ -235,6 +237,8 @@ def _cmd_render(args: argparse.Namespace) -> int:
     model = _sensor_model(args.sensor) if args.sensor else None
     if args.light_level is not None and model is None:
         raise ParameterError("--light-level needs --sensor")
+    if args.light_level is not None:  # refuse before rendering, not after
+        check_positive("--light-level", args.light_level, "photons/px/ms")
     out = Path(args.out)
     if out.exists() and not out.is_dir():
         raise ParameterError(f"--out {out} exists and is not a folder")

@@ -168,3 +168,13 @@ def test_unparsable_scene_file(tmp_path, capsys):
     assert main(["render", str(bad), "--out", str(tmp_path / "o"), "--quiet"]) == 2
     err = capsys.readouterr().err
     assert "Traceback" not in err and "bad.xml" in err
+
+
+def test_cli_checks_options_before_rendering(tmp_path, capsys):
+    out = tmp_path / "never"
+    argv = ["render", "train", "--sensor", "paper", "--light-level", "-5", "--out", str(out)]
+    assert main(argv) == 2
+    assert "--light-level must be > 0" in capsys.readouterr().err
+    assert not out.exists()  # nothing rendered, nothing written
+    assert main(["reproduce", "fig9", "--quick", "--seed", "-1", "--out", str(out)]) == 2
+    assert "--seed must be" in capsys.readouterr().err and not out.exists()
