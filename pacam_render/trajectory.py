@@ -59,6 +59,11 @@ class Segment:
         return float(xs.min()), float(xs.max())
 
 
+def _linear(seg: Segment) -> bool:
+    """No usable quadratic term: a = 0, or so subnormal that a/2 underflows to 0."""
+    return 0.5 * seg.a == 0.0
+
+
 def _roots(seg: Segment, c: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Ordered roots r1 <= r2 of x(t) = c (a != 0), and whether they are real.
 
@@ -80,7 +85,7 @@ def _sublevel_intervals(seg: Segment, c: np.ndarray) -> list[tuple[np.ndarray, n
     """Up to two time intervals, clipped to [t0, t1], on which x(t) <= c."""
     t0, t1 = seg.t0, seg.t1
     lo_all, hi_all = np.full_like(c, t0), np.full_like(c, t1)
-    if seg.a == 0.0:
+    if _linear(seg):
         if seg.v == 0.0:  # an atom at x0
             inside = seg.x0 <= c
             return [(lo_all, np.where(inside, t1, t0))]
@@ -152,9 +157,9 @@ def density(segments: list[Segment], x) -> np.ndarray:
     x = np.asarray(x, dtype=float)
     out = np.zeros_like(x)
     for seg in segments:
-        if seg.w == 0.0 or (seg.a == 0.0 and seg.v == 0.0):
+        if seg.w == 0.0 or (_linear(seg) and seg.v == 0.0):
             continue
-        if seg.a == 0.0:
+        if _linear(seg):
             ts = [(x - seg.x0) / seg.v]
             real = np.ones_like(x, dtype=bool)
         else:

@@ -222,6 +222,14 @@ def test_extreme_cases_stay_valid(s, a, r, TT):
             assert_valid(k)
 
 
+def test_subnormal_acceleration_is_the_linear_limit():
+    """a_i = 5e-324: a/2 underflows to 0; the kernel must be the a_i = 0 one, not empty."""
+    for s in (0.0, 0.5):
+        k = psf.coded_psf(s, 5e-324, 0.0, 1.0, size=33)
+        assert_valid(k)
+        assert np.abs(k - psf.static_psf(s, 1.0, size=33)).sum() < 1e-12
+
+
 def test_a_to_zero_tends_to_box():
     k1 = psf.levin_psf(0.5, 1e-14, T, size=41)
     k0 = psf.static_psf(0.5, T, size=41)
