@@ -19,7 +19,7 @@ bench: setup
 
 # Re-create the regression images in tests/regression/ (after an intended change to renders).
 bless: setup
-	$(BIN)/python -m pacam_render.regression --bless
+	$(BIN)/python -m pacam_render.experiments.regression --bless
 
 lint: setup
 	$(BIN)/ruff format --check pacam_render tests benchmarks

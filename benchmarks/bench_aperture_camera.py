@@ -31,10 +31,10 @@ import mitsuba as mi
 import numpy as np
 from common import median_spread, record, timeit
 
-from pacam_render import aperture_camera as ac
-from pacam_render import schedule as sch
-from pacam_render.aperture_masks import DISPLAY_SHAPE, disc_masks
-from pacam_render.backend import select_variant
+from pacam_render.model import schedule as sch
+from pacam_render.render import aperture_camera as ac
+from pacam_render.render.backend import select_variant
+from pacam_render.render.masks import DISPLAY_SHAPE, disc_masks
 
 SHUTTER = dict(shutter_open=0.0, shutter_close=45.0)
 

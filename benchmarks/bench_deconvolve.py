@@ -19,9 +19,9 @@ from skimage import color, data, transform
 from skimage.metrics import structural_similarity
 from skimage.restoration import wiener as sk_wiener
 
-from pacam_render import deconvolve as D
 from pacam_render import prototype
-from pacam_render.psf import design_psf
+from pacam_render.psf.analytic import design_psf
+from pacam_render.restore import deconvolve as D
 
 SIGMA = 0.01
 

@@ -22,7 +22,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 from common import median_spread, record, timeit
 
-from pacam_render import psf
+from pacam_render.psf import analytic as psf
 
 T, S, A, R = 22.5, 0.3, 0.04, 2.0
 SIZE = 129

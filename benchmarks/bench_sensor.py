@@ -24,7 +24,7 @@ import os
 import numpy as np
 from common import median_spread, record, timeit
 
-from pacam_render.sensor_model import (
+from pacam_render.sensor.model import (
     DEFAULT_LIGHT_LEVEL,
     SensorModel,
     aperture_area_mm2,

@@ -6,13 +6,11 @@ Units everywhere: scene mm, time ms, image px. Image coordinates are upright (as
 
 from importlib.metadata import version
 
-from .aperture_camera import install as _install_aperture_camera
-from .aperture_camera import sensor_dict
-from .backend import select_variant
-from .camera import CameraDesign, preset, prototype
-from .design import solve as solve_design
 from .errors import ParameterError
-from .psf import (
+from .model.camera import CameraDesign, preset, prototype
+from .model.design import solve as solve_design
+from .model.report import design_report
+from .psf.analytic import (
     PSFTruncationWarning,
     coded_psf,
     discrete_coded_psf,
@@ -22,8 +20,10 @@ from .psf import (
     short_exposure_psf,
     static_psf,
 )
-from .report import design_report
-from .sensor_model import (
+from .render.aperture_camera import install as _install_aperture_camera
+from .render.aperture_camera import sensor_dict
+from .render.backend import select_variant
+from .sensor.model import (
     DEFAULT_LIGHT_LEVEL,
     SensorCapture,
     SensorModel,

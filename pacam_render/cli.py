@@ -10,15 +10,15 @@ from pathlib import Path
 
 import numpy as np
 
-from .camera import PRESETS, CameraDesign, preset, prototype
-from .deconvolve import BM3D_LICENCE, METHODS, deconvolve
-from .design import solve
 from .errors import ParameterError, check_finite, check_positive
-from .exrio import read_exr, read_layer, write_exr
-from .outputs import check_writable, prepare_out_dir, write_json
-from .preview import srgb8, write_png
-from .psf import MODES_WITH_PSF, design_psf
-from .report import design_report
+from .io.exr import read_exr, read_layer, write_exr
+from .io.outputs import check_writable, prepare_out_dir, write_json
+from .io.preview import srgb8, write_png
+from .model.camera import PRESETS, CameraDesign, preset, prototype
+from .model.design import solve
+from .model.report import design_report
+from .psf.analytic import MODES_WITH_PSF, design_psf
+from .restore.deconvolve import BM3D_LICENCE, METHODS, deconvolve
 
 
 def _design_from_args(args: argparse.Namespace) -> CameraDesign:
@@ -54,7 +54,7 @@ def _cmd_design(args: argparse.Namespace) -> int:
 
 
 def _cmd_demo(args: argparse.Namespace) -> int:
-    from .demo import check_size, run_demo
+    from .experiments.demo import check_size, run_demo
 
     check_size(args.width, args.height, args.spp)
     print(design_report(prototype()))
@@ -72,7 +72,7 @@ def _cmd_psf(args: argparse.Namespace) -> int:
     size = None if args.size is None else _odd_size(args.size)
     seed = 0 if args.seed is None else args.seed
     if args.render:  # check everything before computing or writing anything
-        from .psf_render import check_request, plan_render, rel_l1, render_psf
+        from .exposure.psf_render import check_request, plan_render, rel_l1, render_psf
 
         check_request(cam, args.spp, seed, args.film)
     elif args.spp is not None or args.seed is not None:
@@ -182,7 +182,7 @@ def _cmd_deconvolve(args: argparse.Namespace) -> int:
 
 
 def _cmd_reproduce(args: argparse.Namespace) -> int:
-    from . import reproduce
+    from .experiments import reproduce
 
     names = list(reproduce.FIGURES) if args.figure == "all" else [args.figure]
     if not 0 <= args.seed < 2**31:
@@ -197,15 +197,15 @@ def _cmd_reproduce(args: argparse.Namespace) -> int:
 
 
 def _sensor_model(name: str):
-    from .sensor_model import SensorModel
+    from .sensor.model import SensorModel
 
     return SensorModel.from_preset(name)
 
 
 def _add_sensor_layers(cap, model, name: str, light_level, seed: int) -> None:
     """raw (DN) and noisy (linear) layers; the noiseless capture stays."""
-    from .capture import apply_sensor
-    from .sensor_model import DEFAULT_LIGHT_LEVEL
+    from .exposure.capture import apply_sensor
+    from .sensor.model import DEFAULT_LIGHT_LEVEL
 
     if light_level is None and model.shot_noise:
         light_level = DEFAULT_LIGHT_LEVEL  # a physical sensor needs photons; paper does not
@@ -221,7 +221,7 @@ def _add_sensor_layers(cap, model, name: str, light_level, seed: int) -> None:
 
 
 def _cmd_render(args: argparse.Namespace) -> int:
-    from .capture import CaptureSpec, render_capture, write_capture
+    from .exposure.capture import CaptureSpec, render_capture, write_capture
 
     spec = CaptureSpec(
         scene=args.scene,
@@ -258,7 +258,7 @@ def _cmd_render(args: argparse.Namespace) -> int:
 
 
 def _cmd_validate_psf(args: argparse.Namespace) -> int:
-    from . import validate
+    from .experiments import validate_psf as validate
 
     grid = validate.QUICK if args.quick else validate.FULL
     s = validate.run(grid, args.out, args.force, progress=not args.quiet)
@@ -351,7 +351,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", required=True, metavar="FILE", help=".exr (float) or .png (preview)")
     p.add_argument("--force", action="store_true", help="overwrite an existing FILE")
     p.set_defaults(func=_cmd_deconvolve)
-    from .reproduce import FIGURES
+    from .experiments.reproduce import FIGURES
 
     p = sub.add_parser("reproduce", help="the paper's simulation figures: CSV, PNG, Markdown")
     p.add_argument("figure", choices=[*FIGURES, "all"])

@@ -46,14 +46,14 @@ if [ ! -f $STAMP ] || [ pyproject.toml -nt $STAMP ]; then
 fi
 
 # 4. drjit's LLVM backend. A broken libLLVM aborts the renderer, so check in a subprocess.
-if ! $VENV/bin/python -m pacam_render.backend --check >/dev/null 2>&1; then
+if ! $VENV/bin/python -m pacam_render.render.backend --check >/dev/null 2>&1; then
   echo "drjit's LLVM backend cannot render here (it needs libLLVM >= 16)."
   for pkg in libllvm19 libllvm18 libllvm17 libllvm16; do
-    if apt_install "$pkg" 2>/dev/null && $VENV/bin/python -m pacam_render.backend --check >/dev/null 2>&1; then
+    if apt_install "$pkg" 2>/dev/null && $VENV/bin/python -m pacam_render.render.backend --check >/dev/null 2>&1; then
       echo "installed $pkg: LLVM backend OK"; break
     fi
   done
-  if ! $VENV/bin/python -m pacam_render.backend --check >/dev/null 2>&1; then
+  if ! $VENV/bin/python -m pacam_render.render.backend --check >/dev/null 2>&1; then
     echo "WARNING: still no working LLVM backend; rendering will use the slow scalar variant." >&2
     echo "         Fix it with:  sudo apt-get install -y libllvm19" >&2
   fi

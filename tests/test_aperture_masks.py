@@ -5,7 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from pacam_render.aperture_masks import (
+from pacam_render.errors import ParameterError
+from pacam_render.model.optics import LCOS_PITCH_MM
+from pacam_render.render.masks import (
     DISPLAY_SHAPE,
     build_tables,
     check_masks,
@@ -15,8 +17,6 @@ from pacam_render.aperture_masks import (
     pixel_centres_mm,
     sample_tables_numpy,
 )
-from pacam_render.errors import ParameterError
-from pacam_render.optics import LCOS_PITCH_MM
 
 
 def test_pixel_centres_orientation():
@@ -64,7 +64,7 @@ def test_load_masks_types(tmp_path):
 
     import mitsuba as mi
 
-    from pacam_render.backend import select_variant
+    from pacam_render.render.backend import select_variant
 
     select_variant()
     for i in range(2):

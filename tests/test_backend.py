@@ -11,7 +11,7 @@ import pytest
 SNIPPET = """
 import warnings
 warnings.simplefilter("always")
-from pacam_render.backend import BackendWarning, select_variant
+from pacam_render.render.backend import BackendWarning, select_variant
 with warnings.catch_warnings(record=True) as caught:
     v = select_variant(mono={mono})
     select_variant(mono={mono})  # a second request must not warn again
@@ -47,7 +47,7 @@ def test_mono_request_on_scalar_uses_rgb():
 
 
 def test_mono_request_gives_mono_variant():
-    from pacam_render.backend import llvm_status
+    from pacam_render.render.backend import llvm_status
 
     if not llvm_status()[0]:
         pytest.skip("LLVM backend not available here")
@@ -71,7 +71,11 @@ def test_environment_override():
 def test_bad_override_is_a_clear_error():
     env = dict(os.environ, PACAM_VARIANT="nonsense_variant")
     out = subprocess.run(
-        [sys.executable, "-c", "from pacam_render.backend import select_variant; select_variant()"],
+        [
+            sys.executable,
+            "-c",
+            "from pacam_render.render.backend import select_variant; select_variant()",
+        ],
         env=env,
         capture_output=True,
         text=True,
@@ -82,7 +86,7 @@ def test_bad_override_is_a_clear_error():
 
 
 def test_llvm_is_chosen_when_it_works():
-    from pacam_render.backend import llvm_status
+    from pacam_render.render.backend import llvm_status
 
     ok, why = llvm_status()
     if not ok:

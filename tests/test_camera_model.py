@@ -8,9 +8,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from pacam_render import camera, design, optics, schedule
 from pacam_render.cli import main
 from pacam_render.errors import ParameterError
+from pacam_render.model import camera, design, optics, schedule
 
 PROTO = camera.prototype()
 
@@ -105,7 +105,7 @@ def test_sixteen_pattern_schedule():
 
 
 def test_report_states_the_inconsistency():
-    from pacam_render.report import design_report
+    from pacam_render.model.report import design_report
 
     text = design_report(PROTO)
     assert "0.089" in text and "0.0398" in text

@@ -6,7 +6,9 @@ import json
 import numpy as np
 import pytest
 
-from pacam_render.capture import (
+from pacam_render.cli import main
+from pacam_render.errors import ParameterError
+from pacam_render.exposure.capture import (
     MODES,
     CaptureInterrupted,
     CaptureSpec,
@@ -14,9 +16,7 @@ from pacam_render.capture import (
     plan_steps,
     render_capture,
 )
-from pacam_render.cli import main
-from pacam_render.errors import ParameterError
-from pacam_render.scenes import psf_scene
+from pacam_render.scenes.library import psf_scene
 
 TINY = {"width": 48, "height": 36, "spp": 4}
 
@@ -116,7 +116,7 @@ def test_cli_render_writes_and_refuses_to_overwrite(tmp_path, capsys):
 
 
 def test_cli_render_with_sensor_layers(tmp_path):
-    from pacam_render.exrio import read_exr
+    from pacam_render.io.exr import read_exr
 
     out = tmp_path / "s"
     argv = [

@@ -6,9 +6,9 @@ import pytest
 from scipy.signal import fftconvolve
 from skimage import data
 
-from pacam_render import deconvolve as D
-from pacam_render import psf as P
 from pacam_render.errors import ParameterError
+from pacam_render.psf import analytic as P
+from pacam_render.restore import deconvolve as D
 
 SIGMA = 0.01
 

@@ -7,11 +7,12 @@ import pytest
 from scipy.signal import fftconvolve
 from skimage import data
 
-from pacam_render import exrio, psf
-from pacam_render.camera import CameraDesign, prototype
 from pacam_render.cli import main
-from pacam_render.deconvolve import psnr
 from pacam_render.errors import ParameterError
+from pacam_render.io import exr as exrio
+from pacam_render.model.camera import CameraDesign, prototype
+from pacam_render.psf import analytic as psf
+from pacam_render.restore.deconvolve import psnr
 
 
 def test_exr_round_trip_is_bit_exact(tmp_path):

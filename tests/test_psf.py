@@ -10,9 +10,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy import integrate
 
-from pacam_render import psf
 from pacam_render.errors import ParameterError
-from pacam_render.trajectory import Segment, density
+from pacam_render.psf import analytic as psf
+from pacam_render.psf.trajectory import Segment, density
 
 T = 22.5
 RNG = np.random.default_rng(1234)

@@ -12,13 +12,13 @@ import math
 import numpy as np
 import pytest
 
-from pacam_render import exrio
-from pacam_render import psf_render as prd
-from pacam_render.backend import select_variant
-from pacam_render.camera import prototype
 from pacam_render.cli import main
 from pacam_render.errors import ParameterError
-from pacam_render.psf import design_psf, pillbox_psf
+from pacam_render.exposure import psf_render as prd
+from pacam_render.io import exr as exrio
+from pacam_render.model.camera import prototype
+from pacam_render.psf.analytic import design_psf, pillbox_psf
+from pacam_render.render.backend import select_variant
 
 
 @pytest.fixture(scope="module")

@@ -1,11 +1,11 @@
 """Regression-image tests. These compare fresh renders with stored renders of our own (an
 earlier output of this code, re-created by `make bless`), which is what a regression test is
-for; the comparison is noise-aware (see pacam_render.regression)."""
+for; the comparison is noise-aware (see pacam_render.experiments.regression)."""
 
 import numpy as np
 import pytest
 
-from pacam_render import regression as R
+from pacam_render.experiments import regression as R
 
 
 @pytest.mark.parametrize("name", list(R.CASES))

@@ -6,9 +6,9 @@ import csv
 import numpy as np
 import pytest
 
-from pacam_render import experiments as E
-from pacam_render import reproduce as R
 from pacam_render.cli import main
+from pacam_render.experiments import reproduce as R
+from pacam_render.experiments import simulate as E
 
 
 @pytest.fixture(scope="module")

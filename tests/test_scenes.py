@@ -11,10 +11,10 @@ import numpy as np
 import pytest
 import trimesh
 
-from pacam_render import scene_assets as sa
-from pacam_render import scenes as S
-from pacam_render.camera import prototype
 from pacam_render.errors import ParameterError
+from pacam_render.model.camera import prototype
+from pacam_render.scenes import assets as sa
+from pacam_render.scenes import library as S
 
 W, H = 64, 48
 F_PX = 0.5 * 1280 / math.tan(math.radians(23.0))  # independent of CameraDesign

@@ -19,9 +19,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy import stats
 
-from pacam_render import bayer
 from pacam_render.errors import ParameterError
-from pacam_render.sensor_model import (
+from pacam_render.sensor import bayer
+from pacam_render.sensor.model import (
     DEFAULT_LIGHT_LEVEL,
     PRESETS,
     SensorModel,

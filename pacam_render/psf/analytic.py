@@ -25,8 +25,8 @@ import warnings
 
 import numpy as np
 
-from . import schedule as sch
-from .errors import ParameterError, check_finite, check_positive
+from ..errors import ParameterError, check_finite, check_positive
+from ..model import schedule as sch
 from .pillbox import quadrant_area
 from .trajectory import Segment, bin_statistics, extent, total_weight
 

@@ -78,11 +78,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from . import aperture_camera as ac
-from . import schedule as sch
-from .camera import CameraDesign
-from .errors import ParameterError, check_finite, check_positive
-from .scenes import image_to_scene_velocity, psf_scene
+from ..errors import ParameterError, check_finite, check_positive
+from ..model import schedule as sch
+from ..model.camera import CameraDesign
+from ..render import aperture_camera as ac
+from ..scenes.library import image_to_scene_velocity, psf_scene
 
 PLUGIN_NAME = "pacam_psf_camera"
 DEFAULT_SOURCE_RADIUS_PX = 0.02
@@ -261,8 +261,8 @@ def model_window_kernels(design: CameraDesign, mode: str, velocity: float, shape
     """The model's pixel-integrated kernel of each window (each normalised; None if shut),
     registered like ``design_psf(..., origin="t0")``: the same estimator (pixel centroids)
     applied to these gives the model's own value, free of Monte Carlo noise."""
-    from .psf import kernel_from_trajectory
-    from .trajectory import Segment
+    from ..psf.analytic import kernel_from_trajectory
+    from ..psf.trajectory import Segment
 
     setup = mode_setup(design, mode)
     s = check_finite("velocity (px/ms)", velocity)
@@ -410,7 +410,7 @@ def fit_disc_radius(kernel: np.ndarray, r_guess: float) -> float:
     ``kernel`` (least squares), searched in [r_guess / 2, 2 r_guess] within the kernel."""
     from scipy.optimize import minimize_scalar
 
-    from .psf import pillbox_psf
+    from ..psf.analytic import pillbox_psf
 
     k = np.asarray(kernel, dtype=float)
     k = k / k.sum()
@@ -437,7 +437,7 @@ def rel_l1(a: np.ndarray, b: np.ndarray) -> float:
 def source_blur_l1(r_px: float, source_radius_px: float, rings: int = 4) -> float:
     """L1 change of a pixel-integrated pillbox of radius r_px when convolved with a uniform
     source disc (quadrature over the source: equal-area rings): the source-size effect."""
-    from .psf import pillbox_psf
+    from ..psf.analytic import pillbox_psf
 
     r = check_positive("r_px", r_px, "px")
     rs = float(source_radius_px)
@@ -701,7 +701,7 @@ def plan_render(
     range) and compute the analytic kernel, the film and the placement; renders nothing.
     ``model``: the analytic kernel if already computed (``design_psf(design, mode, velocity,
     size, origin=origin)``), to save its computation."""
-    from .psf import design_psf
+    from ..psf.analytic import design_psf
 
     velocity = check_finite("velocity (px/ms)", velocity)
     spp, seed = check_request(design, spp, seed, film, integrator, origin)
@@ -728,7 +728,7 @@ class PSFRenderer:
     def __init__(self, source_radius_px: float = DEFAULT_SOURCE_RADIUS_PX):
         import mitsuba as mi
 
-        from .backend import select_variant
+        from ..render.backend import select_variant
 
         if mi.variant() is None:
             select_variant()

@@ -16,9 +16,9 @@ from dataclasses import asdict, dataclass, field, fields, replace
 
 import numpy as np
 
+from ..errors import ParameterError, check_positive
 from . import optics
 from . import schedule as sch
-from .errors import ParameterError, check_positive
 
 
 @dataclass(frozen=True)

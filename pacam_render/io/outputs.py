@@ -9,7 +9,7 @@ import tempfile
 from collections.abc import Callable
 from pathlib import Path
 
-from .errors import ParameterError
+from ..errors import ParameterError
 
 
 def check_writable(path: str | os.PathLike, force: bool) -> Path:

@@ -37,11 +37,11 @@ from pathlib import Path
 
 import numpy as np
 
-from . import psf_render as prd
-from .camera import CameraDesign, prototype
-from .errors import ParameterError
-from .outputs import atomic_save, prepare_out_dir, write_text
-from .psf import design_psf
+from ..errors import ParameterError
+from ..exposure import psf_render as prd
+from ..io.outputs import atomic_save, prepare_out_dir, write_text
+from ..model.camera import CameraDesign, prototype
+from ..psf.analytic import design_psf
 
 SIZE_LADDER = (15, 31, 47, 63, 95, 127, 159, 191, 255, 319, 383, 511, 639, 767, 959)
 """Kernel sides used for renders: rounding up to these lets many points share one loaded scene
@@ -102,8 +102,8 @@ def ladder_size(n: int) -> int:
 def coded_kernel_side(design: CameraDesign, speed: float) -> int:
     """Odd kernel side that holds both the discrete and the continuous (Eq. 14) coded PSF,
     from the trajectories' extents (as design_psf sizes them, without computing them)."""
-    from .psf import discrete_segments, parabola_segments
-    from .trajectory import extent
+    from ..psf.analytic import discrete_segments, parabola_segments
+    from ..psf.trajectory import extent
 
     T, a, r = design.T_ms, design.a_i_px_per_ms2, design.r_px
     ext = [*extent(parabola_segments(speed, a, T)), *extent(discrete_segments(speed, a, T))]

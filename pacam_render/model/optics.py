@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import math
 
-from .errors import ParameterError, check_positive, check_range
+from ..errors import ParameterError, check_positive, check_range
 
 LCOS_PITCH_MM = 0.01362
 """Pixel pitch of the prototype's LCoS aperture display (SXGA-3DM), mm."""

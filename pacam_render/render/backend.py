@@ -16,7 +16,7 @@ import os
 import sys
 import warnings
 
-from .errors import ParameterError
+from ..errors import ParameterError
 
 MIN_LLVM = (16, 0, 0)
 LLVM_FIX = "apt-get install -y libllvm19"

@@ -22,11 +22,17 @@ from pathlib import Path
 
 import numpy as np
 
-from .capture import CaptureSpec, apply_sensor, render_capture, sensor_sigma, write_capture
-from .deconvolve import psnr, wiener
-from .errors import ParameterError
-from .outputs import prepare_out_dir, write_text
-from .psf import design_psf
+from ..errors import ParameterError
+from ..exposure.capture import (
+    CaptureSpec,
+    apply_sensor,
+    render_capture,
+    sensor_sigma,
+    write_capture,
+)
+from ..io.outputs import prepare_out_dir, write_text
+from ..psf.analytic import design_psf
+from ..restore.deconvolve import psnr, wiener
 
 LIGHT_LEVEL = 300.0
 """photons/px/ms of white through F2.8: a dim indoor scene, dark enough that the short
@@ -77,7 +83,7 @@ def _ssim(est: np.ndarray, ref: np.ndarray) -> float:
 
 def _capture(spec: CaptureSpec, out: Path, seed: int):
     """Render one capture; pass all but the reference through the sensor model."""
-    from .sensor_model import SensorModel
+    from ..sensor.model import SensorModel
 
     cap = render_capture(spec, partial_dir=out / ".partial")
     if spec.mode == "reference":
@@ -111,7 +117,7 @@ DEMO_CODED = (Coded("prototype (F9.85, r=2)"), Coded("covers 1.4 px/ms", 1.4))
 
 def _deconvolve(cap, rendered_psf: bool, spp_psf: int):
     """Wiener estimates of a noisy coded capture: analytic PSF, and rendered if asked."""
-    from .camera import CameraDesign
+    from ..model.camera import CameraDesign
 
     noisy = cap.extra_layers["noisy"] / cap.meta["light_factor"]
     cam = CameraDesign.from_inputs(cap.meta["camera"])
@@ -119,7 +125,7 @@ def _deconvolve(cap, rendered_psf: bool, spp_psf: int):
     k = design_psf(cam, "coded", 0.0, origin="pinhole")
     out = {"analytic PSF": wiener(noisy, k, noise_sigma=sigma)}
     if rendered_psf:
-        from .psf_render import render_psf
+        from ..exposure.psf_render import render_psf
 
         rk = render_psf(cam, "coded", 0.0, size=k.shape, spp=spp_psf, origin="pinhole").kernel
         out["rendered PSF"] = wiener(noisy, rk, noise_sigma=sigma)
@@ -204,7 +210,7 @@ def _figure(panels: list[Panel], ref: np.ndarray, path: Path) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from .outputs import atomic_save
+    from ..io.outputs import atomic_save
 
     n = len(panels)
     fig, axes = plt.subplots(1 + len(CROPS), n, figsize=(2.6 * n, 2.2 * (1 + len(CROPS))))

@@ -23,8 +23,8 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.fft as sfft
 
-from .deconvolve import WORKERS, pad_width, psf_to_otf, taper_pad, wiener_spectrum
-from .errors import ParameterError, check_positive
+from ..errors import ParameterError, check_positive
+from ..restore.deconvolve import WORKERS, pad_width, psf_to_otf, taper_pad, wiener_spectrum
 
 IMAGE_NAMES = (
     "astronaut",

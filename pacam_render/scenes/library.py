@@ -33,11 +33,11 @@ from typing import Any
 
 import numpy as np
 
-from . import scene_assets as sa
-from .camera import CameraDesign, prototype
-from .errors import ParameterError, check_finite, check_positive
+from ..errors import ParameterError, check_finite, check_positive
+from ..model.camera import CameraDesign, prototype
+from . import assets as sa
 
-SCENE_DIR = Path(__file__).resolve().parent.parent / "scenes"
+SCENE_DIR = Path(__file__).resolve().parents[2] / "scenes"
 """The repository's ``scenes/`` folder: XML files exported from the built-in scenes."""
 
 WHITE_IRRADIANCE = 0.8 * math.pi  # lights give a white diffuse surface a radiance of ~0.8
@@ -53,7 +53,7 @@ def _mi():
     import mitsuba as mi
 
     if mi.variant() is None:
-        from .backend import select_variant
+        from ..render.backend import select_variant
 
         select_variant()
     return mi
@@ -839,13 +839,3 @@ def write_scene_files(directory: str | Path = SCENE_DIR, cache_dir=None) -> list
             p.write_text(text)
             out.append(p)
     return out
-
-
-if __name__ == "__main__":
-    import sys
-
-    if sys.argv[1:2] == ["--write"]:
-        for p in write_scene_files(*sys.argv[2:3]):
-            print(p)
-    else:
-        print("usage: python -m pacam_render.scenes --write [DIR]")

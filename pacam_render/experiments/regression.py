@@ -27,10 +27,10 @@ from pathlib import Path
 import numpy as np
 from scipy.ndimage import uniform_filter
 
-from .capture import CaptureSpec, capture_design, render_capture
-from .errors import ParameterError
+from ..errors import ParameterError
+from ..exposure.capture import CaptureSpec, capture_design, render_capture
 
-FOLDER = Path(__file__).resolve().parent.parent / "tests" / "regression"
+FOLDER = Path(__file__).resolve().parents[2] / "tests" / "regression"
 SIZE = {"width": 120, "height": 90, "spp": 64}
 CASES = {
     f"train_{m}": CaptureSpec(scene="train", mode=m, **SIZE)
@@ -47,7 +47,7 @@ def render_case(name: str, seed: int) -> np.ndarray:
     spec = replace(CASES[name], seed=seed)
     desc = None
     if spec.scene == "psf":
-        from .scenes import psf_scene
+        from ..scenes.library import psf_scene
 
         desc = psf_scene(500.0, 0.3, camera=capture_design(spec), radius_mm=0.2)
     return render_capture(spec, progress=False, description=desc).image
@@ -107,7 +107,7 @@ def compare(fresh: np.ndarray, seed0: np.ndarray, seed1: np.ndarray) -> Verdict:
 
 
 def load_reference(name: str, folder: Path = FOLDER) -> tuple[np.ndarray, np.ndarray]:
-    from .exrio import read_exr
+    from ..io.exr import read_exr
 
     layers = read_exr(folder / f"{name}.exr")
     return layers["seed0"].astype(np.float64), layers["seed1"].astype(np.float64)
@@ -115,7 +115,7 @@ def load_reference(name: str, folder: Path = FOLDER) -> tuple[np.ndarray, np.nda
 
 def bless(folder: Path = FOLDER, names=None) -> list[Path]:
     """Re-render and store the references (seeds 0 and 1). Overwrites: that is its purpose."""
-    from .exrio import write_exr
+    from ..io.exr import write_exr
 
     folder.mkdir(parents=True, exist_ok=True)
     out = []

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import ParameterError
+from ..errors import ParameterError
 from .outputs import atomic_save
 
 RGB = ("R", "G", "B")

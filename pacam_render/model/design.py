@@ -11,8 +11,8 @@ the object when possible (``side="auto"``), else in front of it.
 
 from __future__ import annotations
 
+from ..errors import ParameterError, check_positive
 from .camera import CameraDesign, prototype
-from .errors import ParameterError, check_positive
 from .optics import focus_for_defocus_mm
 
 MIN_OPENING_LCOS_PX = 1.0

@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .errors import ParameterError
+from ..errors import ParameterError
 
 BAYER_PATTERNS = ("RGGB", "BGGR", "GRBG", "GBRG")
 """Supported 2x2 tiles, named in reading order."""

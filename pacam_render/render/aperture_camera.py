@@ -122,10 +122,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from . import schedule as sch
-from .aperture_masks import MaskTables, build_tables, check_masks, load_masks
-from .errors import ParameterError, check_finite, check_positive
-from .optics import LCOS_PITCH_MM
+from ..errors import ParameterError, check_finite, check_positive
+from ..model import schedule as sch
+from ..model.optics import LCOS_PITCH_MM
+from .masks import MaskTables, build_tables, check_masks, load_masks
 
 PLUGIN_NAME = "programmable_aperture"
 SCHEDULES = ("static", "parabolic", "centres", "bitmap", "flutter", "camera_parabolic")

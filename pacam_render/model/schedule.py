@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .errors import ParameterError, check_positive
+from ..errors import ParameterError, check_positive
 
 RASKAR_2006_CODE = "1010000111000001010000110011110111010111001001100111"
 """The 52-chop fluttered-shutter code of Raskar, Agrawal and Tumblin (SIGGRAPH 2006)."""

@@ -71,8 +71,8 @@ from typing import Any
 
 import numpy as np
 
+from ..errors import ParameterError, check_finite, check_positive
 from . import bayer as _bayer
-from .errors import ParameterError, check_finite, check_positive
 
 try:  # Python >= 3.11
     import tomllib as _tomllib

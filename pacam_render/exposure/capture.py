@@ -29,9 +29,9 @@ from pathlib import Path
 
 import numpy as np
 
-from .camera import CameraDesign, preset
-from .errors import ParameterError, check_positive
-from .outputs import write_json
+from ..errors import ParameterError, check_positive
+from ..io.outputs import write_json
+from ..model.camera import CameraDesign, preset
 
 MODES = ("normal", "coded", "short", "levin", "flutter", "reference")
 REFERENCE_EXPOSURE_MS = 45.0
@@ -81,7 +81,7 @@ def capture_design(spec: CaptureSpec) -> CameraDesign:
     """
     base = preset(spec.preset)
     if spec.cover_px_per_ms is not None:
-        from .design import solve
+        from ..model.design import solve
 
         base = solve(spec.cover_px_per_ms, base=base)
     return base.with_(width_px=spec.width, height_px=spec.height)
@@ -135,7 +135,7 @@ def mode_camera(design: CameraDesign, mode: str) -> tuple[CameraDesign, dict]:
 
 def sensor_entry(spec: CaptureSpec, design: CameraDesign, params: dict, exposure_ms: float):
     """The scene's sensor: programmable_aperture, or a pinhole for the reference."""
-    from .aperture_camera import sensor_dict
+    from ..render.aperture_camera import sensor_dict
 
     film = {
         "type": "hdrfilm",
@@ -258,8 +258,8 @@ def render_capture(
     :class:`~pacam_render.scenes.SceneDescription`, e.g. a PSF scene) replaces ``spec.scene``."""
     import mitsuba as mi
 
-    from .backend import select_variant
-    from .scenes import fastest_image_speed_px_per_ms, load_scene
+    from ..render.backend import select_variant
+    from ..scenes.library import fastest_image_speed_px_per_ms, load_scene
 
     variant = select_variant()
     design = capture_design(spec)
@@ -360,7 +360,7 @@ def _metadata(spec, design, cam, params, exposure, sensor, variant, seconds) -> 
     import drjit
     import mitsuba
 
-    from . import __version__
+    from .. import __version__
 
     weight = 1.0 if spec.mode == "reference" else float(sensor.plan.mean_weight())
     return {
@@ -387,8 +387,8 @@ def _metadata(spec, design, cam, params, exposure, sensor, variant, seconds) -> 
 
 def write_capture(cap: Capture, out: Path, force: bool) -> list[Path]:
     """capture.exr (float32 layers), capture.png (sRGB preview), capture.json."""
-    from .exrio import write_exr
-    from .preview import srgb8, write_png
+    from ..io.exr import write_exr
+    from ..io.preview import srgb8, write_png
 
     layers = {"capture": cap.image, **cap.extra_layers}
     for k, img in sorted(cap.patterns.items()):
@@ -410,7 +410,7 @@ def apply_sensor(cap: Capture, model, light_level: float | None, seed: int):
     (the ``paper`` preset) the capture is first divided by its light factor, so that white
     reads 1.0 and the noise sigma is relative to white, as in the paper.
     """
-    from .sensor_model import simulate_capture
+    from ..sensor.model import simulate_capture
 
     exposure = cap.meta["exposure_ms"]
     if light_level is None:

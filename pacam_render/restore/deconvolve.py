@@ -26,7 +26,7 @@ import numpy as np
 import scipy.fft as sfft
 from scipy.optimize import minimize_scalar
 
-from .errors import ParameterError
+from ..errors import ParameterError
 
 METHODS = ("wiener", "rl", "uwiener", "bm3d")
 BM3D_LICENCE = (

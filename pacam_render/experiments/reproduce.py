@@ -19,11 +19,11 @@ from pathlib import Path
 
 import numpy as np
 
-from . import experiments as E
-from . import psf as P
-from .camera import prototype
-from .errors import ParameterError
-from .outputs import atomic_save, write_text
+from ..errors import ParameterError
+from ..io.outputs import atomic_save, write_text
+from ..model.camera import prototype
+from ..psf import analytic as P
+from . import simulate as E
 
 T_MS = 22.5
 SIGMA = 0.01
@@ -184,7 +184,7 @@ def light(f_number: float, exposure_ms: float) -> float:
 
 def paper_noise(sigma: float) -> E.NoiseFn:
     """The paper's Gaussian noise through the ``paper`` sensor preset (read noise only)."""
-    from .sensor_model import SensorModel
+    from ..sensor.model import SensorModel
 
     model = SensorModel.from_preset("paper", sigma=float(sigma))
     return E.sensor_noise(model, model.full_well_e, EXPOSURE_MS)
@@ -632,7 +632,7 @@ def fig_train(quick: bool, seed: int = 0) -> Figure:
 
 
 def psnr_full(est: np.ndarray, ref: np.ndarray) -> float:
-    from .deconvolve import psnr
+    from ..restore.deconvolve import psnr
 
     return psnr(est, ref, 1.0)
 

@@ -31,8 +31,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import ParameterError, check_positive
-from .optics import LCOS_PITCH_MM
+from ..errors import ParameterError, check_positive
+from ..model.optics import LCOS_PITCH_MM
 
 DISPLAY_SHAPE = (1024, 1280)
 """Rows, columns of the prototype's LCoS display (SXGA, 1280x1024)."""
