@@ -31,8 +31,8 @@ import mitsuba as mi
 import numpy as np
 from common import median_spread, record, timeit
 
+from pacam_render import render as ac
 from pacam_render.model import schedule as sch
-from pacam_render.render import aperture_camera as ac
 from pacam_render.render.backend import select_variant
 from pacam_render.render.masks import DISPLAY_SHAPE, disc_masks
 

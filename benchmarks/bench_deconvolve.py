@@ -22,6 +22,7 @@ from skimage.restoration import wiener as sk_wiener
 from pacam_render import prototype
 from pacam_render.psf.analytic import design_psf
 from pacam_render.restore import deconvolve as D
+from pacam_render.restore import metrics
 
 SIGMA = 0.01
 
@@ -80,7 +81,7 @@ def quality_rows(k: np.ndarray, shape: tuple[int, int]) -> list[dict]:
             {
                 "method": name,
                 "time_s": dt,
-                "psnr_db": D.psnr(est, x),
+                "psnr_db": metrics.psnr(est, x),
                 "ssim": structural_similarity(np.clip(est, 0, 1), x, data_range=1.0),
             }
         )

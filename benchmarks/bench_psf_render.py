@@ -32,6 +32,7 @@ from matplotlib.ticker import NullFormatter
 
 from pacam_render.exposure import psf_render as prd
 from pacam_render.model.camera import prototype
+from pacam_render.restore import metrics
 
 DEPTH_MM, SPEED = 500.0, 0.5
 SOURCE_PX = 0.25
@@ -63,7 +64,7 @@ def main() -> None:
     ref = rnd.render(cam, "coded", SPEED, spp=ref_spp, seed=10**6, **kw)
     ref2 = rnd.render(cam, "coded", SPEED, spp=ref_spp, seed=10**6 + 1, **kw)
     ref_kernel = 0.5 * (ref.kernel + ref2.kernel)
-    ref_noise = prd.rel_l1(ref.kernel, ref2.kernel) / 2  # L1 of the mean against the truth
+    ref_noise = metrics.rel_l1(ref.kernel, ref2.kernel) / 2  # L1 of the mean against the truth
     ref_s = time.perf_counter() - t0
     shape = ref.kernel.shape
 
@@ -76,7 +77,7 @@ def main() -> None:
             def run(integ=integ, spp=spp, errs=errs, seeds=seeds):
                 r = rnd.render(cam, "coded", SPEED, spp=spp, seed=next(seeds), integrator=integ,
                                size=shape, **kw)  # fmt: skip
-                errs.append(prd.rel_l1(r.kernel, ref_kernel))
+                errs.append(metrics.rel_l1(r.kernel, ref_kernel))
                 return r
 
             times = timeit(run, repeat=repeat, warmup=1)

@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import ParameterError, check_finite, check_positive
+from .exposure.record import CaptureRecord, analytic_psf
 from .io.exr import read_exr, read_layer, write_exr
 from .io.outputs import check_writable, prepare_out_dir, write_json
 from .io.preview import srgb8, write_png
@@ -72,7 +73,8 @@ def _cmd_psf(args: argparse.Namespace) -> int:
     size = None if args.size is None else _odd_size(args.size)
     seed = 0 if args.seed is None else args.seed
     if args.render:  # check everything before computing or writing anything
-        from .exposure.psf_render import check_request, plan_render, rel_l1, render_psf
+        from .exposure.psf_render import check_request, plan_render, render_psf
+        from .restore.metrics import rel_l1
 
         check_request(cam, args.spp, seed, args.film)
     elif args.spp is not None or args.seed is not None:
@@ -127,21 +129,24 @@ def _odd_size(n: int) -> int:
     return n
 
 
-def _capture_meta(capture: Path) -> dict:
+def _capture_record(capture: Path) -> CaptureRecord | None:
+    """The capture's record from its JSON sidecar, or None if it has none."""
     path = capture.with_suffix(".json")
     if not path.is_file():
-        raise ParameterError(f"--psf analytic needs the capture's parameters in {path}")
+        return None
     try:
-        return json.loads(path.read_text())
+        data = json.loads(path.read_text())
     except json.JSONDecodeError as exc:
         raise ParameterError(f"{path} is not valid JSON ({exc})") from exc
+    return CaptureRecord.from_json(data, where=str(path))
 
 
-def _load_psf(spec: str, capture: Path, meta: dict | None) -> np.ndarray:
+def _load_psf(spec: str, capture: Path, record: CaptureRecord | None) -> np.ndarray:
     if spec == "analytic":
-        meta = meta or _capture_meta(capture)
-        cam = CameraDesign.from_inputs(meta["camera"])
-        return design_psf(cam, meta.get("mode", "coded"), 0.0, origin="pinhole")
+        if record is None:
+            path = capture.with_suffix(".json")
+            raise ParameterError(f"--psf analytic needs the capture's parameters in {path}")
+        return analytic_psf(record)
     path = capture.parent / "psf_rendered.exr" if spec == "rendered" else Path(spec)
     if path.suffix == ".npy":
         if not path.is_file():
@@ -155,16 +160,35 @@ def _load_psf(spec: str, capture: Path, meta: dict | None) -> np.ndarray:
     raise ParameterError(f"{path} has no 'psf' layer; it has: {', '.join(sorted(layers))}")
 
 
+def _deconvolve_layer(layers: list[str], layer: str | None) -> str:
+    """The layer to deblur: as asked, else ``noisy`` when the capture has one (a sensor
+    capture), else ``capture``."""
+    if layer is not None:
+        return layer
+    return "noisy" if "noisy" in layers else "capture"
+
+
+def _noise_sigma(args, layer: str, layers: list[str], record) -> float | None:
+    """--noise-sigma, else the noise the capture recorded, else None (the deconvolver
+    estimates it). A sensor capture's recorded noise belongs to its ``noisy`` layer; its
+    other layers are noiseless."""
+    if args.noise_sigma is not None:
+        return args.noise_sigma
+    if record is not None and (layer == "noisy" or "noisy" not in layers):
+        return record.known_noise_sigma
+    return None
+
+
 def _cmd_deconvolve(args: argparse.Namespace) -> int:
     capture = Path(args.capture)
-    image = read_layer(capture, args.layer)
-    meta = _capture_meta(capture) if capture.with_suffix(".json").is_file() else None
-    k = _load_psf(args.psf, capture, meta)
+    layers = list(read_exr(capture)) if capture.is_file() else []
+    layer = _deconvolve_layer(layers, args.layer)
+    image = read_layer(capture, layer)
+    record = _capture_record(capture)
+    k = _load_psf(args.psf, capture, record)
     kw = {}
+    sigma = _noise_sigma(args, layer, layers, record)
     if args.method in ("wiener", "bm3d"):
-        sigma = (
-            args.noise_sigma if args.noise_sigma is not None else (meta or {}).get("noise_sigma")
-        )
         kw["noise_sigma"] = sigma
     if args.method == "bm3d":
         print(f"note: {BM3D_LICENCE}", file=sys.stderr)
@@ -177,7 +201,11 @@ def _cmd_deconvolve(args: argparse.Namespace) -> int:
         write_exr(out, {"deconvolved": est}, force=args.force)
     else:
         write_png(out, srgb8(est), force=args.force)
-    print(f"wrote {out} ({args.method}, PSF {k.shape[0]}x{k.shape[1]} px from {args.psf})")
+    how = "estimated" if sigma is None else f"{sigma:.4g}"
+    print(
+        f"wrote {out} ({args.method}, layer {layer}, noise sigma {how}, "
+        f"PSF {k.shape[0]}x{k.shape[1]} px from {args.psf})"
+    )
     return 0
 
 
@@ -200,24 +228,6 @@ def _sensor_model(name: str):
     from .sensor.model import SensorModel
 
     return SensorModel.from_preset(name)
-
-
-def _add_sensor_layers(cap, model, name: str, light_level, seed: int) -> None:
-    """raw (DN) and noisy (linear) layers; the noiseless capture stays."""
-    from .exposure.capture import apply_sensor
-    from .sensor.model import DEFAULT_LIGHT_LEVEL
-
-    if light_level is None and model.shot_noise:
-        light_level = DEFAULT_LIGHT_LEVEL  # a physical sensor needs photons; paper does not
-    raw, noisy, ppu = apply_sensor(cap, model, light_level, seed)
-    cap.extra_layers.update({"raw": raw.astype(np.float32), "noisy": noisy})
-    cap.meta["sensor"] = {
-        "preset": name,
-        "model": model.as_dict(),
-        "light_level_photons_per_px_per_ms": light_level,
-        "photons_per_unit": ppu,
-        "seed": seed,
-    }
 
 
 def _cmd_render(args: argparse.Namespace) -> int:
@@ -246,7 +256,9 @@ def _cmd_render(args: argparse.Namespace) -> int:
         raise ParameterError(f"--out {out} already holds a capture; pass --force to overwrite it")
     cap = render_capture(spec, partial_dir=out / ".partial", progress=not args.quiet)
     if model is not None:
-        _add_sensor_layers(cap, model, args.sensor, args.light_level, spec.seed)
+        from .sensor.apply import add_sensor_layers
+
+        add_sensor_layers(cap, model, args.sensor, args.light_level, spec.seed)
     paths = write_capture(cap, out, force=args.force)
     m = cap.meta
     print(
@@ -344,9 +356,15 @@ def build_parser() -> argparse.ArgumentParser:
         choices=METHODS,
         help=f"bm3d is optional: pip install bm3d ({BM3D_LICENCE})",
     )
-    p.add_argument("--layer", default="capture", help="EXR layer to deconvolve")
     p.add_argument(
-        "--noise-sigma", type=float, help="noise std (default: capture JSON or estimate)"
+        "--layer",
+        help="EXR layer to deconvolve (default: noisy when the capture has one, else capture)",
+    )
+    p.add_argument(
+        "--noise-sigma",
+        type=float,
+        help="noise std in the layer's units (default: the sensor's, recorded in the capture's "
+        "JSON, for the noisy layer; otherwise estimated)",
     )
     p.add_argument("--out", required=True, metavar="FILE", help=".exr (float) or .png (preview)")
     p.add_argument("--force", action="store_true", help="overwrite an existing FILE")

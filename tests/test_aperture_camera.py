@@ -19,10 +19,10 @@ import mitsuba as mi
 import numpy as np
 import pytest
 
+from pacam_render import render as ac
 from pacam_render.errors import ParameterError
 from pacam_render.model import schedule as sch
 from pacam_render.model.optics import LCOS_PITCH_MM, beta_px_per_mm, focal_length_px
-from pacam_render.render import aperture_camera as ac
 from pacam_render.render.backend import select_variant
 from pacam_render.render.masks import disc_masks, pixel_centres_mm
 

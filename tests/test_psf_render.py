@@ -19,6 +19,7 @@ from pacam_render.io import exr as exrio
 from pacam_render.model.camera import prototype
 from pacam_render.psf.analytic import design_psf, pillbox_psf
 from pacam_render.render.backend import select_variant
+from pacam_render.restore import metrics
 
 
 @pytest.fixture(scope="module")
@@ -30,7 +31,7 @@ def renderer():
 def _pair(renderer, cam, mode, s, **kw):
     a = renderer.render(cam, mode, s, seed=1, **kw)
     b = renderer.render(cam, mode, s, seed=2, **kw)
-    return a, b, 0.5 * (a.kernel + b.kernel), prd.rel_l1(a.kernel, b.kernel) / 2
+    return a, b, 0.5 * (a.kernel + b.kernel), metrics.rel_l1(a.kernel, b.kernel) / 2
 
 
 # ------------------------------------------------------------------------------------------
@@ -45,19 +46,19 @@ def test_registration_and_trajectory(renderer, depth):
     assert a.kernel.shape == k.shape and a.model is not None
     assert abs(a.kernel.sum() - 1.0) < 1e-12
     # the same kernel pixel is the same image position: centroids agree
-    cu, cv = prd.kernel_centroid(mean)
-    ku, kv = prd.kernel_centroid(k)
+    cu, cv = metrics.kernel_centroid(mean)
+    ku, kv = metrics.kernel_centroid(k)
     assert abs(cu - ku) < 0.05 and abs(cv - kv) < 0.05
     # every pattern window lands where Eq. 8 + the motion put it
     traj = 0.5 * (a.centroid_u_px + b.centroid_u_px)
     assert np.abs(traj - a.model_u_px).max() < 0.05
     assert np.allclose(a.mass, 1 / 16, rtol=0.01)
     # a_i (Eq. 18, sign included: < 0 in front of the focal plane) within 1 %
-    a_fit = prd.fit_acceleration(a.t_mid_ms, traj)
+    a_fit = metrics.fit_acceleration(a.t_mid_ms, traj)
     assert a_fit == pytest.approx(cam.a_i_px_per_ms2, rel=0.01)
     assert np.sign(a_fit) == (-1 if depth < cam.focus_distance_mm else 1)
     # shape at the noise floor of two seeds
-    assert prd.rel_l1(mean, k) < 1.3 * floor
+    assert metrics.rel_l1(mean, k) < 1.3 * floor
     assert floor < 0.01
 
 
@@ -74,9 +75,11 @@ def test_crop_of_the_prototype_film_matches_the_window_film(renderer):
     assert crop.film["crop"]["offset_y"] + crop.kernel.shape[0] // 2 == 480
     win = renderer.render(cam, "coded", s, seed=5, spp=512)
     k = design_psf(cam, "coded", s)
-    noise = prd.rel_l1(crop.kernel, k) + prd.rel_l1(win.kernel, k)
-    assert prd.rel_l1(crop.kernel, win.kernel) < 1.2 * noise
-    assert np.allclose(prd.kernel_centroid(crop.kernel), prd.kernel_centroid(win.kernel), atol=0.03)
+    noise = metrics.rel_l1(crop.kernel, k) + metrics.rel_l1(win.kernel, k)
+    assert metrics.rel_l1(crop.kernel, win.kernel) < 1.2 * noise
+    assert np.allclose(
+        metrics.kernel_centroid(crop.kernel), metrics.kernel_centroid(win.kernel), atol=0.03
+    )
 
 
 @pytest.mark.parametrize("mode", ["coded", "levin"])
@@ -86,9 +89,9 @@ def test_pinhole_origin_registration(renderer, mode):
     r = renderer.render(cam, mode, 0.3, origin="pinhole", spp=64)
     k = design_psf(cam, mode, 0.3, origin="pinhole")
     assert r.kernel.shape == k.shape
-    assert np.allclose(prd.kernel_centroid(r.kernel), prd.kernel_centroid(k), atol=0.05)
+    assert np.allclose(metrics.kernel_centroid(r.kernel), metrics.kernel_centroid(k), atol=0.05)
     pin, t0 = (design_psf(cam, mode, 0.3, size=101, origin=o) for o in ("pinhole", "t0"))
-    shift = prd.kernel_centroid(pin)[0] - prd.kernel_centroid(t0)[0]  # a_i T^2 / 4 px apart
+    shift = metrics.kernel_centroid(pin)[0] - metrics.kernel_centroid(t0)[0]  # a_i T^2 / 4 px apart
     assert shift == pytest.approx(-cam.a_i_px_per_ms2 * cam.T_ms**2 / 4, abs=0.05)
     if mode == "coded":  # levin's in-focus line: pixel centroids are quantised near the vertex
         assert np.abs(r.centroid_u_px - r.model_u_px).max() < 0.1
@@ -98,9 +101,9 @@ def test_static_disc_radius_is_eq12(renderer):
     cam = prototype().with_(object_depth_mm=1000.0)  # behind the focal plane, r ~ 1 px
     shape = (15, 15)
     a, b, mean, floor = _pair(renderer, cam, "normal", 0.0, size=shape, per_window=False)
-    r = prd.fit_disc_radius(mean, cam.r_px)
+    r = metrics.fit_disc_radius(mean, cam.r_px)
     assert r == pytest.approx(cam.r_px, rel=0.01)
-    assert prd.rel_l1(mean, pillbox_psf(cam.r_px, size=shape)) < 1.3 * floor + 2e-3
+    assert metrics.rel_l1(mean, pillbox_psf(cam.r_px, size=shape)) < 1.3 * floor + 2e-3
     # the source's own size is negligible (second order in its radius)
     assert prd.source_blur_l1(cam.r_px, prd.DEFAULT_SOURCE_RADIUS_PX) < 5e-4
     assert prd.source_blur_l1(cam.r_px, 0.25) > 0.01  # psf_scene's default would show
@@ -110,7 +113,7 @@ def test_static_disc_radius_is_eq12(renderer):
 def test_other_modes_match_their_analytic_psf(renderer, mode):
     cam = prototype()
     a, b, mean, floor = _pair(renderer, cam, mode, 0.4)
-    assert prd.rel_l1(mean, design_psf(cam, mode, 0.4)) < 1.3 * floor + 2e-3
+    assert metrics.rel_l1(mean, design_psf(cam, mode, 0.4)) < 1.3 * floor + 2e-3
     if mode == "flutter":  # closed chops are skipped: no light, no centroid
         assert np.isnan(a.centroid_u_px[~(a.mass > 0)]).all() and (a.mass == 0).any()
     if mode in ("levin", "coded_continuous"):
@@ -200,7 +203,7 @@ def test_cli_psf_render(tmp_path):
     r = layers["psf"]
     assert r.shape == k.shape and r.dtype == np.float32
     assert abs(float(r.sum(dtype=np.float64)) - 1) < 1e-5
-    assert prd.rel_l1(r, k) < 0.05
+    assert metrics.rel_l1(r, k) < 0.05
     meta = json.loads((out / "psf.json").read_text())
     rend = meta["rendered"]
     assert rend["spp"] == 32 and rend["seed"] == 3 and rend["run_time_s"] > 0

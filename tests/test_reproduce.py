@@ -9,6 +9,7 @@ import pytest
 from pacam_render.cli import main
 from pacam_render.experiments import reproduce as R
 from pacam_render.experiments import simulate as E
+from pacam_render.restore import metrics
 
 
 @pytest.fixture(scope="module")
@@ -81,7 +82,7 @@ def test_alignment_recovers_a_known_shift():
     k0 = np.zeros((1, 1))
     k0[0, 0] = 1.0
     aligned = E.simulate(sc, k, k0, E.gaussian_noise(0.0), 0, margin_px=4)
-    unaligned = E.psnr_batch(E.wiener_batch(sc.blurred(k), k0, 0.0), imgs, 4)
+    unaligned = metrics.psnr_batch(E.wiener_batch(sc.blurred(k), k0, 0.0), imgs, 4)
     assert np.all(unaligned < 25)  # a 3-px shift ruins PSNR ...
     assert np.all(aligned > 35)  # ... and sub-pixel alignment (parabola peak) recovers it
 

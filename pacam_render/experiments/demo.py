@@ -23,17 +23,15 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import ParameterError
-from ..exposure.capture import (
-    CaptureSpec,
-    apply_sensor,
-    render_capture,
-    sensor_sigma,
-    write_capture,
-)
+from ..exposure.capture import CaptureSpec, render_capture, write_capture
+from ..exposure.record import analytic_psf
 from ..io.outputs import prepare_out_dir, write_text
-from ..psf.analytic import design_psf
-from ..restore.deconvolve import psnr, wiener
+from ..model import paper
+from ..restore.deconvolve import wiener
+from ..restore.metrics import aligned_psnr, crop, psnr, ssim
+from ..sensor.apply import add_sensor_layers
 
+SENSOR_PRESET = "grasshopper-icx285"
 LIGHT_LEVEL = 300.0
 """photons/px/ms of white through F2.8: a dim indoor scene, dark enough that the short
 exposure is noisy (Fig. 8: coding pays off when the coded capture's noise exceeds ~0.015)."""
@@ -43,7 +41,6 @@ CROPS = {  # (row0, row1, col0, col1) as fractions of the frame
     "near train": (0.57, 0.75, 0.15, 0.50),
     "backdrop": (0.02, 0.20, 0.02, 0.37),
 }
-MAX_SHIFT_PX = 12
 
 
 @dataclass
@@ -53,54 +50,14 @@ class Panel:
     note: str = ""
 
 
-def _crop(img: np.ndarray, frac) -> np.ndarray:
-    h, w = img.shape[:2]
-    r0, r1, c0, c1 = frac
-    return img[int(r0 * h) : int(r1 * h), int(c0 * w) : int(c1 * w)]
-
-
-def aligned_psnr(est: np.ndarray, ref: np.ndarray, frac) -> float:
-    """Best PSNR of a crop over whole-pixel horizontal shifts of the estimate."""
-    h, w = ref.shape[:2]
-    r0, r1, c0, c1 = frac
-    rows = slice(int(r0 * h), int(r1 * h))
-    a, b = max(int(c0 * w), MAX_SHIFT_PX), min(int(c1 * w), w - MAX_SHIFT_PX)
-    target = ref[rows, a:b]
-    return max(
-        psnr(est[rows, a + d : b + d], target, 1.0) for d in range(-MAX_SHIFT_PX, MAX_SHIFT_PX + 1)
-    )
-
-
-def _ssim(est: np.ndarray, ref: np.ndarray) -> float:
-    from skimage.metrics import structural_similarity
-
-    return float(
-        structural_similarity(
-            np.clip(est, 0, 1), np.clip(ref, 0, 1), channel_axis=-1, data_range=1.0
-        )
-    )
-
-
 def _capture(spec: CaptureSpec, out: Path, seed: int):
     """Render one capture; pass all but the reference through the sensor model."""
     from ..sensor.model import SensorModel
 
     cap = render_capture(spec, partial_dir=out / ".partial")
-    if spec.mode == "reference":
-        return cap
-    model = SensorModel.from_preset("grasshopper-icx285")
-    raw, noisy, ppu = apply_sensor(cap, model, LIGHT_LEVEL, seed)
-    level = float(np.mean(noisy)) / cap.meta["light_factor"]
-    sigma = sensor_sigma(cap, model, LIGHT_LEVEL, level)
-    cap.extra_layers.update({"raw": raw.astype(np.float32), "noisy": noisy})
-    cap.meta["sensor"] = {
-        "preset": "grasshopper-icx285",
-        "light_level": LIGHT_LEVEL,
-        "photons_per_unit": ppu,
-        "seed": seed,
-        "noise_sigma_white_units": sigma,
-    }
-    cap.meta["noise_sigma"] = sigma * cap.meta["light_factor"]  # in the capture's own units
+    if spec.mode != "reference":
+        model = SensorModel.from_preset(SENSOR_PRESET)
+        add_sensor_layers(cap, model, SENSOR_PRESET, LIGHT_LEVEL, seed)
     return cap
 
 
@@ -119,17 +76,22 @@ def _deconvolve(cap, rendered_psf: bool, spp_psf: int):
     """Wiener estimates of a noisy coded capture: analytic PSF, and rendered if asked."""
     from ..model.camera import CameraDesign
 
-    noisy = cap.extra_layers["noisy"] / cap.meta["light_factor"]
-    cam = CameraDesign.from_inputs(cap.meta["camera"])
-    sigma = cap.meta["sensor"]["noise_sigma_white_units"]  # known from the sensor
-    k = design_psf(cam, "coded", 0.0, origin="pinhole")
+    noisy = _noisy(cap)
+    sigma = cap.record.sensor.noise_sigma_white_units  # known from the sensor
+    k = analytic_psf(cap.record)
     out = {"analytic PSF": wiener(noisy, k, noise_sigma=sigma)}
     if rendered_psf:
         from ..exposure.psf_render import render_psf
 
+        cam = CameraDesign.from_inputs(cap.record.camera)
         rk = render_psf(cam, "coded", 0.0, size=k.shape, spp=spp_psf, origin="pinhole").kernel
         out["rendered PSF"] = wiener(noisy, rk, noise_sigma=sigma)
     return out
+
+
+def _noisy(cap) -> np.ndarray:
+    """The sensor's noisy image, normalised so that white reads about its reflectance."""
+    return cap.extra_layers["noisy"] / cap.record.light_factor
 
 
 def run_train(
@@ -165,23 +127,14 @@ def run_train(
         write_capture(caps[key], sub, force=True)  # the folder was cleared or created above
     ref = caps["reference"].image
     panels = [Panel("reference (pinhole, frozen)", ref)]
-    panels.append(
-        Panel(
-            "normal, 45 ms F9.85",
-            caps["normal"].extra_layers["noisy"] / caps["normal"].meta["light_factor"],
-        )
-    )
+    panels.append(Panel("normal, 45 ms F9.85", _noisy(caps["normal"])))
     for i, c in enumerate(coded):
         cap = caps[f"coded_{i}"]
-        panels.append(
-            Panel(f"coded, {c.label}", cap.extra_layers["noisy"] / cap.meta["light_factor"])
-        )
+        panels.append(Panel(f"coded, {c.label}", _noisy(cap)))
         for how, est in _deconvolve(cap, rendered_psf, spp_psf).items():
             panels.append(Panel(f"deconvolved ({how}), {c.label}", est))
     short = caps["short"]
-    panels.append(
-        Panel("short, 0.679 ms F2.8", short.extra_layers["noisy"] / short.meta["light_factor"])
-    )
+    panels.append(Panel(f"short, {paper.SHORT_EXPOSURE_MS} ms F{paper.F_MIN:g}", _noisy(short)))
     seconds = time.perf_counter() - t0
     fig_path = out / f"{name}.png"
     _figure(panels, ref, fig_path)
@@ -221,7 +174,7 @@ def _figure(panels: list[Panel], ref: np.ndarray, path: Path) -> None:
         title = textwrap.fill(p.title, 26) + ("" if j == 0 else f"\n{full:.1f} dB")
         axes[0, j].set_title(title, fontsize=7)
         for i, (cname, frac) in enumerate(CROPS.items(), start=1):
-            axes[i, j].imshow(_crop(img, frac), interpolation="nearest")
+            axes[i, j].imshow(crop(img, frac), interpolation="nearest")
             if j:
                 axes[i, j].set_title(
                     f"{cname}: {aligned_psnr(p.image, ref, frac):.1f} dB", fontsize=7
@@ -246,10 +199,10 @@ def _table(panels, ref, caps, width, height, spp, seconds) -> str:
     for p in panels[1:]:
         crops = " | ".join(f"{aligned_psnr(p.image, ref, f):.2f}" for f in CROPS.values())
         lines.append(
-            f"| {p.title} | {psnr(p.image, ref, 1.0):.2f} | {_ssim(p.image, ref):.3f} | {crops} |"
+            f"| {p.title} | {psnr(p.image, ref, 1.0):.2f} | {ssim(p.image, ref):.3f} | {crops} |"
         )
-    proto = caps["coded_0"].meta["optics"]
-    cover = caps["coded_1"].meta["optics"]
+    proto = caps["coded_0"].record.optics
+    cover = caps["coded_1"].record.optics
     far, near = 1.0 * width / 1280, 1.4 * width / 1280
     text = [
         "# pacam demo: the train set (Figs. 12-15)",

@@ -592,7 +592,8 @@ def fig_train(quick: bool, seed: int = 0) -> Figure:
     """Rendered captures of the train set, deblurred with analytic and rendered PSFs."""
     import tempfile
 
-    from .demo import CROPS, Coded, _figure, _ssim, aligned_psnr, run_train
+    from ..restore.metrics import aligned_psnr, psnr, ssim
+    from .demo import CROPS, Coded, _figure, run_train
 
     w, h, spp, spp_psf = (320, 240, 64, 256) if quick else (640, 480, 256, 1024)
     coded = (
@@ -610,8 +611,8 @@ def fig_train(quick: bool, seed: int = 0) -> Figure:
             {
                 "capture": p.title,
                 "region": "full frame (not aligned)",
-                "psnr_db": psnr_full(p.image, ref),
-                "ssim": _ssim(p.image, ref),
+                "psnr_db": psnr(p.image, ref, 1.0),
+                "ssim": ssim(p.image, ref),
             }
         )
         for cname, frac in CROPS.items():
@@ -629,12 +630,6 @@ def fig_train(quick: bool, seed: int = 0) -> Figure:
         lambda path: _figure(panels, ref, path),
         _summary_train(rows, w, h, spp, spp_psf, caps),
     )
-
-
-def psnr_full(est: np.ndarray, ref: np.ndarray) -> float:
-    from ..restore.deconvolve import psnr
-
-    return psnr(est, ref, 1.0)
 
 
 def _fmt_ssim(v: float) -> str:

@@ -25,6 +25,7 @@ import scipy.fft as sfft
 
 from ..errors import ParameterError, check_positive
 from ..restore.deconvolve import WORKERS, pad_width, psf_to_otf, taper_pad, wiener_spectrum
+from ..restore.metrics import best_shift_px, psnr_batch
 
 IMAGE_NAMES = (
     "astronaut",
@@ -64,37 +65,6 @@ def load_images(n: int | None = None, size: int = 256) -> np.ndarray:
     """The first n test images (all by default), stacked (N, size, size)."""
     names = IMAGE_NAMES if n is None else IMAGE_NAMES[:n]
     return np.stack([load_image(name, size) for name in names])
-
-
-def psnr_batch(est: np.ndarray, truth: np.ndarray, margin_px: int = 0) -> np.ndarray:
-    """PSNR (dB, peak 1) per image of (N, H, W) stacks, on columns [margin, W - margin)."""
-    m = int(margin_px)
-    W = truth.shape[-1]
-    if 2 * m >= W:
-        raise ParameterError(f"margin_px = {m} leaves no columns of a {W}-px image")
-    d = est[..., m : W - m] - truth[..., m : W - m]
-    mse = np.mean(d * d, axis=(-2, -1))
-    return 10.0 * np.log10(1.0 / np.maximum(mse, 1e-30))
-
-
-def _parabola_peak(c: np.ndarray) -> float:
-    """Sub-pixel argmax of a periodic 1-D sequence, as a signed shift."""
-    j = int(np.argmax(c))
-    left, mid, right = c[j - 1], c[j], c[(j + 1) % c.size]
-    curv = left - 2 * mid + right
-    dx = j + (0.5 * (left - right) / curv if curv < 0 else 0.0)
-    return float(dx - c.size if dx > c.size / 2 else dx)
-
-
-def best_shift_px(est_spectra: np.ndarray, truth_spectra: np.ndarray, width: int) -> np.ndarray:
-    """Per image, the horizontal shift of the estimate that best matches the truth, px.
-
-    The zero-vertical-shift cross-correlation is a 1-D inverse FFT of the column sums of
-    X_est X_truth^*: one cheap transform per image.
-    """
-    P = (est_spectra * truth_spectra.conj()).sum(axis=-2)
-    c = sfft.irfft(P, n=width, axis=-1)
-    return np.array([_parabola_peak(ci) for ci in c])
 
 
 @dataclass

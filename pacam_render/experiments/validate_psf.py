@@ -42,6 +42,7 @@ from ..exposure import psf_render as prd
 from ..io.outputs import atomic_save, prepare_out_dir, write_text
 from ..model.camera import CameraDesign, prototype
 from ..psf.analytic import design_psf
+from ..restore import metrics
 
 SIZE_LADDER = (15, 31, 47, 63, 95, 127, 159, 191, 255, 319, 383, 511, 639, 767, 959)
 """Kernel sides used for renders: rounding up to these lets many points share one loaded scene
@@ -127,8 +128,8 @@ def _static_r(renderer, design: CameraDesign, grid: Grid) -> dict:
     kw = dict(size=shape, spp=spp, per_window=False)
     a = renderer.render(design, "normal", 0.0, seed=grid.seeds[0], **kw)
     b = renderer.render(design, "normal", 0.0, seed=grid.seeds[1], **kw)
-    ra, rb = prd.fit_disc_radius(a.kernel, r), prd.fit_disc_radius(b.kernel, r)
-    rm = prd.fit_disc_radius(0.5 * (a.kernel + b.kernel), r)
+    ra, rb = metrics.fit_disc_radius(a.kernel, r), metrics.fit_disc_radius(b.kernel, r)
+    rm = metrics.fit_disc_radius(0.5 * (a.kernel + b.kernel), r)
     return {
         "r_model_px": r,
         "r_measured_px": rm,
@@ -174,17 +175,17 @@ def run_point(
     a = renderer.render(design, "coded", speed, seed=grid.seeds[0], **kw)
     b = renderer.render(design, "coded", speed, seed=grid.seeds[1], **kw)
     mean = 0.5 * (a.kernel + b.kernel)
-    floor = prd.rel_l1(a.kernel, b.kernel) / 2.0
-    l1_disc = prd.rel_l1(mean, disc)
+    floor = metrics.rel_l1(a.kernel, b.kernel) / 2.0
+    l1_disc = metrics.rel_l1(mean, disc)
 
     t_mid = a.t_mid_ms
     cu = 0.5 * (a.centroid_u_px + b.centroid_u_px)
-    a_fit = prd.fit_acceleration(t_mid, cu)
+    a_fit = metrics.fit_acceleration(t_mid, cu)
     a_fit_a, a_fit_b = a.fitted_a_i, b.fitted_a_i
     windows = prd.model_window_kernels(design, "coded", speed, shape)
-    a_fit_model = prd.fit_acceleration(t_mid, [prd.kernel_centroid(k)[0] for k in windows])
+    a_fit_model = metrics.fit_acceleration(t_mid, [metrics.kernel_centroid(k)[0] for k in windows])
     a_model = design.a_i_px_per_ms2
-    cr, ca = prd.kernel_centroid(mean), prd.kernel_centroid(disc)
+    cr, ca = metrics.kernel_centroid(mean), metrics.kernel_centroid(disc)
     row = {
         "velocity_fraction": fraction,
         "velocity_px_per_ms": speed,
@@ -209,8 +210,8 @@ def run_point(
         "l1_noise_floor": floor,
         "l1_ratio": l1_disc / floor if floor > 0 else math.nan,
         "l1_ratio_null_q99": null_ratio_quantile(disc, a.particles),
-        "l1_continuous": prd.rel_l1(mean, cont),
-        "l1_model_eq14_vs_discrete": prd.rel_l1(disc, cont),
+        "l1_continuous": metrics.rel_l1(mean, cont),
+        "l1_model_eq14_vs_discrete": metrics.rel_l1(disc, cont),
         "render_s": a.seconds + b.seconds,
         "analytic_s": analytic_s,
     }

@@ -31,12 +31,16 @@ import numpy as np
 
 from ..errors import ParameterError, check_positive
 from ..io.outputs import write_json
+from ..model import paper
 from ..model.camera import CameraDesign, preset
+from ..model.modes import MODES as MODE_TABLE
+from ..model.modes import capture_camera, mode, sensor_params
+from .record import CaptureRecord
 
-MODES = ("normal", "coded", "short", "levin", "flutter", "reference")
-REFERENCE_EXPOSURE_MS = 45.0
-SHORT_EXPOSURE_MS = 0.679
-SHORT_F_NUMBER = 2.8
+MODES = tuple(MODE_TABLE)
+REFERENCE_EXPOSURE_MS = paper.EXPOSURE_MS
+"""Pixel values are scaled to this exposure: a capture's brightness is proportional to the
+light it collects, and every mode compares directly."""
 PARTIAL = ".partial"
 
 
@@ -56,8 +60,7 @@ class CaptureSpec:
     cover_px_per_ms: float | None = None
 
     def __post_init__(self) -> None:
-        if self.mode not in MODES:
-            raise ParameterError(f"unknown mode {self.mode!r}; valid: {', '.join(MODES)}")
+        mode(self.mode)  # raises, listing the valid modes
         for k, lo in (("width", 2), ("height", 2), ("spp", 1)):
             v = getattr(self, k)
             if not isinstance(v, (int, np.integer)) or v < lo:
@@ -88,54 +91,15 @@ def capture_design(spec: CaptureSpec) -> CameraDesign:
 
 
 def mode_camera(design: CameraDesign, mode: str) -> tuple[CameraDesign, dict]:
-    """The camera a mode uses (for its analytic PSF) and the sensor's schedule parameters.
-
-    normal, levin and flutter keep the coded capture's opening R, so every 45 ms mode collects
-    the same light, and focus on the objects; short opens fully (F2.8) for 0.679 ms.
-    """
-    focused = design.with_(focus_distance_mm=design.object_depth_mm)
-    common = {"lens_radius": design.R_max_mm, "aperture_radius": design.R_mm}
-    if mode == "coded":
-        design.require_parallax()
-        return design, {
-            **common,
-            "schedule": "parabolic",
-            "n_patterns": design.n_patterns,
-            "focus_distance": design.focus_distance_mm,
-        }
-    if mode == "normal":
-        return focused, {
-            **common,
-            "schedule": "static",
-            "focus_distance": focused.focus_distance_mm,
-        }
-    if mode == "short":
-        cam = focused.with_(R_mm=design.R_max_mm, exposure_ms=SHORT_EXPOSURE_MS)
-        return cam, {
-            "lens_radius": design.R_max_mm,
-            "aperture_radius": design.R_max_mm,
-            "schedule": "static",
-            "focus_distance": cam.focus_distance_mm,
-        }
-    if mode == "levin":
-        return focused.with_(focus_distance_mm=design.focus_distance_mm), {
-            **common,
-            "schedule": "camera_parabolic",
-            "image_acceleration": design.a_i_px_per_ms2,
-            "focus_distance": focused.focus_distance_mm,
-        }
-    if mode == "flutter":
-        return focused, {
-            **common,
-            "schedule": "flutter",
-            "focus_distance": focused.focus_distance_mm,
-        }
-    return focused, {}  # reference: a pinhole (Mitsuba's perspective sensor)
+    """The camera a mode uses (for its analytic PSF) and the sensor's schedule parameters,
+    both from the table of :mod:`pacam_render.model.modes`."""
+    cam = capture_camera(design, mode)
+    return cam, sensor_params(cam, mode)
 
 
 def sensor_entry(spec: CaptureSpec, design: CameraDesign, params: dict, exposure_ms: float):
     """The scene's sensor: programmable_aperture, or a pinhole for the reference."""
-    from ..render.aperture_camera import sensor_dict
+    from ..render.registry import sensor_dict
 
     film = {
         "type": "hdrfilm",
@@ -196,12 +160,18 @@ def _step_seed(seed: int, index: int) -> int:
 
 @dataclass
 class Capture:
-    """A finished capture: the image, optional per-pattern images, and its metadata."""
+    """A finished capture: the image, optional per-pattern images, extra layers (the sensor's
+    ``raw`` and ``noisy``), and its :class:`~pacam_render.exposure.record.CaptureRecord`."""
 
     image: np.ndarray
     patterns: dict[int, np.ndarray]
-    meta: dict
+    record: CaptureRecord
     extra_layers: dict[str, np.ndarray] = field(default_factory=dict)
+
+    @property
+    def meta(self) -> dict:
+        """The record as the JSON sidecar holds it (a fresh dict: change ``record``)."""
+        return self.record.to_json()
 
 
 class _Partial:
@@ -264,7 +234,7 @@ def render_capture(
     variant = select_variant()
     design = capture_design(spec)
     cam, params = mode_camera(design, spec.mode)
-    exposure = SHORT_EXPOSURE_MS if spec.mode == "short" else design.exposure_ms
+    exposure = cam.exposure_ms
     desc = description if description is not None else load_scene(spec.scene)
     t_start = time.perf_counter()
     scene = desc.load(sensor=sensor_entry(spec, cam, params, exposure))
@@ -282,12 +252,10 @@ def render_capture(
         run = _Run(partial_dir, progress, save_every_s, stop_after_steps)
         image, patterns, meta = _integrate(scene, sensor, desc, steps, spec, shape, exposure, run)
         meta["fastest_image_speed_px_per_ms"] = speed
-    meta.update(
-        _metadata(
-            spec, design, cam, params, exposure, sensor, variant, time.perf_counter() - t_start
-        )
+    record = _record(
+        spec, design, cam, params, sensor, variant, time.perf_counter() - t_start, meta
     )
-    return Capture(image, patterns, meta)
+    return Capture(image, patterns, record)
 
 
 class CaptureInterrupted(RuntimeError):
@@ -356,33 +324,34 @@ def _integrate(scene, sensor, desc, steps, spec, shape, exposure, run: _Run):
     return acc, pats, meta
 
 
-def _metadata(spec, design, cam, params, exposure, sensor, variant, seconds) -> dict:
+def _record(spec, design, cam, params, sensor, variant, seconds, steps: dict) -> CaptureRecord:
+    """The capture's record: the one place that builds it."""
     import drjit
     import mitsuba
 
     from .. import __version__
 
     weight = 1.0 if spec.mode == "reference" else float(sensor.plan.mean_weight())
-    return {
-        "spec": asdict(spec),
-        "mode": spec.mode,
-        "camera": cam.inputs(),
-        "optics": cam.summary(),
-        "coded_design": design.summary(),
-        "sensor_params": {k: v for k, v in params.items() if not hasattr(v, "shape")},
-        "exposure_ms": exposure,
-        "reference_exposure_ms": REFERENCE_EXPOSURE_MS,
-        "light_factor": weight,
-        "pixel_unit": "radiance x (open area / full aperture) x (exposure / 45 ms)",
-        "render_seconds": seconds,
-        "variant": variant,
-        "versions": {
+    return CaptureRecord(
+        spec=asdict(spec),
+        mode=spec.mode,
+        camera=cam.inputs(),
+        optics=cam.summary(),
+        coded_design=design.summary(),
+        sensor_params={k: v for k, v in params.items() if not hasattr(v, "shape")},
+        exposure_ms=cam.exposure_ms,
+        reference_exposure_ms=REFERENCE_EXPOSURE_MS,
+        light_factor=weight,
+        render_seconds=seconds,
+        variant=variant,
+        versions={
             "pacam_render": __version__,
             "mitsuba": mitsuba.__version__,
             "drjit": drjit.__version__,
             "numpy": np.__version__,
         },
-    }
+        **steps,
+    )
 
 
 def write_capture(cap: Capture, out: Path, force: bool) -> list[Path]:
@@ -393,47 +362,10 @@ def write_capture(cap: Capture, out: Path, force: bool) -> list[Path]:
     layers = {"capture": cap.image, **cap.extra_layers}
     for k, img in sorted(cap.patterns.items()):
         layers[f"sub{k:02d}"] = img
-    exposure = 1.0 / cap.meta["light_factor"] if cap.meta["light_factor"] > 0 else None
+    lf = cap.record.light_factor
+    exposure = 1.0 / lf if lf > 0 else None
     return [
         write_exr(out / "capture.exr", layers, force=force),
         write_png(out / "capture.png", srgb8(cap.image, exposure), force=force),
-        write_json(out / "capture.json", cap.meta, force=force),
+        write_json(out / "capture.json", cap.record.to_json(), force=force),
     ]
-
-
-def apply_sensor(cap: Capture, model, light_level: float | None, seed: int):
-    """Raw DN and the noisy linear image (in the capture's units) of a capture.
-
-    ``light_level``: photons/px/ms that a white diffuse surface delivers through the full
-    aperture. The render already carries the open-area and exposure factors relative to the
-    full aperture and 45 ms, so photons = value x light_level x 45 ms. Without a light level
-    (the ``paper`` preset) the capture is first divided by its light factor, so that white
-    reads 1.0 and the noise sigma is relative to white, as in the paper.
-    """
-    from ..sensor.model import simulate_capture
-
-    exposure = cap.meta["exposure_ms"]
-    if light_level is None:
-        lf = cap.meta["light_factor"]
-        res = simulate_capture(cap.image / lf, model, exposure_ms=exposure, seed=seed)
-        return res.raw_dn, res.linear * lf, res.photons_per_unit
-    level = check_positive("light_level", light_level, "photons/px/ms")
-    scale = REFERENCE_EXPOSURE_MS / exposure  # undo the render's exposure factor ...
-    res = simulate_capture(
-        cap.image * scale,
-        model,
-        exposure_ms=exposure,
-        seed=seed,
-        light_level=level,
-        open_area_mm2=1.0,
-        reference_area_mm2=1.0,  # ... the area factor is already in it
-    )
-    return res.raw_dn, res.linear / scale, res.photons_per_unit
-
-
-def sensor_sigma(cap: Capture, model, light_level: float, level: float) -> float:
-    """Temporal noise sigma of a sensor capture at a grey ``level`` (white = 1), in the same
-    white = 1 units: what a deconvolver should assume for it."""
-    e_white = model.qe * cap.meta["light_factor"] * light_level * REFERENCE_EXPOSURE_MS
-    e = float(model.temporal_noise_e(level * e_white, cap.meta["exposure_ms"]))
-    return e / e_white

@@ -81,10 +81,18 @@ import numpy as np
 from ..errors import ParameterError, check_finite, check_positive
 from ..model import schedule as sch
 from ..model.camera import CameraDesign
-from ..render import aperture_camera as ac
+from ..model.modes import (
+    MODES,
+    MODES_WITH_PSF,
+    image_acceleration,
+    mode_exposure_ms,
+    sensor_params,
+    t0_offset_px,
+)
+from ..render.registry import PSF_PLUGIN_NAME, ensure_registered, sensor_dict
+from ..restore.metrics import fit_acceleration, kernel_centroid, rel_l1
 from ..scenes.library import image_to_scene_velocity, psf_scene
 
-PLUGIN_NAME = "pacam_psf_camera"
 DEFAULT_SOURCE_RADIUS_PX = 0.02
 """Radius of the emitter's image, px: small enough that it does not show (see source_blur_l1)."""
 ADDS_PER_PIXEL = 1 << 15
@@ -95,75 +103,12 @@ PARTICLES_PER_PASS = 1 << 22
 AUTO_PARTICLES = 1 << 18
 """``spp=None``: enough samples per pixel for about this many particles per window."""
 MAX_SPP = 1 << 20
-RENDER_MODES = ("coded", "coded_continuous", "normal", "short", "flutter", "levin")
+RENDER_MODES = MODES_WITH_PSF
 INTEGRATORS = ("ptracer", "path")
 FILM_MODES = ("window", "crop")
-SHORT_EXPOSURE_MS = 0.679
 NEAR_CLIP_MM = 1.0
 FAR_CLIP_MM = 1.0e7
 MIN_DEPTH_MM, MAX_DEPTH_MM = 10.0, 1.0e6
-
-
-# ------------------------------------------------------------------------------------------
-# The sensor: programmable_aperture + one rigid scene velocity
-# ------------------------------------------------------------------------------------------
-_CLASSES: dict[str, type] = {}
-
-
-def _camera_class(variant: str) -> type:
-    import drjit as dr
-    import mitsuba as mi
-
-    M = getattr(mi, variant)
-    base = ac.sensor_class(variant)
-    jit = dr.is_jit_v(M.Float)
-
-    class PSFCamera(base):
-        """``programmable_aperture`` whose whole scene moves at one velocity (mm/ms, world)."""
-
-        def __init__(self, props):
-            base.__init__(self, props)
-            self.set_scene_velocity((0.0, 0.0, 0.0))
-
-        def set_scene_velocity(self, v_mm_per_ms) -> None:
-            """Move everything the sensor sees by v (t - t_mid): exact continuous motion of a
-            scene in which everything moves together (one point source on black)."""
-            v = [check_finite("velocity_mm_per_ms", x) for x in v_mm_per_ms]
-            if len(v) != 3:
-                raise ParameterError(f"velocity_mm_per_ms must have 3 components, got {v!r}")
-            self._scene_velocity = tuple(v)
-            self._vel = M.Vector3f(*v)
-            if jit:
-                dr.make_opaque(self._vel)  # a new velocity never recompiles
-
-        @property
-        def scene_velocity(self) -> tuple[float, float, float]:
-            return self._scene_velocity
-
-        def _finish(self, ray, d, origin):
-            base._finish(self, ray, d, origin)
-            ray.o = ray.o - self._vel * (ray.time - self._t_mid)  # the scene moved by +v tau
-
-        def sample_direction(self, it, sample, active=True):
-            time_, _ = self._time_and_pattern(it.time, active)
-            moved = M.Interaction3f(it)
-            moved.p = it.p + self._vel * (time_ - self._t_mid)
-            return base.sample_direction(self, moved, sample, active)
-
-    PSFCamera.__name__ = f"PSFCamera_{variant}"
-    return PSFCamera
-
-
-def register() -> str:
-    """Register ``pacam_psf_camera`` (and ``programmable_aperture``) for the active variant."""
-    import mitsuba as mi
-
-    variant = ac.register()
-    if variant not in _CLASSES:
-        _CLASSES[variant] = _camera_class(variant)
-    cls = _CLASSES[variant]
-    mi.register_sensor(PLUGIN_NAME, lambda props: cls(props))
-    return variant
 
 
 # ------------------------------------------------------------------------------------------
@@ -194,51 +139,30 @@ class ModeSetup:
 
 
 def mode_setup(design: CameraDesign, mode: str = "coded") -> ModeSetup:
-    """Sensor configuration and time windows that render ``design_psf(design, mode, ...)``."""
+    """Sensor configuration and time windows that render ``design_psf(design, mode, ...)``.
+
+    Everything but the windows comes from :mod:`pacam_render.model.modes`: the schedule,
+    the exposure, a_i and the t = 0 image offset. The design is rendered as given (a PSF
+    request names its camera); captures first apply the mode's refocus and opening.
+    """
     if mode not in RENDER_MODES:
         raise ParameterError(f"mode must be one of {', '.join(RENDER_MODES)}, got {mode!r}")
-    n = design.n_patterns
-    exposure = design.exposure_ms
-    common = dict(
-        lens_radius=design.R_max_mm,
-        aperture_radius=design.R_mm,
-        focus_distance=design.focus_distance_mm,
-    )
-    origin, a_i, discrete = 0.0, 0.0, False
-    is_open = None
-    if mode in ("coded", "coded_continuous"):
-        design.require_parallax()
-        discrete = mode == "coded"
-        cfg = dict(schedule="parabolic", n_patterns=n, continuous=not discrete)
-        if design.R_mm >= design.R_max_mm:  # F_min: the full opening cannot move
-            cfg = dict(schedule="static")
-        # at t = 0 the (continuous) opening is at X_a = -(R_max - R) (image-right axis)
-        origin = -design.beta_px_per_mm * (design.R_max_mm - design.R_mm)
-        a_i = design.a_i_px_per_ms2
-    elif mode in ("normal", "short"):
-        cfg = dict(schedule="static")
-        if mode == "short":
-            exposure = SHORT_EXPOSURE_MS
-    elif mode == "flutter":
-        cfg = dict(schedule="flutter")
-        n = len(sch.RASKAR_2006_CODE)
+    m = MODES[mode]
+    sensor = sensor_params(design, mode)
+    exposure = mode_exposure_ms(design, mode)
+    n, is_open = design.n_patterns, None
+    if m.schedule == "flutter":
         is_open = sch.flutter_code().astype(bool)
-        discrete = True
-    else:  # levin: the camera body moves on the parabola, lens focused on the object
-        a_i = design.a_i_px_per_ms2
-        cfg = dict(schedule="camera_parabolic", image_acceleration=a_i, continuous=True)
-        common["focus_distance"] = design.object_depth_mm
-        # X_c(t) = a_c (t^2/2 - T^2/4): at t = 0 the image is at f X_c(0) / Z = -a_i T^2 / 4
-        origin = -a_i * (0.5 * exposure) ** 2 / 4.0
+        n = len(is_open)
     return ModeSetup(
         mode=mode,
-        sensor={**common, **cfg},
+        sensor=sensor,
         exposure_ms=exposure,
         edges_ms=np.linspace(0.0, exposure, n + 1),
         open=np.ones(n, dtype=bool) if is_open is None else is_open,
-        origin_px=origin,
-        a_i=a_i,
-        discrete=discrete,
+        origin_px=t0_offset_px(design, mode),
+        a_i=image_acceleration(design, mode),
+        discrete=mode == "flutter" or (m.schedule == "parabolic" and not m.continuous),
     )
 
 
@@ -380,58 +304,6 @@ class RenderedPSF:
             "origin t0, the pinhole image for origin pinhole): u + right, v + down; t in ms, "
             "t = 0 at mid-exposure",
         }
-
-
-def kernel_centroid(kernel: np.ndarray) -> tuple[float, float]:
-    """(u, v) centroid in px from the kernel origin (centre of pixel (h//2, w//2))."""
-    k = np.asarray(kernel, dtype=np.float64)
-    s = k.sum()
-    if not s > 0:
-        return math.nan, math.nan
-    h, w = k.shape
-    u = np.arange(w) - w // 2
-    v = np.arange(h) - h // 2
-    return float(k.sum(axis=0) @ u / s), float(k.sum(axis=1) @ v / s)
-
-
-def fit_acceleration(t_ms, centroid_px, mass=None) -> float:
-    """Image acceleration (px/ms^2): 2 x the t^2 coefficient of a parabola through the
-    centroids of the windows that received light."""
-    t = np.asarray(t_ms, dtype=float)
-    c = np.asarray(centroid_px, dtype=float)
-    ok = np.isfinite(c) & (np.ones_like(t, bool) if mass is None else np.asarray(mass) > 0)
-    if ok.sum() < 3:
-        return math.nan
-    return float(2.0 * np.polyfit(t[ok], c[ok], 2)[0])
-
-
-def fit_disc_radius(kernel: np.ndarray, r_guess: float) -> float:
-    """Radius (px) of the pixel-integrated pillbox centred on the kernel origin that best fits
-    ``kernel`` (least squares), searched in [r_guess / 2, 2 r_guess] within the kernel."""
-    from scipy.optimize import minimize_scalar
-
-    from ..psf.analytic import pillbox_psf
-
-    k = np.asarray(kernel, dtype=float)
-    k = k / k.sum()
-    r0 = check_positive("r_guess", r_guess, "px")
-    h, w = k.shape
-    hi = min(2.0 * r0, 0.5 * min(h, w) - 0.5)  # a larger disc would leave the kernel
-    if hi <= 0.5 * r0:
-        raise ParameterError(f"kernel {h}x{w} is too small for a disc of radius ~{r0:g} px")
-
-    def cost(r: float) -> float:
-        return float(((pillbox_psf(r, size=(h, w)) - k) ** 2).sum())
-
-    res = minimize_scalar(
-        cost, bounds=(0.5 * r0, hi), method="bounded", options={"xatol": 1e-6 * r0}
-    )
-    return float(res.x)
-
-
-def rel_l1(a: np.ndarray, b: np.ndarray) -> float:
-    """L1 distance of two kernels that each sum to 1 (0 equal, 2 disjoint)."""
-    return float(np.abs(np.asarray(a, float) - np.asarray(b, float)).sum())
 
 
 def source_blur_l1(r_px: float, source_radius_px: float, rings: int = 4) -> float:
@@ -726,13 +598,7 @@ class PSFRenderer:
     """
 
     def __init__(self, source_radius_px: float = DEFAULT_SOURCE_RADIUS_PX):
-        import mitsuba as mi
-
-        from ..render.backend import select_variant
-
-        if mi.variant() is None:
-            select_variant()
-        register()
+        ensure_registered()
         self.source_radius_px = check_positive("source_radius_px", source_radius_px, "px")
         self._scenes: dict[tuple, tuple] = {}
 
@@ -743,7 +609,7 @@ class PSFRenderer:
         if key not in self._scenes:
             Z = design.object_depth_mm
             desc = psf_scene(Z, 0.0, camera=design)
-            sensor = ac.sensor_dict(
+            sensor = sensor_dict(
                 fov=film.fov_deg,
                 shutter_open=0.0,
                 shutter_close=setup.exposure_ms,
@@ -752,7 +618,7 @@ class PSFRenderer:
                 film=film.mitsuba(),
                 **setup.sensor,
             )
-            sensor["type"] = PLUGIN_NAME
+            sensor["type"] = PSF_PLUGIN_NAME
             integ = {"type": integrator, "max_depth": 2}
             scene = desc.load(sensor=sensor, integrator=integ)
             params = mi.traverse(scene)

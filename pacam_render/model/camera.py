@@ -17,7 +17,7 @@ from dataclasses import asdict, dataclass, field, fields, replace
 import numpy as np
 
 from ..errors import ParameterError, check_positive
-from . import optics
+from . import optics, paper
 from . import schedule as sch
 
 
@@ -25,17 +25,17 @@ from . import schedule as sch
 class CameraDesign:
     """A programmable-aperture camera focused for one object depth. Lengths mm, times ms."""
 
-    width_px: int = 1280
-    height_px: int = 960
-    fov_deg: float = 46.0
-    R_max_mm: float = optics.lcos_px_to_mm(512)
-    R_mm: float = optics.lcos_px_to_mm(145.5)
-    F_min: float = 2.8
+    width_px: int = paper.WIDTH_PX
+    height_px: int = paper.HEIGHT_PX
+    fov_deg: float = paper.FOV_DEG
+    R_max_mm: float = optics.lcos_px_to_mm(paper.LCOS_DISC_PX)
+    R_mm: float = optics.lcos_px_to_mm(paper.OPENING_LCOS_PX)
+    F_min: float = paper.F_MIN
     focus_distance_mm: float = 751.6
-    object_depth_mm: float = 500.0
-    exposure_ms: float = 45.0
-    n_patterns: int = 16
-    pixel_pitch_mm: float = 0.00645
+    object_depth_mm: float = paper.OBJECT_DEPTH_MM
+    exposure_ms: float = paper.EXPOSURE_MS
+    n_patterns: int = paper.N_PATTERNS
+    pixel_pitch_mm: float = paper.PIXEL_PITCH_MM
     lcos_pitch_mm: float = optics.LCOS_PITCH_MM
     name: str = "custom"
     quoted_a_i_px_per_ms2: float | None = field(default=None, compare=False)
@@ -227,7 +227,11 @@ class CameraDesign:
         return cls(**inputs)
 
 
-def prototype(object_depth_mm: float = 500.0, r_px: float = 2.0, side: str = "far") -> CameraDesign:
+def prototype(
+    object_depth_mm: float = paper.OBJECT_DEPTH_MM,
+    r_px: float = paper.STATIC_R_PX,
+    side: str = "far",
+) -> CameraDesign:
     """The paper's prototype: Table 1 and Section 4, with focus derived from r = 2 px at 500 mm.
 
     The focus distance is not published; it follows from r = |beta| R. ``side="far"`` focuses

@@ -13,6 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import ParameterError, check_positive
+from .paper import N_PATTERNS
 
 RASKAR_2006_CODE = "1010000111000001010000110011110111010111001001100111"
 """The 52-chop fluttered-shutter code of Raskar, Agrawal and Tumblin (SIGGRAPH 2006)."""
@@ -82,7 +83,9 @@ def pattern_index(t_ms, T_ms: float, n: int) -> np.ndarray:
     return np.clip(k, 0, n - 1).astype(int)
 
 
-def pattern_centres_mm(R_max_mm: float, R_mm: float, T_ms: float, n: int = 16) -> np.ndarray:
+def pattern_centres_mm(
+    R_max_mm: float, R_mm: float, T_ms: float, n: int = N_PATTERNS
+) -> np.ndarray:
     """Centre of each of the n patterns: X_a at the window's mid-time, mm."""
     return aperture_centre_mm(pattern_mid_times_ms(T_ms, n), R_max_mm, R_mm, T_ms)
 

@@ -26,7 +26,9 @@ import warnings
 import numpy as np
 
 from ..errors import ParameterError, check_finite, check_positive
+from ..model import paper
 from ..model import schedule as sch
+from ..model.modes import MODES, MODES_WITH_PSF, mode_exposure_ms, t0_offset_px
 from .pillbox import quadrant_area
 from .trajectory import Segment, bin_statistics, extent, total_weight
 
@@ -146,7 +148,7 @@ def parabola_segments(s: float, a_i: float, T_ms: float, x0_px: float = 0.0) -> 
 
 
 def discrete_segments(
-    s: float, a_i: float, T_ms: float, n_patterns: int = 16, x0_px: float = 0.0
+    s: float, a_i: float, T_ms: float, n_patterns: int = paper.N_PATTERNS, x0_px: float = 0.0
 ) -> list[Segment]:
     """What the LCoS really shows: n held positions x0 + a_i t_k^2 / 2, while the object moves."""
     s, a, T = _check_motion(s, a_i, T_ms)
@@ -197,7 +199,7 @@ def discrete_coded_psf(
     a_i: float,
     r_px: float,
     T_ms: float,
-    n_patterns: int = 16,
+    n_patterns: int = paper.N_PATTERNS,
     size=None,
     du_px: float | None = None,
     x0_px: float = 0.0,
@@ -250,44 +252,80 @@ def vertex_shift_px(s: float, a_i: float) -> float:
     return -s * s / (2.0 * a_i)
 
 
-MODES_WITH_PSF = ("coded", "coded_continuous", "levin", "normal", "short", "flutter")
+def _kernel_discrete_coded(cam, s, size, x0):
+    return discrete_coded_psf(
+        s, cam.a_i_px_per_ms2, cam.r_px, cam.T_ms, cam.n_patterns, size, x0_px=x0
+    )
 
 
-def design_psf(
-    design,
-    mode: str = "coded",
-    s: float = 0.0,
-    size=None,
-    short_exposure_ms: float = 0.679,
-    origin: str = "t0",
-):
-    """The analytic PSF of a :class:`~pacam_render.camera.CameraDesign` capture at speed s px/ms.
+def _kernel_coded(cam, s, size, x0):
+    return coded_psf(s, cam.a_i_px_per_ms2, cam.r_px, cam.T_ms, size, x0_px=x0)
 
-    ``coded`` is the discrete n-pattern schedule the camera really shows; ``coded_continuous``
-    is Eq. 14; ``levin`` moves the camera body (in focus); ``normal``, ``short`` and ``flutter``
-    keep the aperture still and use the design's defocus r (zero when focused on the object).
 
-    ``origin``: the image position the kernel's centre pixel stands for. ``"t0"``: where the
-    point images at mid-exposure (x(0) = 0 in Eq. 2). ``"pinhole"``: where a pinhole at the
-    lens centre images it at mid-exposure, as the ``reference`` capture does; the moving
-    aperture (and Levin's moving body) start from an edge, which shifts the coded image by
-    -a_i T^2 / 4 relative to it. Deconvolve with ``"pinhole"`` to register with the scene.
+def _kernel_levin(cam, s, size, x0):
+    return levin_psf(s, cam.a_i_px_per_ms2, cam.T_ms, size, x0_px=x0)
+
+
+def _kernel_static(cam, s, size, x0):
+    return static_psf(s, cam.T_ms, cam.r_px, size)
+
+
+def _kernel_short(cam, s, size, x0):
+    return short_exposure_psf(s, mode_exposure_ms(cam, "short"), cam.r_px, size)
+
+
+def _kernel_flutter(cam, s, size, x0):
+    return flutter_psf(s, cam.T_ms, r_px=cam.r_px, size=size)
+
+
+MODE_KERNELS = {
+    "discrete_coded": _kernel_discrete_coded,
+    "coded": _kernel_coded,
+    "levin": _kernel_levin,
+    "static": _kernel_static,
+    "short": _kernel_short,
+    "flutter": _kernel_flutter,
+}
+"""The analytic kernels that :data:`pacam_render.model.modes.MODES` names, by their ``psf`` key:
+``f(camera, s_px_per_ms, size, x0_px)``."""
+
+
+def design_psf(design, mode: str = "coded", s: float = 0.0, size=None, origin: str = "t0"):
+    """The analytic PSF of a capture in ``mode`` by camera ``design``, at speed s.
+
+    Parameters
+    ----------
+    design : CameraDesign
+        The camera that takes the capture (for a capture of a coded design, pass
+        :func:`~pacam_render.model.modes.capture_camera`'s result).
+    mode : str
+        A mode of :data:`~pacam_render.model.modes.MODES` with an analytic PSF: ``coded``
+        (the discrete n-pattern schedule the camera really shows), ``coded_continuous``
+        (Eq. 14), ``levin`` (Eq. 1, the camera body moves, in focus), ``normal``, ``short``
+        and ``flutter`` (a still aperture with the design's defocus r, Eq. 12).
+    s : float
+        Object speed in the image, px/ms.
+    size : int or (int, int), optional
+        Odd kernel size; default: just large enough.
+    origin : {"t0", "pinhole"}
+        What the kernel's centre pixel stands for. ``"t0"``: where the point images at
+        mid-exposure (x(0) = 0 in Eq. 2). ``"pinhole"``: where a pinhole at the lens centre
+        images it at mid-exposure, as the ``reference`` capture does; the moving aperture (and
+        Levin's moving body) start from an edge, which shifts the image by -a_i T^2 / 4
+        (:func:`~pacam_render.model.modes.t0_offset_px`). Deconvolve with ``"pinhole"`` to
+        register with the scene.
+
+    Returns
+    -------
+    numpy.ndarray
+        The pixel-integrated kernel, odd-sized, summing to 1.
     """
     if origin not in ("t0", "pinhole"):
         raise ParameterError(f"origin must be 't0' or 'pinhole', got {origin!r}")
-    T, r, a = design.T_ms, design.r_px, design.a_i_px_per_ms2
-    x0 = -0.25 * a * T * T if origin == "pinhole" else 0.0
-    if mode in ("coded", "coded_continuous"):
+    if mode not in MODES_WITH_PSF:
+        raise ParameterError(f"unknown mode {mode!r}; valid: {', '.join(MODES_WITH_PSF)}")
+    m = MODES[mode]
+    if m.needs_parallax:
         design.require_parallax()
-        if mode == "coded":
-            return discrete_coded_psf(s, a, r, T, design.n_patterns, size, x0_px=x0)
-        return coded_psf(s, a, r, T, size, x0_px=x0)
-    if mode == "levin":
-        return levin_psf(s, a, T, size, x0_px=x0)
-    if mode == "normal":
-        return static_psf(s, T, r, size)
-    if mode == "short":
-        return short_exposure_psf(s, short_exposure_ms, r, size)
-    if mode == "flutter":
-        return flutter_psf(s, T, r_px=r, size=size)
-    raise ParameterError(f"unknown mode {mode!r}; valid: {', '.join(MODES_WITH_PSF)}")
+    x0 = t0_offset_px(design, mode) if origin == "pinhole" else 0.0
+    return MODE_KERNELS[m.psf](design, s, size, x0)

@@ -114,6 +114,9 @@ def select_variant(gpu: bool = False, mono: bool = False) -> str:
     if key not in _chosen:
         _chosen[key] = choose_variant(gpu, mono)
     mi.set_variant(_chosen[key])
+    from .registry import install  # our sensors follow the variant from now on
+
+    install()
     return _chosen[key]
 
 

@@ -27,6 +27,7 @@ import scipy.fft as sfft
 from scipy.optimize import minimize_scalar
 
 from ..errors import ParameterError
+from .metrics import psnr
 
 METHODS = ("wiener", "rl", "uwiener", "bm3d")
 BM3D_LICENCE = (
@@ -202,12 +203,6 @@ def _check_sigma(sigma: float) -> float:
     if not np.isfinite(s) or s < 0:
         raise ParameterError(f"noise_sigma must be a finite value >= 0, got {sigma!r}")
     return s
-
-
-def psnr(estimate, truth, data_range: float = 1.0) -> float:
-    """Peak signal-to-noise ratio in dB."""
-    mse = float(np.mean((np.asarray(estimate, float) - np.asarray(truth, float)) ** 2))
-    return float("inf") if mse == 0 else 10.0 * np.log10(data_range**2 / mse)
 
 
 def oracle_wiener(image, psf, truth, noise_sigma: float | None = None):

@@ -1,0 +1,138 @@
+"""Registration of the Mitsuba sensors ``programmable_aperture`` and ``pacam_psf_camera``.
+
+Mitsuba's Python plugins are module-level classes that derive from the *active* variant's
+``mi.Sensor``; after a variant switch, Mitsuba re-imports them (``ad/integrators/__init__``).
+This module does the same for ours: :mod:`.sensor` and :mod:`.psf_camera` are imported on the
+first :func:`register` (or :func:`~.backend.select_variant`, or render), and re-imported and
+registered again after every variant switch. Nothing here imports Mitsuba at import time, so
+``import pacam_render`` stays light.
+"""
+
+from __future__ import annotations
+
+import importlib
+import math
+import sys
+
+import numpy as np
+
+from ..errors import ParameterError, check_positive
+from .plan import PROP_KEYS, build_plan
+
+PLUGIN_NAME = "programmable_aperture"
+PSF_PLUGIN_NAME = "pacam_psf_camera"
+_MODULES = (
+    ("sensor", "ProgrammableApertureCamera", PLUGIN_NAME),
+    ("psf_camera", "PSFCamera", PSF_PLUGIN_NAME),
+)
+_registered: str | None = None  # the variant the plugins were last registered for
+
+
+def _module(name: str, variant: str):
+    """Our plugin module, imported (or re-imported) for ``variant``."""
+    full = f"{__package__}.{name}"
+    mod = sys.modules.get(full)
+    if mod is None:
+        return importlib.import_module(full)
+    return mod if mod.VARIANT == variant else importlib.reload(mod)
+
+
+def sensor_class(variant: str | None = None) -> type:
+    """The ``programmable_aperture`` class of the active variant (``variant`` must be it)."""
+    import mitsuba as mi
+
+    active = mi.variant()
+    if active is None:
+        raise ParameterError("no Mitsuba variant is active: call backend.select_variant() first")
+    if variant not in (None, active):
+        raise ParameterError(
+            f"the sensor class exists for the active variant {active!r} only, not {variant!r}"
+        )
+    return _module("sensor", active).ProgrammableApertureCamera
+
+
+def register() -> str:
+    """Register both sensors for the active variant (choosing one if none is).
+
+    Idempotent; :func:`install` makes it follow variant switches. Returns the variant name.
+    """
+    global _registered
+    import mitsuba as mi
+
+    variant = mi.variant()
+    if variant is None:
+        from .backend import select_variant
+
+        return select_variant()  # which installs, and so registers
+    for name, cls_name, plugin in _MODULES:
+        cls = getattr(_module(name, variant), cls_name)
+        mi.register_sensor(plugin, lambda props, cls=cls: cls(props))
+    _registered = variant
+    return variant
+
+
+def _on_variant_change(old, new):
+    if new is not None:
+        register()
+
+
+def ensure_registered() -> str:
+    """Make sure both sensors exist for the active variant (choosing one if none is)."""
+    import mitsuba as mi
+
+    if mi.variant() is None:
+        from .backend import select_variant
+
+        return select_variant()
+    install()
+    return mi.variant()
+
+
+def install() -> None:
+    """Register now if a variant is active, and again after every variant switch."""
+    import mitsuba as mi
+
+    mi.detail.add_variant_callback(_on_variant_change)  # a set: adding twice is harmless
+    if mi.variant() is not None and _registered != mi.variant():
+        register()
+
+
+def sensor_dict(**params) -> dict:
+    """A ``mi.load_dict`` entry for the sensor: numpy centres/masks become Dr.Jit tensors.
+
+    Example: ``sensor_dict(fov=40, focus_distance=500, lens_radius=4.5,
+    aperture_radius=1.3, schedule="parabolic", shutter_open=0, shutter_close=45,
+    film={...})``.
+    """
+    import mitsuba as mi
+
+    ensure_registered()
+    # validate here, so that bad input raises ParameterError itself (inside mi.load_dict it
+    # arrives wrapped in a RuntimeError)
+    cfg = {k: params[k] for k in PROP_KEYS if k in params}
+    if "lens_radius" not in cfg:
+        raise ParameterError("lens_radius (R_max, mm) is required")
+    t0 = float(params.get("shutter_open", 0.0))
+    t1 = float(params.get("shutter_close", t0))
+    width = float((params.get("film") or {}).get("width", 768))
+    focus = params.get("focus_distance", params.get("far_clip", 1e4))
+    focus = check_positive("focus_distance", focus, "mm")
+    focal_px = None
+    if "fov" in params and (params.get("fov_axis", "x") == "x"):
+        fov = float(params["fov"])
+        if not 0.0 < fov < 180.0:
+            raise ParameterError(f"fov must be in (0, 180) deg, got {fov!r}")
+        focal_px = 0.5 * width / math.tan(math.radians(fov) / 2.0)
+    if focal_px is not None or cfg.get("image_acceleration") is None:
+        build_plan(cfg, t0, t1, focal_px=focal_px, focus_mm=focus)
+
+    out = {"type": PLUGIN_NAME}
+    for k, v in params.items():
+        if k in ("centres", "masks") and not isinstance(v, str) and not hasattr(v, "shape"):
+            v = np.asarray(v)
+        if isinstance(v, np.ndarray):
+            v = mi.TensorXf(np.ascontiguousarray(v, dtype=np.float32))
+        elif isinstance(v, (list, tuple)) and k in ("centres", "masks"):
+            v = mi.TensorXf(np.asarray(v, dtype=np.float32))
+        out[k] = v
+    return out

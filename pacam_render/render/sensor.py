@@ -1,0 +1,674 @@
+"""Mitsuba 3 sensor ``programmable_aperture``: a thin lens with a time-varying aperture.
+
+The camera of Sonoda, Nagahara and Taniguchi (2014): a thin lens whose stop is an LCoS display
+that shows ``n_patterns`` aperture patterns, each for an equal share of the exposure. Each ray's
+time selects its pattern. With ``schedule="static"`` and ``aperture_radius == lens_radius`` it is
+exactly Mitsuba's ``thinlens`` (same rays for the same samples).
+
+Units
+-----
+Scene lengths in mm, times in ms (the ray time runs over [shutter_open, shutter_close]),
+image quantities in px, angles in degrees.
+
+Parameters
+----------
+==================== ======================================================================
+``fov``              field of view (deg), as in ``thinlens`` (``fov_axis``, ``focal_length``
+                     work too)
+``focus_distance``   distance to the plane in focus, mm (default: ``far_clip``, as thinlens)
+``lens_radius``      R_max, the clear aperture of the lens, mm (required)
+``aperture_radius``  R, the radius of the disc opening, mm (default ``lens_radius``)
+``shutter_open``,    the exposure, ms; the paper's time is t = time - (open + close)/2 and
+``shutter_close``    T = (close - open)/2
+``n_patterns``       number of patterns shown during the exposure (default 16)
+``schedule``         ``static`` | ``parabolic`` | ``centres`` | ``bitmap`` | ``flutter`` |
+                     ``camera_parabolic`` (default ``static``)
+``continuous``       evaluate the parabola at each ray's time (the N -> infinity limit)
+                     instead of per pattern; default false, true for ``camera_parabolic``
+``centres``          ``centres`` schedule: N centres (mm), string ``"x y; x y; ..."`` or
+                     ``"x; x; ..."`` (y = 0), or a Dr.Jit array/tensor of shape (N,) or (N, 2)
+``masks``            ``bitmap`` schedule: Dr.Jit tensor (N, H, W) / Bitmap of transmittances
+``mask_file``        ``bitmap`` schedule, for XML: a ``.npy`` stack or comma-separated images
+``mask_pitch``       display pixel pitch, mm (default 0.01362, the prototype's LCoS)
+``flutter_code``     ``flutter`` schedule: a 0/1 string, one chop per character (default:
+                     Raskar et al. 2006's 52-chop code)
+``camera_acceleration`` ``camera_parabolic``: a_c, mm/ms^2, or instead
+``image_acceleration``  a_i of objects at ``focus_distance``, px/ms^2 (a_c = a_i Z_f / f_px)
+``reference_exposure``  E_ref, ms: the exposure that gives thinlens' brightness (default: the
+                     shutter interval, close - open)
+``time_window``      "start, end" (ms): render only this part of the exposure (see
+                     :meth:`configure`)
+``near_clip``, ``far_clip``  as thinlens (defaults 0.01 and 10000 scene units)
+==================== ======================================================================
+
+Conventions (see also PHYSICS.md)
+---------------------------------
+* The aperture plane is the camera's local z = 0 plane (Mitsuba camera space: +z forward, +y up,
+  +x to the image's *left*: Mitsuba's perspective projection flips x and y, so the rendered image
+  is upright and not mirrored). Aperture coordinates (X_a, Y_a) are along local +x and +y.
+  Film column u (px) grows to the image's right, i.e. along local -x.
+* With these, the paper's Eq. 8 holds with the paper's image x read as the film column u:
+  an opening displaced by X_a shifts the image of a point at depth Z by ``-beta_px * X_a`` px,
+  beta_px = (1/Z_f - 1/Z) (W/2)/tan(fov/2) (:func:`pacam_render.optics.beta_px_per_mm`).
+  The parabolic schedule runs along the image's +u axis (local -x): its local centre is
+  -(a_a t^2/2 - (R_max - R)), so the image accelerates by ``+beta_px * a_a`` in film columns:
+  the a_i of Eq. 18 with its sign, as Eq. 10 states it in the upright image frame that
+  :mod:`pacam_render.optics` uses, and as :func:`pacam_render.psf.design_psf` draws it.
+* ``camera_parabolic`` (Levin et al. 2008): the camera body translates along its local +x axis
+  by X_c(t) = a_c (t^2/2 - T^2/4) mm (centred like the aperture parabola), the aperture is a
+  centred disc of radius R, and the lens stays focused at ``focus_distance``. A static point at
+  depth Z then moves on the film by ``+f_px X_c(t) / Z`` px: image acceleration
+  a_i(Z) = f_px a_c / Z, with f_px = (W/2)/tan(fov/2).
+* Masks (``bitmap``): see :mod:`pacam_render.aperture_masks` for their orientation (the display
+  as seen from the sensor, in the image's orientation: column j along local -x).
+
+Radiometry
+----------
+The image is proportional to the light collected: to the open area and to the open time.
+Each camera ray carries the weight
+
+    w = (A_open(t) / (pi R_max^2)) * (E / E_ref)
+
+where A_open is the open area of the pattern shown (pi R^2 for a disc, sum(tau) pitch^2 for a
+mask), E the time the shutter is actually open during [shutter_open, shutter_close] (less than
+the interval for ``flutter`` or black bitmap patterns) and E_ref = ``reference_exposure``.
+With the full ``lens_radius`` open and the default E_ref (the scene's shutter interval), w = 1:
+the image equals ``thinlens``, whose brightness ignores its aperture radius. A smaller opening
+scales it by the open-area ratio; to compare exposures of different length, give all renders
+the same ``reference_exposure``: doubling the exposure then doubles the signal.
+Pixel values stay in Mitsuba's units (radiance for a full opening and E = E_ref).
+
+Closed chops and black patterns: the time the integrator draws (uniform over the shutter) is
+mapped, measure-preservingly, onto the open patterns only, and the open fraction goes into the
+weight, so no ray or particle-tracer connection is wasted on a closed aperture. The same kind
+of map serves ``time_window`` (see :meth:`configure`): render part of the exposure, schedule
+unchanged (there closed chops weigh 0). ``sample_direction`` applies the map to the light
+path's time; Mitsuba 3 moves no geometry with time, so this changes nothing else.
+
+Particle tracing (``sample_direction``) uses the same estimator: a lens point is sampled as for
+a camera ray, the ray through it and the scene point meets the focal plane at a point whose
+projection through the lens centre is the film position, and the weight is
+w / (A' cos(theta) z^2) with A' the film's area at unit distance, theta the ray's angle to the
+axis and z the point's depth: exactly ``thinlens`` for the full opening.
+
+Schedules and time
+------------------
+Pattern k (k = 0..N-1) is shown for ray times in [open + k D/N, open + (k+1) D/N), D = close -
+open; ``shutter_close`` itself belongs to the last pattern. The boundaries are exact: a float32
+ray time selects the same pattern as ``schedule.pattern_index`` in float64. ``flutter`` has one
+pattern per chop (the centred disc, or shut), so its N is the code's length (52).
+
+Kernels and recompilation
+-------------------------
+Every value (radii, centres, masks, accelerations, focus, exposure, time window, to_world) is an
+opaque Dr.Jit variable: sweeping values through :meth:`configure` or ``mi.traverse`` never
+recompiles. The kernel code depends only on the schedule's *type* (``kernel_features`` of the
+plan: e.g. ``static`` needs no table look-up at all, ``parabolic`` one pattern look-up and one
+centre), so the first render with a new type compiles once (~0.3 s) and later switches back
+hit Dr.Jit's kernel cache. Changing Mitsuba's own shutter (``shutter_open``/``_time`` through
+``mi.traverse``) re-times the schedule, but recompiles the integrators, which bake it in; use
+``time_window`` to render part of an exposure.
+
+Known Mitsuba 3.9.1 limitation: with ``ptracer``, light leaving a *textured* area emitter carries
+time = shutter_open (its position sampling drops the time), so every such particle sees the
+first pattern. Uniform emitters, reflected light and the ``path`` integrator are unaffected.
+"""
+
+from __future__ import annotations
+
+import math
+
+import drjit as dr
+import mitsuba as mi
+import numpy as np
+
+from ..errors import ParameterError, check_positive
+from .plan import (
+    PROP_KEYS,
+    AperturePlan,
+    build_plan,
+    config_from_props,
+    f32_up,
+    index_bias,
+    pad_table,
+)
+
+if mi.variant() is None:  # mi.Sensor and the array types below belong to one variant
+    raise ImportError(
+        "pacam_render.render.sensor needs an active Mitsuba variant: call "
+        "pacam_render.render.register() (or backend.select_variant()) first"
+    )
+
+VARIANT = mi.variant()
+"""The variant this module was imported for; :mod:`.registry` re-imports it after a switch."""
+Float, Int, UInt = mi.Float, mi.Int32, mi.UInt32
+Point2f, Point3f, Vector3f = mi.Point2f, mi.Point3f, mi.Vector3f
+JIT = dr.is_jit_v(Float)  # scalar variants: plain Python numbers and numpy tables
+
+
+def opaque_scalar(v, t=Float):
+    return dr.opaque(t, v) if JIT else t(v)
+
+
+def opaque_array(a, t=Float):
+    if not JIT:
+        return np.asarray(pad_table(a))
+    x = t(pad_table(a))
+    dr.make_opaque(x)
+    return x
+
+
+def gather(t, source, index, active=True):
+    if JIT:
+        return dr.gather(t, source, index, active)
+    return t(source[min(max(int(index), 0), len(source) - 1)]) if active else t(0)
+
+
+def first(v) -> float:
+    return float(v[0]) if JIT else float(v)
+
+
+def make_opaque(*args):
+    if JIT:
+        dr.make_opaque(*args)
+
+
+def lookup(t, edges, n, scale, t0, bias, active):
+    """Index k of the window [edges[k], edges[k+1]) containing t (the last one closed).
+
+    (t - t0) * scale is the index up to float32 rounding; lowered by ``bias`` (more than
+    that rounding, see :func:`index_bias`) its floor is k or k - 1, and one comparison
+    with the next edge (float32, rounded up) settles it, exactly as in float64.
+    """
+    k = dr.clip(Int(dr.floor((t - t0) * scale - bias)), 0, n - 1)
+    hi = gather(Float, edges, UInt(k + 1), active)
+    k = dr.select((t >= hi) & (k < n - 1), k + 1, k)
+    return UInt(k)
+
+
+class ProgrammableApertureCamera(mi.Sensor):
+    """Thin-lens camera with a programmable aperture (see the module docstring)."""
+
+    def __init__(self, props):
+        mi.Sensor.__init__(self, props)
+        film = self.film()
+        size, crop = film.size(), film.crop_size()
+        self._resolution = mi.ScalarVector2f(crop)
+        self._x_fov = float(mi.parse_fov(props, size.x / size.y))
+        self._near = check_positive("near_clip", props.get("near_clip", 1e-2))
+        self._far = check_positive("far_clip", props.get("far_clip", 1e4))
+        focus = props.get("focus_distance", self._far)
+        self._focal_px = 0.5 * size.x / math.tan(math.radians(self._x_fov) / 2.0)
+        self.m_needs_sample_3 = True
+
+        proj = mi.perspective_projection(
+            size, crop, film.crop_offset(), self._x_fov, self._near, self._far
+        )
+        self._camera_to_sample = mi.ProjectiveTransform4f(proj)
+        self._sample_to_camera = self._camera_to_sample.inverse()
+        s2c = self._sample_to_camera
+        o = s2c @ Point3f(0.0, 0.0, 0.0)
+        self._dx = (s2c @ Point3f(1.0 / crop.x, 0.0, 0.0)) - o
+        self._dy = (s2c @ Point3f(0.0, 1.0 / crop.y, 0.0)) - o
+        pmin = s2c @ Point3f(0.0, 0.0, 0.0)
+        pmax = s2c @ Point3f(1.0, 1.0, 0.0)
+        w = abs(first(pmax.x) / first(pmax.z) - first(pmin.x) / first(pmin.z))
+        h = abs(first(pmax.y) / first(pmax.z) - first(pmin.y) / first(pmin.z))
+        self._inv_image_area = opaque_scalar(1.0 / (w * h))  # 1/A' at z = 1
+        make_opaque(self._camera_to_sample, self._sample_to_camera, self._dx, self._dy)
+
+        self._to_world = mi.AffineTransform4f(self.m_to_world)
+        self._check_to_world()
+        self._focus = opaque_scalar(check_positive("focus_distance", focus, "mm"))
+        self._traversed_cfg = {}
+        # the exposure as written (double precision); Mitsuba keeps float32 copies
+        t_open = float(props.get("shutter_open", self.shutter_open()))
+        t_close = float(props.get("shutter_close", t_open + self.shutter_open_time()))
+        self._exposure = (t_open, t_close)
+        self._cfg = config_from_props(props)
+        self._set_plan(self._build(self._cfg))
+        self._sync_traversed()
+
+    # ---------------------------------------------------------------- configuration
+    def _check_to_world(self):
+        m = np.array(self._to_world.matrix, dtype=float).reshape(4, 4)
+        lin = m[:3, :3]
+        if not np.allclose(lin.T @ lin, np.eye(3), atol=1e-4):
+            raise ParameterError(
+                "to_world: scale factors in the camera-to-world transformation are not "
+                "allowed (rotation and translation only)"
+            )
+        make_opaque(self._to_world)
+        self._from_world = self._to_world.inverse()
+        make_opaque(self._from_world)
+        self.m_to_world = self._to_world
+
+    def _build(self, cfg: dict) -> AperturePlan:
+        return build_plan(
+            cfg,
+            *self._exposure,
+            focal_px=self._focal_px,
+            focus_mm=first(self._focus),
+        )
+
+    def configure(self, **changes) -> AperturePlan:
+        """Change the schedule or its parameters (same names as the plugin's properties).
+
+        Opaque uploads: no kernel is recompiled, except once when switching between disc
+        schedules and ``bitmap``. ``focus_distance`` may be given too. On a bad value
+        nothing changes and :class:`ParameterError` is raised.
+
+        ``time_window=(start, end)`` (ms, inside the exposure) renders only that part of
+        the exposure, with the schedule's timing unchanged: the sensor maps the uniform
+        time the integrator draws over the exposure onto the window (Mitsuba's own shutter
+        is left alone: the integrators bake it into their kernels). Images of windows that
+        tile the exposure sum to the full image. ``time_window=None``: whole exposure.
+        """
+        focus = changes.pop("focus_distance", None)
+        unknown = set(changes) - set(PROP_KEYS)
+        if unknown:
+            raise ParameterError(
+                f"configure: unknown parameter(s) {sorted(unknown)}; valid: "
+                f"{', '.join(PROP_KEYS)}, focus_distance"
+            )
+        cfg = {**self._cfg, **changes}
+        for key, other in (
+            ("image_acceleration", "camera_acceleration"),
+            ("camera_acceleration", "image_acceleration"),
+        ):
+            if changes.get(key) is not None and other not in changes:
+                cfg[other] = None  # one replaces the other
+        if "schedule" in changes:  # values of another schedule do not carry over
+            for key in ("centres", "masks", "mask_file", "n_patterns", "continuous"):
+                if key not in changes:
+                    cfg.pop(key, None)
+        old_focus = self._focus
+        if focus is not None:
+            self._focus = opaque_scalar(check_positive("focus_distance", focus, "mm"))
+        try:
+            plan = self._build(cfg)
+        except Exception:
+            self._focus = old_focus
+            raise
+        self._cfg = cfg
+        self._set_plan(plan)
+        self._sync_traversed()
+        return plan
+
+    @property
+    def plan(self) -> AperturePlan:
+        """The resolved schedule (numpy), e.g. for tests and analysis."""
+        return self._plan
+
+    @property
+    def focal_length_px(self) -> float:
+        """(W/2)/tan(fov/2): the film's focal length in pixels."""
+        return self._focal_px
+
+    @property
+    def focus_distance(self) -> float:
+        return first(self._focus)
+
+    def _set_plan(self, plan: AperturePlan):
+        self._plan = plan
+        dur = plan.duration
+        n = plan.n_patterns
+        open_idx = np.flatnonzero(plan.is_open).astype(np.uint32)
+        self._features = plan.kernel_features
+        self._t_open = opaque_scalar(plan.t_open)
+        self._t_mid = opaque_scalar(plan.t_mid)
+        self._n = opaque_scalar(n, Int)
+        self._scale = opaque_scalar(n / dur if dur > 0 else 0.0)
+        self._bias = opaque_scalar(index_bias(plan.t_open, plan.t_close, n))
+        self._width = opaque_scalar(dur / n)
+        # window edges rounded up to float32: t >= edge exactly when t >= the float64 edge
+        self._edges = opaque_array(f32_up(plan.pattern_edges), Float)
+        self._n_open = opaque_scalar(len(open_idx), Int)
+        self._open_idx = opaque_array(open_idx, UInt)
+        self._time_scale = opaque_scalar(plan.time_scale)
+        win = plan.integration_interval
+        self._win_open = opaque_scalar(win[0])
+        self._win_len = opaque_scalar(win[1] - win[0])
+        self._inv_dur = opaque_scalar(1.0 / dur if dur > 0 else 0.0)
+        # per-pattern tables, and their first entries for the schedules that need no table
+        ratio = plan.area_ratio.astype(np.float32)
+        self._weight = opaque_array(ratio)
+        self._cx = opaque_array(plan.centres_mm[:, 0].astype(np.float32))
+        self._cy = opaque_array(plan.centres_mm[:, 1].astype(np.float32))
+        self._cam = opaque_array(plan.camera_x_mm.astype(np.float32))
+        open_ratio = ratio[plan.is_open] if plan.is_open.any() else ratio
+        self._weight0 = opaque_scalar(float(open_ratio[0]) * plan.time_scale)
+        self._cx0 = opaque_scalar(float(plan.centres_mm[0, 0]))
+        self._cy0 = opaque_scalar(float(plan.centres_mm[0, 1]))
+        self._cam0 = opaque_scalar(float(plan.camera_x_mm[0]))
+        self._a_quad = opaque_scalar(plan.aperture_quad)
+        self._c_quad = opaque_scalar(plan.camera_quad)
+        self._radius = opaque_scalar(plan.radius_mm)
+        self._inv_disc_area = opaque_scalar(1.0 / (math.pi * plan.radius_mm**2))
+        if plan.tables is not None:
+            tb = plan.tables
+            # one record per run: x_hi, y, span, cdf before it, cdf up to it
+            c_hi = tb.cdf.astype(np.float32)
+            c_lo = np.concatenate([[0.0], c_hi[:-1]]).astype(np.float32)
+            c_lo[tb.start[tb.count > 0]] = 0.0
+            rec = np.stack([tb.x_hi_mm, tb.y_mm, tb.span_mm, c_lo, c_hi], axis=1)
+            rec = rec.astype(np.float32)
+            self._m_rec = rec if not JIT else opaque_array(rec.reshape(-1))
+            self._m_start = opaque_array(tb.start, UInt)
+            self._m_count = opaque_array(tb.count, UInt)
+            self._m_guide = opaque_array(tb.guide, UInt)
+            self._m_gstart = opaque_array(tb.guide_start, UInt)
+            self._m_pitch = opaque_scalar(tb.pitch_mm)
+        # camera travel, for bbox()
+        ts = np.linspace(plan.t_open, plan.t_close, 4 * n + 1)
+        xs = plan.camera_offset_at(ts)
+        self._travel = (float(np.min(xs)), float(np.max(xs)))
+
+    # ---- traversal: to_world and the swept scalars
+    def _sync_traversed(self):
+        p = self._plan
+        c = self._cfg
+        vals = {
+            "aperture_radius": p.radius_mm,
+            "lens_radius": p.lens_radius_mm,
+            "focus_distance": first(self._focus),
+            "camera_acceleration": float(c.get("camera_acceleration") or 0.0)
+            if c.get("image_acceleration") is None
+            else float(c["image_acceleration"]) * first(self._focus) / self._focal_px,
+        }
+        self._traversed_vals = dict(vals)
+        if not JIT:  # plain floats cannot be updated in place: use configure()
+            return
+        for k, v in vals.items():
+            if k in self._traversed_cfg:
+                mi.set_property(self._traversed_cfg[k], Float(v))
+            else:
+                self._traversed_cfg[k] = Float(v)
+
+    def traverse(self, callback):
+        super().traverse(callback)
+        flags = mi.ParamFlags.NonDifferentiable
+        callback.put("to_world", self._to_world, flags)
+        for k, v in self._traversed_cfg.items():
+            callback.put(k, v, flags)
+
+    def parameters_changed(self, keys):
+        super().parameters_changed(keys)
+        old_tw = mi.AffineTransform4f(self._from_world.inverse())
+        if not keys or "to_world" in keys:
+            try:
+                self._check_to_world()
+            except ParameterError:
+                self._to_world.assign(old_tw)
+                self._check_to_world()
+                raise
+        changes = {}
+        for k, holder in self._traversed_cfg.items():
+            v = first(holder)
+            if v != self._traversed_vals[k]:
+                changes[k] = v
+        if "camera_acceleration" in changes:
+            changes["image_acceleration"] = None
+        shutter = (self.shutter_open(), self.shutter_open() + self.shutter_open_time())
+        old_exposure = self._exposure
+        if not np.allclose(shutter, self._exposure, rtol=1e-6, atol=1e-6):
+            # a new exposure: the schedule is re-timed
+            self._exposure = shutter
+            changes["time_window"] = None
+        try:
+            self.configure(**changes)  # also rebuilds for a changed shutter
+        except ParameterError:
+            self._exposure = old_exposure
+            self._sync_traversed()
+            raise
+
+    # ---------------------------------------------------------------- kernels
+    def _time_and_pattern(self, time, active):
+        """The ray's time and pattern from the integrator's time (uniform over the
+        exposure). Measure-preserving maps: into the time window, or into the open
+        patterns only (closed flutter chops, black masks), the open fraction going into the
+        weight. Returns (time, pattern index)."""
+        f = self._features
+        if "gate" in f:
+            u = (time - self._t_open) * self._inv_dur * Float(self._n_open)
+            j = dr.clip(Int(dr.floor(u)), 0, self._n_open - 1)
+            frac = dr.clip(u - Float(j), 0.0, 1.0)
+            k = gather(UInt, self._open_idx, UInt(j), active)
+            return self._t_open + (Float(k) + frac) * self._width, k
+        if "window" in f:
+            u = (time - self._t_open) * self._inv_dur
+            time = self._win_open + u * self._win_len
+        if "lookup" in f:
+            return time, self._pattern(time, active)
+        return time, UInt(0)
+
+    def _pattern(self, time, active):
+        return lookup(time, self._edges, self._n, self._scale, self._t_open, self._bias, active)
+
+    def _weight_at(self, k, active):
+        """Ray weight of pattern k: open-area ratio (0 if shut) x time factor."""
+        f = self._features
+        # gated flutter samples open chops only, which all have the same area
+        if "weights" in f and ("bitmap" in f or "gate" not in f):
+            return gather(Float, self._weight, k, active) * self._time_scale
+        return self._weight0
+
+    def _camera_x(self, k, time, active):
+        f = self._features
+        x = gather(Float, self._cam, k, active) if "cam" in f else self._cam0
+        if "quad_c" in f:
+            tau = time - self._t_mid
+            x = x + self._c_quad * tau * tau
+        return x
+
+    def _aperture(self, k, time, sample, active):
+        """Aperture point (local mm) for pattern k, and its area density (1/mm^2)."""
+        f = self._features
+        if "bitmap" in f:
+            return self._sample_mask(k, sample, active)
+        d = mi.warp.square_to_uniform_disk_concentric(sample) * self._radius
+        cx = gather(Float, self._cx, k, active) if "cx" in f else self._cx0
+        cy = gather(Float, self._cy, k, active) if "cy" in f else self._cy0
+        if "quad_a" in f:
+            tau = time - self._t_mid
+            cx = cx + self._a_quad * tau * tau
+        return Point2f(d.x + cx, d.y + cy), self._inv_disc_area
+
+    def _rec(self, j, c, active):
+        """Field c of run record j: 0 x_hi, 1 y, 2 span, 3 cdf before, 4 cdf up to it."""
+        if JIT:  # separate gathers: a Vector gather traces a packet or single gathers
+            # depending on Dr.Jit's state, i.e. two kernels (needless recompiles)
+            return gather(Float, self._m_rec, j * 5 + c, active)
+        return float(self._m_rec[int(j), c]) if active else 0.0
+
+    def _sample_mask(self, k, sample, active):
+        """Pick a run of mask k with probability tau x length / sum (CDF inversion: guide
+        table, then a binary search over the few runs it leaves), then a uniform point in
+        the run. Returns the point (mm) and its area density tau / (sum(tau) pitch^2)."""
+        start = gather(UInt, self._m_start, k, active)
+        count = gather(UInt, self._m_count, k, active)
+        gstart = gather(UInt, self._m_gstart, k, active)
+        active = active & (count > 0)
+        u = sample.x
+        i = UInt(dr.clip(Int(dr.floor(u * Float(count))), 0, Int(count) - 1))
+        lo = gather(UInt, self._m_guide, gstart + i, active)
+        hi = gather(UInt, self._m_guide, gstart + i + 1, active)
+
+        def cond(lo, hi):
+            return lo < hi
+
+        def body(lo, hi):
+            mid = (lo + hi) >> 1
+            big = self._rec(start + mid, 4, active) > u
+            return dr.select(big, lo, mid + 1), dr.select(big, mid, hi)
+
+        lo, hi = dr.while_loop(
+            (lo, hi), cond, body, labels=("lo", "hi"), label="aperture mask search"
+        )
+        j = start + lo
+        c_lo, c_hi = self._rec(j, 3, active), self._rec(j, 4, active)
+        step = c_hi - c_lo
+        r = dr.clip((u - c_lo) / dr.maximum(step, 1e-30), 0.0, 1.0)
+        span = self._rec(j, 2, active)
+        x = self._rec(j, 0, active) - r * span
+        y = self._rec(j, 1, active) + (sample.y - 0.5) * self._m_pitch
+        pdf = dr.select(active, step / dr.maximum(span * self._m_pitch, 1e-30), 0.0)
+        return Point2f(x, y), pdf
+
+    def _ray_setup(self, time, position_sample, aperture_sample, active):
+        time, k = self._time_and_pattern(time, active)
+        weight = self._weight_at(k, active)
+        near_p = self._sample_to_camera @ Point3f(position_sample.x, position_sample.y, 0.0)
+        a, _ = self._aperture(k, time, aperture_sample, active)
+        aperture_p = Point3f(a.x, a.y, 0.0)
+        origin = Point3f(a.x + self._camera_x(k, time, active), a.y, 0.0)
+        return time, weight, near_p, aperture_p, origin
+
+    def _finish(self, ray, d, origin):
+        ray.o = self._to_world @ origin
+        ray.d = self._to_world @ d
+        inv_z = dr.rcp(d.z)
+        near_t = self._near * inv_z
+        far_t = self._far * inv_z
+        ray.o += ray.d * near_t
+        ray.maxt = far_t - near_t
+        shift = self.scene_shift(ray.time - self._t_mid)
+        if shift is not None:
+            ray.o = ray.o - shift  # the scene moved by +shift: meet it at o - shift
+
+    def sample_ray(self, time, sample1, sample2, sample3, active=True):
+        wavelengths, wav_weight = self.sample_wavelengths(
+            dr.zeros(mi.SurfaceInteraction3f), sample1, active
+        )
+        time, weight, near_p, aperture_p, origin = self._ray_setup(time, sample2, sample3, active)
+        focus_p = near_p * (self._focus / near_p.z)
+        d = dr.normalize(Vector3f(focus_p - aperture_p))
+        ray = mi.Ray3f(Point3f(0.0), Vector3f(0.0, 0.0, 1.0), time, wavelengths)
+        self._finish(ray, d, origin)
+        return ray, wav_weight * weight
+
+    def sample_ray_differential(self, time, sample1, sample2, sample3, active=True):
+        wavelengths, wav_weight = self.sample_wavelengths(
+            dr.zeros(mi.SurfaceInteraction3f), sample1, active
+        )
+        time, weight, near_p, aperture_p, origin = self._ray_setup(time, sample2, sample3, active)
+        f_dist = self._focus / near_p.z
+        focus_p = near_p * f_dist
+        d = dr.normalize(Vector3f(focus_p - aperture_p))
+        ray = mi.RayDifferential3f(
+            mi.Ray3f(Point3f(0.0), Vector3f(0.0, 0.0, 1.0), time, wavelengths)
+        )
+        self._finish(ray, d, origin)
+        ray.o_x = ray.o
+        ray.o_y = ray.o
+        focus_x = (near_p + self._dx) * f_dist
+        focus_y = (near_p + self._dy) * f_dist
+        ray.d_x = self._to_world @ dr.normalize(Vector3f(focus_x - aperture_p))
+        ray.d_y = self._to_world @ dr.normalize(Vector3f(focus_y - aperture_p))
+        ray.has_differentials = True
+        return ray, wav_weight * weight
+
+    def sample_direction(self, it, sample, active=True):
+        """Connect a scene point to the lens (particle tracing): a lens point, the film
+        position its ray lands on, and importance / pdf (same estimator as sample_ray)."""
+        time, k = self._time_and_pattern(it.time, active)
+        shift = self.scene_shift(time - self._t_mid)
+        p = it.p if shift is None else it.p + shift  # where the moving scene puts the point
+        cam_x = self._camera_x(k, time, active)
+        ref_p = self._from_world @ p
+        ref_p = Point3f(ref_p.x - cam_x, ref_p.y, ref_p.z)
+        active = active & (ref_p.z >= self._near) & (ref_p.z <= self._far)
+        a, pdf_area = self._aperture(k, time, Point2f(sample.x, sample.y), active)
+        aperture_p = Point3f(a.x, a.y, 0.0)
+        v = Vector3f(ref_p - aperture_p)
+        z = dr.select(active, ref_p.z, 1.0)  # > 0 where active (scalar mode: no 1/0)
+        # the ray from the lens point through ref_p meets the focal plane at focus_p;
+        # the film pixel is where the lens centre projects focus_p
+        focus_p = Point3f(aperture_p + v * (self._focus / z))
+        screen = self._camera_to_sample @ focus_p
+        uv = Point2f(screen.x, screen.y)
+        active &= (uv.x >= 0.0) & (uv.x <= 1.0) & (uv.y >= 0.0) & (uv.y <= 1.0)
+        dist = dr.norm(v)
+        inv_dist = dr.rcp(dr.maximum(dist, 1e-20))
+        cos_t = dr.maximum(v.z * inv_dist, 1e-20)  # v.z = z > 0 where active
+        active &= pdf_area > 0.0
+        # W_e cos / (dist^2 p_A): with W_e cos = p_A p_omega w (the camera-ray estimator)
+        # and p_omega = |focus_p - a|^2 / (cos A' F^2) = dist^2 / (cos A' z^2) on the
+        # ray through a (collinear: |focus_p - a| / dist = F / z), this is w / (A' cos z^2)
+        weight = self._weight_at(k, active)
+        weight = weight * self._inv_image_area * dr.rcp(cos_t * z * z)
+
+        if JIT:
+            ds = dr.zeros(mi.DirectionSample3f)
+        else:
+            ds = mi.DirectionSample3f()
+            ds.delta = False
+        ds.p = self._to_world @ Point3f(a.x + cam_x, a.y, 0.0)
+        ds.d = (ds.p - p) * inv_dist
+        ds.dist = dist
+        ds.n = self._to_world @ Vector3f(0.0, 0.0, 1.0)
+        ds.uv = uv * self._resolution
+        ds.time = time
+        ds.pdf = dr.select(active, pdf_area * dist * dist / cos_t, 0.0)
+        return ds, mi.Spectrum(dr.select(active, weight, 0.0))
+
+    # ---------------------------------------------------------------- extension hook
+    def scene_shift(self, tau):
+        """Rigid displacement (world mm) of everything the sensor sees at ray time ``tau``.
+
+        The extension hook for subclasses (:class:`~pacam_render.render.psf_camera.PSFCamera`
+        overrides it). ``tau`` is the ray's paper time, ms from mid-exposure, after the time
+        window and chop maps. Return ``None`` (the default: a still scene, nothing traced) or
+        a ``mi.Vector3f``: camera rays then start at o - shift, and particle-tracer connections
+        see each scene point at p + shift, which is exact continuous motion of a scene that
+        moves as one (Mitsuba 3 moves no geometry with ray time).
+        """
+        return None
+
+    # ---------------------------------------------------------------- misc
+    def pattern_index(self, time):
+        """Pattern shown at each ray time (the kernels' own lookup), as numpy."""
+        t = Float(np.asarray(time, dtype=np.float32)) if JIT else Float(time)
+        return np.array(self._pattern(t, True), dtype=np.int64)
+
+    def sample_aperture(self, time, u1, u2):
+        """Aperture points (local mm) that the kernels sample at ray times ``time`` from
+        uniforms (u1, u2), and each ray's weight (without the wavelength weight); numpy.
+        ``time`` is used as is (no window or chop remapping)."""
+        if not JIT:
+            raise ParameterError("sample_aperture needs a JIT (llvm/cuda) variant")
+        t, a, b = (Float(np.asarray(v, dtype=np.float32)) for v in (time, u1, u2))
+        active = mi.Bool(True)
+        k = self._pattern(t, active)
+        p, _ = self._aperture(k, t, Point2f(a, b), active)
+        w = gather(Float, self._weight, k, active) * self._time_scale
+        return np.array(p.x), np.array(p.y), np.array(w)
+
+    def bbox(self):
+        lo = self._to_world @ Point3f(self._travel[0], 0.0, 0.0)
+        hi = self._to_world @ Point3f(self._travel[1], 0.0, 0.0)
+        box = mi.ScalarBoundingBox3f()
+        for p in (lo, hi):
+            box.expand(mi.ScalarPoint3f(first(p.x), first(p.y), first(p.z)))
+        return box
+
+    def to_string(self):
+        p = self._plan
+        return (
+            "ProgrammableApertureCamera[\n"
+            f"  schedule = {p.schedule}{' (continuous)' if p.continuous else ''},\n"
+            f"  n_patterns = {p.n_patterns},\n"
+            f"  lens_radius = {p.lens_radius_mm:g} mm,\n"
+            f"  aperture_radius = {p.radius_mm:g} mm,\n"
+            f"  x_fov = {self._x_fov:g} deg,\n"
+            f"  focus_distance = {first(self._focus):g} mm,\n"
+            f"  near_clip = {self._near:g}, far_clip = {self._far:g},\n"
+            f"  exposure = [{p.t_open:g}, {p.t_close:g}] ms,"
+            f" time_window = {p.window},\n"
+            f"  open_fraction = {p.open_fraction:g}, exposure_factor = "
+            f"{p.exposure_factor:g},\n"
+            f"  mean weight (image / thinlens) = {p.mean_weight():.6g},\n"
+            f"  film = {self.film()},\n"
+            f"  to_world = {self._to_world.matrix}\n"
+            "]"
+        )
