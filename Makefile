@@ -3,7 +3,7 @@
 VENV := .venv
 BIN := $(VENV)/bin
 
-.PHONY: setup demo test bench bless lint format clean
+.PHONY: setup demo test test-fast bench bless lint format clean
 
 setup:
 	@bash scripts/bootstrap.sh
@@ -13,6 +13,10 @@ demo: setup
 
 test: setup
 	$(BIN)/python -m pytest -q
+
+# Everything that does not ray-trace (tests marked `render` are left out): about 30 s.
+test-fast: setup
+	$(BIN)/python -m pytest -q -m "not render"
 
 bench: setup
 	$(BIN)/python benchmarks/run_all.py

@@ -24,7 +24,7 @@ import numpy as np
 from common import median_spread, record
 
 from pacam_render.exposure.capture import CaptureSpec, capture_design, render_capture
-from pacam_render.scenes.library import load_scene, psf_scene
+from pacam_render.scenes import load_scene, psf_scene
 
 
 def timed(fn):

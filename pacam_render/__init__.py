@@ -37,7 +37,7 @@ from .render import select_variant, sensor_dict
 from .restore import metrics
 from .restore.deconvolve import METHODS as DECONVOLUTION_METHODS
 from .restore.deconvolve import deconvolve, wiener
-from .scenes.library import load_scene, psf_scene
+from .scenes import load_scene, psf_scene
 from .sensor.model import (
     DEFAULT_LIGHT_LEVEL,
     SensorCapture,

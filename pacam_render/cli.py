@@ -15,10 +15,11 @@ from .exposure.record import CaptureRecord, analytic_psf
 from .io.exr import read_exr, read_layer, write_exr
 from .io.outputs import check_writable, prepare_out_dir, write_json
 from .io.preview import srgb8, write_png
-from .model.camera import PRESETS, CameraDesign, preset, prototype
+from .model.camera import CameraDesign, preset, prototype
 from .model.design import solve
+from .model.modes import MODES, MODES_WITH_PSF
 from .model.report import design_report
-from .psf.analytic import MODES_WITH_PSF, design_psf
+from .psf.analytic import design_psf
 from .restore.deconvolve import BM3D_LICENCE, METHODS, deconvolve
 
 
@@ -26,9 +27,8 @@ def _design_from_args(args: argparse.Namespace) -> CameraDesign:
     for flag, unit in (("depth", "mm"), ("exposure", "ms"), ("max_velocity", "px/ms")):
         if getattr(args, flag) is not None:
             check_positive("--" + flag.replace("_", "-"), getattr(args, flag), unit)
-    if args.preset not in PRESETS:
-        raise ParameterError(f"unknown preset {args.preset!r}; valid: {', '.join(PRESETS)}")
-    base = prototype() if args.depth is None else prototype(object_depth_mm=args.depth)
+    depth = {} if args.depth is None else {"object_depth_mm": args.depth}
+    base = preset(args.preset, **depth)
     if args.max_velocity is None:
         if args.f_number is not None or args.r_px is not None:
             raise ParameterError("--f-number and --r-px need --max-velocity (the speed to cover)")
@@ -309,9 +309,23 @@ def build_parser() -> argparse.ArgumentParser:
         prog="pacam", description="Programmable-aperture motion-invariant camera simulator"
     )
     sub = parser.add_subparsers(dest="command", required=True)
+    _add_design(sub)
+    _add_psf(sub)
+    _add_deconvolve(sub)
+    _add_reproduce(sub)
+    _add_render(sub)
+    _add_validate_psf(sub)
+    _add_demo(sub)
+    return parser
+
+
+def _add_design(sub) -> None:
     p = sub.add_parser("design", help="derive the camera's optics, schedule, r and a_i")
     _add_design_args(p)
     p.set_defaults(func=_cmd_design)
+
+
+def _add_psf(sub) -> None:
     p = sub.add_parser("psf", help="write an analytic PSF (EXR, PNG preview, JSON)")
     p.add_argument("--preset", default="prototype")
     p.add_argument("--depth", type=float, required=True, metavar="MM", help="point depth, mm")
@@ -347,6 +361,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", required=True, metavar="DIR")
     p.add_argument("--force", action="store_true", help="overwrite existing results")
     p.set_defaults(func=_cmd_psf)
+
+
+def _add_deconvolve(sub) -> None:
     p = sub.add_parser("deconvolve", help="deblur a capture with one PSF")
     p.add_argument("capture", metavar="CAPTURE.exr")
     p.add_argument("--psf", default="analytic", help="analytic | rendered | PATH (.exr or .npy)")
@@ -369,6 +386,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", required=True, metavar="FILE", help=".exr (float) or .png (preview)")
     p.add_argument("--force", action="store_true", help="overwrite an existing FILE")
     p.set_defaults(func=_cmd_deconvolve)
+
+
+def _add_reproduce(sub) -> None:
     from .experiments.reproduce import FIGURES
 
     p = sub.add_parser("reproduce", help="the paper's simulation figures: CSV, PNG, Markdown")
@@ -378,10 +398,15 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, default=0, help="noise seed (default 0)")
     p.add_argument("--force", action="store_true", help="overwrite existing figure files")
     p.set_defaults(func=_cmd_reproduce)
+
+
+def _add_render(sub) -> None:
     p = sub.add_parser("render", help="render a capture of a scene in one mode")
     p.add_argument("scene", help="train, soccer, walker, or a path to a Mitsuba .xml scene")
     p.add_argument(
-        "--mode", default="coded", help="normal, coded, short, levin, flutter, reference"
+        "--mode",
+        default="coded",
+        help=f"{', '.join(MODES)} (see pacam_render.model.modes; default coded)",
     )
     p.add_argument("--width", type=int, default=320, metavar="W", help="px (default 320)")
     p.add_argument("--height", type=int, default=240, metavar="H", help="px (default 240)")
@@ -418,6 +443,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--force", action="store_true", help="overwrite an existing capture")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=_cmd_render)
+
+
+def _add_validate_psf(sub) -> None:
     p = sub.add_parser(
         "validate-psf", help="rendered PSFs against Eqs. 12, 14, 18 on a grid: CSV, PNG, Markdown"
     )
@@ -426,6 +454,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--force", action="store_true", help="overwrite results in DIR")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=_cmd_validate_psf)
+
+
+def _add_demo(sub) -> None:
     p = sub.add_parser("demo", help="the main job on built-in defaults")
     p.add_argument("--out", default="demo_out", metavar="DIR", help="default demo_out/")
     p.add_argument("--width", type=int, default=480)
@@ -433,7 +464,6 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--spp", type=int, default=256)
     p.add_argument("--force", action="store_true", help="overwrite a previous demo in DIR")
     p.set_defaults(func=_cmd_demo)
-    return parser
 
 
 def main(argv: Sequence[str] | None = None) -> int:

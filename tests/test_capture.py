@@ -16,7 +16,7 @@ from pacam_render.exposure.capture import (
     plan_steps,
     render_capture,
 )
-from pacam_render.scenes.library import psf_scene
+from pacam_render.scenes import psf_scene
 
 TINY = {"width": 48, "height": 36, "spp": 4}
 

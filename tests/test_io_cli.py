@@ -138,3 +138,27 @@ def test_cli_deconvolve_psf_from_file(tmp_path):
         == 0
     )
     assert out.stat().st_size > 0
+
+
+@pytest.mark.render
+def test_cli_deconvolve_uses_the_noise_a_sensor_capture_recorded(tmp_path, capsys):
+    """pacam render --sensor records the sensor's noise; pacam deconvolve then deblurs the noisy
+    layer with it, without being told. The paper preset's noise is sigma = 0.01 of white
+    (Sec. 3), an independent reference for the recorded value."""
+    cap = tmp_path / "cap"
+    args = ["render", "train", "--mode", "coded", "--width", "48", "--height", "36"]
+    assert main([*args, "--spp", "4", "--sensor", "paper", "--out", str(cap), "--quiet"]) == 0
+    meta = json.loads((cap / "capture.json").read_text())
+    assert meta["sensor"]["noise_sigma_white_units"] == pytest.approx(0.01, rel=0.02)
+    assert meta["noise_sigma"] == pytest.approx(0.01 * meta["light_factor"], rel=0.02)
+    capsys.readouterr()
+    out = tmp_path / "d.exr"
+    assert main(["deconvolve", str(cap / "capture.exr"), "--out", str(out)]) == 0
+    said = capsys.readouterr().out
+    assert "layer noisy" in said and f"noise sigma {meta['noise_sigma']:.4g}" in said
+    assert np.isfinite(exrio.read_exr(out)["deconvolved"]).all()
+    # the noiseless layer, asked for by name, is not given the sensor's noise
+    out2 = tmp_path / "d2.exr"
+    cmd = ["deconvolve", str(cap / "capture.exr"), "--layer", "capture", "--out", str(out2)]
+    assert main(cmd) == 0
+    assert "layer capture, noise sigma estimated" in capsys.readouterr().out

@@ -11,10 +11,11 @@ import numpy as np
 import pytest
 import trimesh
 
+from pacam_render import scenes as S
 from pacam_render.errors import ParameterError
 from pacam_render.model.camera import prototype
 from pacam_render.scenes import assets as sa
-from pacam_render.scenes import library as S
+from pacam_render.scenes.motion import _mi
 
 W, H = 64, 48
 F_PX = 0.5 * 1280 / math.tan(math.radians(23.0))  # independent of CameraDesign
@@ -22,7 +23,7 @@ F_PX = 0.5 * 1280 / math.tan(math.radians(23.0))  # independent of CameraDesign
 
 @pytest.fixture(scope="module")
 def mi():
-    return S._mi()
+    return _mi()
 
 
 @pytest.fixture(scope="module")

@@ -47,7 +47,7 @@ def render_case(name: str, seed: int) -> np.ndarray:
     spec = replace(CASES[name], seed=seed)
     desc = None
     if spec.scene == "psf":
-        from ..scenes.library import psf_scene
+        from ..scenes import psf_scene
 
         desc = psf_scene(500.0, 0.3, camera=capture_design(spec), radius_mm=0.2)
     return render_capture(spec, progress=False, description=desc).image

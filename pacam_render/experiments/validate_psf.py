@@ -484,15 +484,30 @@ def report(rows: list[dict], grid: Grid, s: dict, files: list[str]) -> str:
 
 
 def _plots(out_dir: Path, rows: list[dict], examples: dict, grid: Grid) -> list[str]:
+    """Write the validation figures into ``out_dir``; returns their file names."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    files = []
+    files = [_plot_r_ai(plt, out_dir, rows), _plot_l1(plt, out_dir, rows)]
+    picks = _example_picks(rows, examples)
+    if picks:
+        files.append(_plot_examples(plt, out_dir, examples, picks))
+    return files
+
+
+def _save_figure(plt, fig, out_dir: Path, name: str, dpi: int) -> str:
+    """Save ``fig`` as ``out_dir / name`` (PNG), close it and return ``name``."""
+    atomic_save(out_dir / name, lambda p: fig.savefig(p, dpi=dpi, format="png"), force=True)
+    plt.close(fig)
+    return name
+
+
+def _plot_r_ai(plt, out_dir: Path, rows: list[dict]) -> str:
+    """Errors of r (Eq. 12) and a_i (Eq. 18) at every grid point, with their noise."""
     idx = np.arange(len(rows))
     labels = [f"{r['depth_mm']:g}/F{r['f_number']:g}/{r['velocity_fraction']:g}" for r in rows]
-
     fig, ax = plt.subplots(2, 1, figsize=(max(8, 0.25 * len(rows)), 7), sharex=True)
     for a, key, noise, name in (
         (ax[0], "r_err_pct", "r_noise_pct", "r vs Eq. 12"),
@@ -513,11 +528,11 @@ def _plots(out_dir: Path, rows: list[dict], examples: dict, grid: Grid) -> list[
     ax[1].set_xticklabels(labels, rotation=90, fontsize=6)
     ax[1].set_xlabel("depth mm / opening / speed (x range)")
     fig.tight_layout()
-    name = "validate_psf_r_ai.png"
-    atomic_save(out_dir / name, lambda p: fig.savefig(p, dpi=110, format="png"), force=True)
-    plt.close(fig)
-    files.append(name)
+    return _save_figure(plt, fig, out_dir, "validate_psf_r_ai.png", 110)
 
+
+def _plot_l1(plt, out_dir: Path, rows: list[dict]) -> str:
+    """L1 of the rendered PSFs against the noise floor, and Eq. 14 against 16 patterns."""
     fig, ax = plt.subplots(1, 2, figsize=(11, 4.5))
     floor = np.array([r["l1_noise_floor"] for r in rows])
     l1 = np.array([r["l1_discrete"] for r in rows])
@@ -544,12 +559,12 @@ def _plots(out_dir: Path, rows: list[dict], examples: dict, grid: Grid) -> list[
     ax[1].set_title("Eq. 14 vs what 16 patterns give (mean over depths)")
     ax[1].legend(fontsize=8)
     fig.tight_layout()
-    name = "validate_psf_l1.png"
-    atomic_save(out_dir / name, lambda p: fig.savefig(p, dpi=110, format="png"), force=True)
-    plt.close(fig)
-    files.append(name)
+    return _save_figure(plt, fig, out_dir, "validate_psf_l1.png", 110)
 
-    picks = sorted(
+
+def _example_picks(rows: list[dict], examples: dict) -> list[tuple]:
+    """Up to 3 example keys (not at F_min) where Eq. 14 and 16 patterns differ the most."""
+    return sorted(
         (k for k in examples if k[1] != prototype().F_min),
         key=lambda k: (
             -max(
@@ -559,34 +574,33 @@ def _plots(out_dir: Path, rows: list[dict], examples: dict, grid: Grid) -> list[
             )
         ),
     )[:3]
-    if picks:
-        fig, ax = plt.subplots(len(picks), 4, figsize=(12, 3 * len(picks)), squeeze=False)
-        for i, key in enumerate(picks):
-            ks = examples[key]
-            vmax = max(ks["discrete"].max(), ks["mean"].max())
-            for j, (title, img) in enumerate(
-                (
-                    ("rendered", ks["mean"]),
-                    ("discrete 16 patterns", ks["discrete"]),
-                    ("Eq. 14", ks["continuous"]),
-                )
-            ):
-                ax[i, j].imshow(img, cmap="magma", vmin=0, vmax=vmax)
-                ax[i, j].set_title(f"{title}\n{key[0]:g} mm F{key[1]:g} s={key[2]:g}x", fontsize=8)
-                ax[i, j].axis("off")
-            h = ks["mean"].shape[0] // 2
-            x = np.arange(ks["mean"].shape[1]) - h
-            for name_, img, lw, alpha in (
-                ("rendered", ks["mean"], 3.0, 0.45),
-                ("discrete", ks["discrete"], 1.0, 1.0),
-                ("Eq. 14", ks["continuous"], 1.0, 1.0),
-            ):
-                ax[i, 3].plot(x, img.sum(axis=0), lw=lw, alpha=alpha, label=name_)
-            ax[i, 3].set_title("column sums", fontsize=8)
-            ax[i, 3].legend(fontsize=7)
-        fig.tight_layout()
-        name = "validate_psf_examples.png"
-        atomic_save(out_dir / name, lambda p: fig.savefig(p, dpi=100, format="png"), force=True)
-        plt.close(fig)
-        files.append(name)
-    return files
+
+
+def _plot_examples(plt, out_dir: Path, examples: dict, picks: list[tuple]) -> str:
+    """Rendered, discrete and Eq. 14 kernels of the ``picks``, with their column sums."""
+    fig, ax = plt.subplots(len(picks), 4, figsize=(12, 3 * len(picks)), squeeze=False)
+    for i, key in enumerate(picks):
+        ks = examples[key]
+        vmax = max(ks["discrete"].max(), ks["mean"].max())
+        for j, (title, img) in enumerate(
+            (
+                ("rendered", ks["mean"]),
+                ("discrete 16 patterns", ks["discrete"]),
+                ("Eq. 14", ks["continuous"]),
+            )
+        ):
+            ax[i, j].imshow(img, cmap="magma", vmin=0, vmax=vmax)
+            ax[i, j].set_title(f"{title}\n{key[0]:g} mm F{key[1]:g} s={key[2]:g}x", fontsize=8)
+            ax[i, j].axis("off")
+        h = ks["mean"].shape[0] // 2
+        x = np.arange(ks["mean"].shape[1]) - h
+        for name_, img, lw, alpha in (
+            ("rendered", ks["mean"], 3.0, 0.45),
+            ("discrete", ks["discrete"], 1.0, 1.0),
+            ("Eq. 14", ks["continuous"], 1.0, 1.0),
+        ):
+            ax[i, 3].plot(x, img.sum(axis=0), lw=lw, alpha=alpha, label=name_)
+        ax[i, 3].set_title("column sums", fontsize=8)
+        ax[i, 3].legend(fontsize=7)
+    fig.tight_layout()
+    return _save_figure(plt, fig, out_dir, "validate_psf_examples.png", 100)

@@ -229,7 +229,7 @@ def render_capture(
     import mitsuba as mi
 
     from ..render.backend import select_variant
-    from ..scenes.library import fastest_image_speed_px_per_ms, load_scene
+    from ..scenes import fastest_image_speed_px_per_ms, load_scene
 
     variant = select_variant()
     design = capture_design(spec)

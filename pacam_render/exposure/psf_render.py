@@ -91,7 +91,7 @@ from ..model.modes import (
 )
 from ..render.registry import PSF_PLUGIN_NAME, ensure_registered, sensor_dict
 from ..restore.metrics import fit_acceleration, kernel_centroid, rel_l1
-from ..scenes.library import image_to_scene_velocity, psf_scene
+from ..scenes import image_to_scene_velocity, psf_scene
 
 DEFAULT_SOURCE_RADIUS_PX = 0.02
 """Radius of the emitter's image, px: small enough that it does not show (see source_blur_l1)."""
@@ -673,54 +673,55 @@ class PSFRenderer:
         :func:`~pacam_render.psf.design_psf`: ``"t0"`` (the t = 0 image) or ``"pinhole"``.
         ``model``: that analytic kernel, if already computed (saves its computation).
         """
+        req = plan_render(design, mode, velocity, size, spp, seed, film, integrator, origin, model)
+        scene, params = self._scene(design, req.setup, req.film, integrator)
+        sensor = self._place(design, req.setup, req.film, req.velocity, scene, params)
+        windows, is_open = _windows(req.setup, per_window)
+        peak = req.model.max() * int(is_open.sum())
+        spp_pass = _spp_per_pass(req.spp, req.film, integrator, peak)
+        plan = _pass_plan(req.spp, spp_pass, is_open)
+        t0 = time.perf_counter()
+        with _threads(threads):
+            images = self._render_passes(
+                scene, sensor, req, windows, plan, per_window, f"render {mode} PSF", progress
+            )
+        seconds = time.perf_counter() - t0
+        return self._result(
+            req, mode, integrator, windows, is_open, images, plan, per_window, keep_windows,
+            seconds=seconds, threads=threads, origin=origin, design=design,
+        )  # fmt: skip
+
+    def _render_passes(self, scene, sensor, req, windows, plan, per_window, desc, progress):
+        """Render every (window, pass) of ``plan``; returns the windows' images (float64)."""
         import mitsuba as mi
 
-        req = plan_render(design, mode, velocity, size, spp, seed, film, integrator, origin, model)
-        setup, model, shape, centre, filmset = req.setup, req.model, req.shape, req.centre, req.film
-        spp, seed, velocity = req.spp, req.seed, req.velocity
-        scene, params = self._scene(design, setup, filmset, integrator)
-        sensor = self._place(design, setup, filmset, velocity, scene, params)
-
-        edges = setup.edges_ms
-        windows = [(edges[k], edges[k + 1]) for k in range(len(edges) - 1)]
-        is_open = setup.open
-        if not per_window:
-            windows, is_open = [(edges[0], edges[-1])], np.array([True])
-        spp_pass = _spp_per_pass(spp, filmset, integrator, model.max() * int(is_open.sum()))
-        plan = []
-        for k in range(len(windows)):
-            if not is_open[k]:
-                continue
-            left, p = spp, 0
-            while left > 0:
-                n = min(spp_pass, left)
-                plan.append((k, p, n))
-                left -= n
-                p += 1
-        h, w = shape
+        h, w = req.shape
         images = [np.zeros((h, w)) for _ in windows]
         bar = None
         if progress:
             from tqdm import tqdm
 
-            bar = tqdm(total=len(plan), desc=f"render {mode} PSF", unit="pass", leave=False)
-        t0 = time.perf_counter()
+            bar = tqdm(total=len(plan), desc=desc, unit="pass", leave=False)
         current = None
-        with _threads(threads):
-            try:
-                for k, p, n in plan:
-                    if current != k:
-                        sensor.configure(time_window=None if not per_window else windows[k])
-                        current = k
-                    img = mi.render(scene, spp=n, seed=_seed(seed, k, p))
-                    images[k] += np.array(img, dtype=np.float64).reshape(h, w) * (n / spp)
-                    if bar is not None:
-                        bar.update()
-            finally:
+        try:
+            for k, p, n in plan:
+                if current != k:
+                    sensor.configure(time_window=None if not per_window else windows[k])
+                    current = k
+                img = mi.render(scene, spp=n, seed=_seed(req.seed, k, p))
+                images[k] += np.array(img, dtype=np.float64).reshape(h, w) * (n / req.spp)
                 if bar is not None:
-                    bar.close()
-                sensor.configure(time_window=None)
-        seconds = time.perf_counter() - t0
+                    bar.update()
+        finally:
+            if bar is not None:
+                bar.close()
+            sensor.configure(time_window=None)
+        return images
+
+    def _result(self, req, mode, integrator, windows, is_open, images, plan, per_window,
+                keep_windows, *, seconds, threads, origin, design) -> RenderedPSF:  # fmt: skip
+        """Normalise the windows' images into a :class:`RenderedPSF` with its trajectory."""
+        setup = req.setup
         total = sum(images)
         raw = float(total.sum())
         if not raw > 0:
@@ -728,14 +729,12 @@ class PSFRenderer:
                 "the rendered PSF is black: the source is outside the view (check depth and size)"
             )
         T = setup.T_ms
-        ts = np.array([a for a, _ in windows]) - T
-        te = np.array([b for _, b in windows]) - T
         mass = np.array([im.sum() for im in images]) / raw
         cents = np.array(
             [kernel_centroid(im) if im.sum() > 0 else (np.nan, np.nan) for im in images]
         )
         if per_window:
-            model_u = model_window_centroids(setup, velocity) + (setup.origin_px - centre)
+            model_u = model_window_centroids(setup, req.velocity) + (setup.origin_px - req.centre)
             model_u = np.where(is_open, model_u, np.nan)
         else:
             model_u = np.array([np.nan])
@@ -743,18 +742,18 @@ class PSFRenderer:
             kernel=total / raw,
             raw_sum=raw,
             mode=mode,
-            velocity_px_per_ms=velocity,
-            spp=spp,
-            seed=seed,
+            velocity_px_per_ms=req.velocity,
+            spp=req.spp,
+            seed=req.seed,
             integrator=integrator,
             seconds=seconds,
-            particles=int(sum(n for *_, n in plan) * filmset.sample_pixels(integrator)),
+            particles=int(sum(n for *_, n in plan) * req.film.sample_pixels(integrator)),
             threads=threads,
             passes=len(plan),
-            film=filmset.describe(design),
+            film=req.film.describe(design),
             source_radius_px=self.source_radius_px,
-            t_start_ms=ts,
-            t_end_ms=te,
+            t_start_ms=np.array([a for a, _ in windows]) - T,
+            t_end_ms=np.array([b for _, b in windows]) - T,
             mass=mass,
             centroid_u_px=cents[:, 0],
             centroid_v_px=cents[:, 1],
@@ -762,8 +761,30 @@ class PSFRenderer:
             model_a_i=setup.a_i,
             origin=origin,
             window_kernels=[im / raw for im in images] if keep_windows else None,
-            model=model,
+            model=req.model,
         )
+
+
+def _windows(setup: ModeSetup, per_window: bool):
+    """The time windows to render (sensor ms) and whether each lets light in."""
+    edges = setup.edges_ms
+    if not per_window:
+        return [(edges[0], edges[-1])], np.array([True])
+    return [(edges[k], edges[k + 1]) for k in range(len(edges) - 1)], setup.open
+
+
+def _pass_plan(spp: int, spp_pass: int, is_open: np.ndarray) -> list[tuple[int, int, int]]:
+    """(window, pass, samples) for every render call: each open window gets ``spp`` in passes
+    of at most ``spp_pass``."""
+    plan = []
+    for k in np.flatnonzero(is_open):
+        left, p = spp, 0
+        while left > 0:
+            n = min(spp_pass, left)
+            plan.append((int(k), p, n))
+            left -= n
+            p += 1
+    return plan
 
 
 _DEFAULT: PSFRenderer | None = None

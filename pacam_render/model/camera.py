@@ -247,8 +247,20 @@ def prototype(
 PRESETS = {"prototype": prototype}
 
 
-def preset(name: str) -> CameraDesign:
-    """A named camera design."""
+def preset(name: str, **options) -> CameraDesign:
+    """A named camera design; ``options`` go to the preset's factory (e.g. ``object_depth_mm``).
+
+    Parameters
+    ----------
+    name : str
+        A key of :data:`PRESETS`.
+    **options
+        Keyword arguments of the factory, e.g. ``prototype(object_depth_mm, r_px, side)``.
+
+    Returns
+    -------
+    CameraDesign
+    """
     if name not in PRESETS:
         raise ParameterError(f"unknown preset {name!r}; valid: {', '.join(sorted(PRESETS))}")
-    return PRESETS[name]()
+    return PRESETS[name](**options)

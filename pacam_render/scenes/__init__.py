@@ -1,0 +1,62 @@
+"""Scenes and their motion, in millimetres and milliseconds with the camera at the origin
+looking down +z.
+
+* :mod:`.motion`: the camera pose, pinhole projection, rigid motion (:class:`Motion`) and
+  moving a loaded scene's shapes in time (:class:`SceneAnimator`).
+* :mod:`.description`: :class:`SceneDescription` (a sensor-free Mitsuba scene dict plus
+  motion) and loading by name or from a Mitsuba XML file (:func:`load_scene`).
+* :mod:`.builtin`: the built-in train set, soccer ball and walker, and a PSF generator.
+* :mod:`.files`: XML and motion JSON export of the built-in scenes.
+* :mod:`.assets`: the meshes and textures the built-in scenes use.
+
+Importing this package does not import Mitsuba; functions that need it import it when called.
+"""
+
+from .builtin import (
+    BUILTIN_SCENES,
+    SCENE_DIR,
+    SOCCER_SPEED_PX_PER_MS,
+    WALKER_SPEED_MM_PER_MS,
+    WHITE_IRRADIANCE,
+    psf_scene,
+    soccer_scene,
+    train_scene,
+    walker_scene,
+)
+from .description import SceneDescription, is_static, load_scene, load_scene_file
+from .files import motion_to_json, scene_to_xml, write_scene_files
+from .motion import (
+    Motion,
+    SceneAnimator,
+    default_camera_to_world,
+    fastest_image_speed_px_per_ms,
+    image_to_scene_velocity,
+    look_at,
+    project_px,
+)
+
+__all__ = [
+    "BUILTIN_SCENES",
+    "SCENE_DIR",
+    "SOCCER_SPEED_PX_PER_MS",
+    "WALKER_SPEED_MM_PER_MS",
+    "WHITE_IRRADIANCE",
+    "Motion",
+    "SceneAnimator",
+    "SceneDescription",
+    "default_camera_to_world",
+    "fastest_image_speed_px_per_ms",
+    "image_to_scene_velocity",
+    "is_static",
+    "load_scene",
+    "load_scene_file",
+    "look_at",
+    "motion_to_json",
+    "project_px",
+    "psf_scene",
+    "scene_to_xml",
+    "soccer_scene",
+    "train_scene",
+    "walker_scene",
+    "write_scene_files",
+]

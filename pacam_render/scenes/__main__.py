@@ -2,7 +2,7 @@
 
 import sys
 
-from .library import write_scene_files
+from .files import write_scene_files
 
 if sys.argv[1:2] == ["--write"]:
     for p in write_scene_files(*sys.argv[2:3]):

@@ -1,0 +1,185 @@
+"""Scene descriptions and loading: :class:`SceneDescription` (a Mitsuba scene dict without
+a sensor, a suggested integrator, and a :class:`~.motion.Motion` per moving shape), and
+:func:`load_scene` for built-in scenes by name or Mitsuba XML files with their
+``<stem>.motion.json``.
+
+Load a description with :meth:`SceneDescription.load`: it turns Mitsuba's mesh merging off,
+which would otherwise merge meshes that share a material and lose the shape ids that motion
+refers to.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..errors import ParameterError
+from . import assets as sa
+from .motion import Motion, SceneAnimator, _mi
+
+
+@dataclass
+class SceneDescription:
+    """A scene without a sensor, and how its shapes move.
+
+    ``scene_dict`` is a Mitsuba scene dict (no sensor, no integrator); 4x4 numpy arrays in it
+    become ``ScalarTransform4f`` in :meth:`to_dict`, so it does not depend on the variant.
+    Scenes loaded from a file hold instantiated Mitsuba objects instead (tied to the variant).
+    ``bboxes_mm`` holds each shape's world bounding box at t = 0 (min, max).
+    """
+
+    name: str
+    scene_dict: dict
+    motions: dict[str, Motion] = field(default_factory=dict)
+    integrator: Any = field(default_factory=lambda: {"type": "path", "max_depth": 3})
+    bboxes_mm: dict[str, tuple[np.ndarray, np.ndarray]] = field(default_factory=dict)
+    depths_mm: dict[str, float] = field(default_factory=dict)
+    info: dict = field(default_factory=dict)
+    source: str | None = None
+
+    @property
+    def moving_ids(self) -> list[str]:
+        """Ids of the shapes that move."""
+        return sorted(k for k, m in self.motions.items() if not m.is_static)
+
+    @property
+    def is_static(self) -> bool:
+        return not self.moving_ids
+
+    def to_dict(self, sensor: Any = None, integrator: Any = None) -> dict:
+        """The Mitsuba scene dict with ``sensor`` (a dict or object) and the integrator."""
+        d = _to_mitsuba(self.scene_dict)
+        chosen = integrator if integrator is not None else self.integrator
+        if chosen is not None:  # a None value in the dict crashes mi.load_dict (segfault)
+            d["integrator"] = _to_mitsuba(chosen)
+        if sensor is not None:
+            d["sensor"] = _to_mitsuba(sensor)
+        return d
+
+    def load(self, sensor: Any = None, integrator: Any = None):
+        """``mi.Scene`` with mesh merging off, so that every moving shape keeps its id."""
+        mi = _mi()
+        return mi.load_dict(self.to_dict(sensor, integrator), optimize=False)
+
+    def animator(self, scene) -> SceneAnimator:
+        return SceneAnimator(scene, self)
+
+
+def _to_mitsuba(obj: Any) -> Any:
+    """Copy of a plain scene dict with 4x4 numpy arrays as ``mi.ScalarTransform4f``."""
+    if isinstance(obj, dict):
+        return {k: _to_mitsuba(v) for k, v in obj.items()}
+    if isinstance(obj, np.ndarray) and obj.shape == (4, 4):
+        return _mi().ScalarTransform4f(obj.tolist())
+    return obj
+
+
+def is_static(scene: SceneDescription) -> bool:
+    """True when nothing in ``scene`` moves (one render pass, no geometry updates)."""
+    return scene.is_static
+
+
+def load_scene(
+    name_or_path: str | os.PathLike,
+    *,
+    cache_dir: str | Path | None = None,
+    params: dict | None = None,
+    **options,
+) -> SceneDescription:
+    """A built-in scene by name (``options`` go to its builder, e.g. ``far_speed_px_per_ms``)
+    or a Mitsuba XML scene file (``params`` fill its ``$name`` parameters; motion comes from a
+    ``<stem>.motion.json`` beside it, if any)."""
+    from .builtin import BUILTIN_SCENES  # lazy: the built-in scenes import this module
+
+    key = os.fspath(name_or_path)
+    if key in BUILTIN_SCENES:
+        try:
+            return BUILTIN_SCENES[key](cache_dir=cache_dir, **options)
+        except TypeError as exc:
+            raise ParameterError(f"invalid option for scene {key!r}: {exc}") from exc
+    path = Path(key)
+    if path.suffix.lower() != ".xml" and not path.exists():
+        raise ParameterError(
+            f"unknown scene {key!r}; valid names: {', '.join(sorted(BUILTIN_SCENES))}, "
+            "or a path to a Mitsuba .xml scene file"
+        )
+    if options:
+        raise ParameterError(f"options {sorted(options)} apply to built-in scenes only")
+    return load_scene_file(path, cache_dir=cache_dir, params=params)
+
+
+def _motion_file(path: Path) -> Path:
+    return path.with_name(path.stem + ".motion.json")
+
+
+def load_scene_file(
+    path: str | Path, *, cache_dir: str | Path | None = None, params: dict | None = None
+) -> SceneDescription:
+    """A Mitsuba XML scene without its sensor (dropped), plus ``<stem>.motion.json``.
+
+    The description holds the instantiated objects (for the active variant); every ``load()``
+    reuses them, so keep one loaded scene per description at a time."""
+    mi = _mi()
+    path = Path(path)
+    if not path.is_file():
+        raise ParameterError(f"scene file not found: {str(path)!r}")
+    try:
+        text = path.read_text()
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ParameterError(f"cannot read scene file {str(path)!r}: {exc}") from exc
+    kwargs = {k: str(v) for k, v in (params or {}).items()}
+    if "$assets" in text and "assets" not in kwargs:  # our exported scenes use the cache
+        kwargs["assets"] = str(sa.ensure_assets(cache_dir))
+    try:
+        loaded = mi.load_file(str(path), optimize=False, **kwargs)
+    except Exception as exc:  # Mitsuba raises RuntimeError (parse) or others (plugins)
+        raise ParameterError(f"scene file {str(path)!r} does not load: {exc}") from exc
+    desc = _describe_loaded(loaded, path)
+    mpath = _motion_file(path)
+    if mpath.is_file():
+        _apply_motion_file(desc, mpath)
+    return desc
+
+
+def _describe_loaded(loaded, path: Path) -> SceneDescription:
+    """Sensor-free dict of the loaded objects (shapes carry their area lights)."""
+    d: dict[str, Any] = {"type": "scene"}
+    bboxes = {}
+    for k, shape in enumerate(loaded.shapes()):
+        sid = shape.id() or f"shape_{k}"
+        d[sid] = shape
+        b = shape.bbox()
+        bboxes[sid] = (np.array(b.min, float).ravel(), np.array(b.max, float).ravel())
+    for k, em in enumerate(loaded.emitters()):
+        if em.get_shape() is None:  # area lights come with their shapes
+            d[em.id() or f"emitter_{k}"] = em
+    integrator = loaded.integrator() or {"type": "path", "max_depth": 3}
+    return SceneDescription(
+        name=path.stem,
+        scene_dict=d,
+        integrator=integrator,
+        bboxes_mm=bboxes,
+        source=str(path),
+    )
+
+
+def _apply_motion_file(desc: SceneDescription, mpath: Path) -> None:
+    try:
+        data = json.loads(mpath.read_text())
+        shapes = data["shapes"]
+    except (OSError, ValueError, KeyError, TypeError) as exc:
+        raise ParameterError(f"motion file {str(mpath)!r} is not valid: {exc}") from exc
+    for sid, m in shapes.items():
+        if sid not in desc.scene_dict:
+            raise ParameterError(
+                f"motion file {str(mpath)!r} moves {sid!r}, which the scene does not have; "
+                f"shape ids: {', '.join(k for k in desc.scene_dict if k != 'type')}"
+            )
+        desc.motions[sid] = Motion.from_json(m)
+    desc.depths_mm.update(data.get("depths_mm", {}))
+    desc.info.update(data.get("info", {}))
