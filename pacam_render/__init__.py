@@ -17,7 +17,7 @@ from importlib.metadata import version
 
 from .errors import ParameterError
 from .exposure.capture import Capture, CaptureSpec, render_capture, write_capture
-from .exposure.record import CaptureRecord
+from .exposure.record import CaptureRecord, analytic_psf
 from .model.camera import CameraDesign, preset, prototype
 from .model.design import solve as solve_design
 from .model.modes import MODES, Mode, capture_camera, mode
@@ -38,6 +38,7 @@ from .restore import metrics
 from .restore.deconvolve import METHODS as DECONVOLUTION_METHODS
 from .restore.deconvolve import deconvolve, wiener
 from .scenes import load_scene, psf_scene
+from .sensor.apply import add_sensor_layers
 from .sensor.model import (
     DEFAULT_LIGHT_LEVEL,
     SensorCapture,
@@ -64,6 +65,8 @@ __all__ = [
     "ParameterError",
     "SensorCapture",
     "SensorModel",
+    "add_sensor_layers",
+    "analytic_psf",
     "aperture_area_mm2",
     "available_presets",
     "capture_camera",
