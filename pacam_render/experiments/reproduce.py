@@ -21,11 +21,12 @@ import numpy as np
 
 from ..errors import ParameterError
 from ..io.outputs import atomic_save, write_text
+from ..model import paper
 from ..model.camera import prototype
 from ..psf import analytic as P
 from . import simulate as E
 
-T_MS = 22.5
+T_MS = 0.5 * paper.EXPOSURE_MS
 SIGMA = 0.01
 R_PX = 2.0
 MODELS = {"Eq. 14 (continuous)": "continuous", "16 patterns (camera)": "discrete"}
@@ -51,7 +52,7 @@ def _scale(quick: bool) -> dict:
     )
 
 
-def coded_kernel(model: str, s: float, a: float, r: float, n: int = 16) -> np.ndarray:
+def coded_kernel(model: str, s: float, a: float, r: float, n: int = paper.N_PATTERNS) -> np.ndarray:
     if model == "continuous":
         return P.coded_psf(s, a, r, T_MS)
     return P.discrete_coded_psf(s, a, r, T_MS, n)
@@ -167,9 +168,9 @@ def _summary_fig6(rows) -> str:
 
 
 # --- photon budgets -----------------------------------------------------------------------------
-F_MIN = 2.8
-SHORT_MS = 0.679
-EXPOSURE_MS = 2 * T_MS
+F_MIN = paper.F_MIN
+SHORT_MS = paper.SHORT_EXPOSURE_MS
+EXPOSURE_MS = paper.EXPOSURE_MS
 
 
 def f_number_for(a_i: float, r_px: float) -> float:
@@ -393,7 +394,7 @@ def _plot_fig8(rows, path: Path) -> None:
     ax.axhline(1.0, color="k", lw=0.8)
     ax.set_xlabel("noise level (sigma of the coded capture, [0, 1] scale)")
     ax.set_ylabel("quality ratio sqrt(MSE_short / MSE)")
-    ax.set_title("Fig. 8: quality vs a short exposure (0.679 ms at F2.8)")
+    ax.set_title(f"Fig. 8: quality vs a short exposure ({SHORT_MS} ms at F{F_MIN:g})")
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=7, ncol=1)
     _save_fig(fig, path)

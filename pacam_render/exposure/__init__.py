@@ -1,0 +1,32 @@
+"""Exposures: scenes and point sources rendered through the camera over a whole exposure 2T.
+
+:mod:`.capture` renders a capture (:class:`CaptureSpec` in, :class:`Capture` out): one render
+for a static scene, or, for a moving one, time steps within each aperture pattern's window so
+that nothing moves more than half a pixel between steps, resumable from disk. :mod:`.record`
+is its typed JSON sidecar (:class:`CaptureRecord`). :mod:`.psf_render` ray-traces PSFs of a
+camera design (:func:`render_psf`, :class:`PSFRenderer`), registered with the analytic kernels
+of :mod:`pacam_render.psf`. Importing this package imports neither Mitsuba nor Dr.Jit; they
+load on the first render. Units: mm, ms, px; velocities px/ms, accelerations px/ms^2.
+"""
+
+from .capture import (
+    Capture,
+    CaptureInterrupted,
+    CaptureSpec,
+    render_capture,
+    write_capture,
+)
+from .psf_render import PSFRenderer, render_psf
+from .record import CaptureRecord, SensorRecord
+
+__all__ = [
+    "Capture",
+    "CaptureInterrupted",
+    "CaptureRecord",
+    "CaptureSpec",
+    "PSFRenderer",
+    "SensorRecord",
+    "render_capture",
+    "render_psf",
+    "write_capture",
+]

@@ -72,7 +72,13 @@ class CaptureSpec:
             check_positive("cover_px_per_ms", self.cover_px_per_ms, "px/ms")
 
     def key(self) -> str:
-        """A hash of everything that changes the image (for resuming)."""
+        """A hash of everything that changes the image (for resuming).
+
+        Returns
+        -------
+        str
+            The first 16 hex digits of the SHA-256 of the spec's fields as sorted JSON.
+        """
         return hashlib.sha256(json.dumps(asdict(self), sort_keys=True).encode()).hexdigest()[:16]
 
 
@@ -81,6 +87,27 @@ def capture_design(spec: CaptureSpec) -> CameraDesign:
 
     With ``cover_px_per_ms`` (a speed in the preset's own pixels), the design solver first
     picks the defocus that makes that speed motion-invariant at the preset's F-number.
+
+    Parameters
+    ----------
+    spec : CaptureSpec
+        Uses ``preset``, ``cover_px_per_ms`` (px/ms) and ``width`` and ``height`` (px).
+
+    Returns
+    -------
+    CameraDesign
+        The coded design, with ``width_px = spec.width`` and ``height_px = spec.height``.
+
+    Raises
+    ------
+    ParameterError
+        If the preset is unknown, or the solver cannot cover the speed (it names the limit).
+
+    Notes
+    -----
+    The solver (:func:`~pacam_render.model.design.solve`) makes the invariant range
+    |s| <= |a_i| T cover the speed, with a_i = beta a_a (Eq. 18) and the defocus radius
+    r = |beta| R (Eq. 12), so |a_i| = 4 r (R_max / R - 1) / T^2; the exposure is 2T.
     """
     base = preset(spec.preset)
     if spec.cover_px_per_ms is not None:
@@ -92,13 +119,69 @@ def capture_design(spec: CaptureSpec) -> CameraDesign:
 
 def mode_camera(design: CameraDesign, mode: str) -> tuple[CameraDesign, dict]:
     """The camera a mode uses (for its analytic PSF) and the sensor's schedule parameters,
-    both from the table of :mod:`pacam_render.model.modes`."""
+    both from the table of :mod:`pacam_render.model.modes`.
+
+    Parameters
+    ----------
+    design : CameraDesign
+        The coded design (:func:`capture_design`).
+    mode : str
+        A capture mode, one of :data:`MODES`.
+
+    Returns
+    -------
+    cam : CameraDesign
+        :func:`~pacam_render.model.modes.capture_camera`: the design with the mode's focus,
+        opening and exposure; its analytic PSF is ``design_psf(cam, mode)``.
+    params : dict
+        :func:`~pacam_render.model.modes.sensor_params`: the ``programmable_aperture``
+        parameters (lengths in mm) that show the mode; empty for ``reference``.
+
+    Raises
+    ------
+    ParameterError
+        If ``mode`` is unknown (the message lists the valid ones), or a mode with a moving
+        aperture gets a design without parallax (beta = 0).
+    """
     cam = capture_camera(design, mode)
     return cam, sensor_params(cam, mode)
 
 
 def sensor_entry(spec: CaptureSpec, design: CameraDesign, params: dict, exposure_ms: float):
-    """The scene's sensor: programmable_aperture, or a pinhole for the reference."""
+    """The scene's sensor: programmable_aperture, or a pinhole for the reference.
+
+    Parameters
+    ----------
+    spec : CaptureSpec
+        Uses ``mode``, ``width`` and ``height`` (px) and ``spp``.
+    design : CameraDesign
+        The mode's camera (its field of view, deg).
+    params : dict
+        The sensor's schedule parameters (:func:`mode_camera`).
+    exposure_ms : float
+        The exposure 2T, ms: the shutter is open over [0, exposure_ms], and the paper's time is
+        t = shutter time - T.
+
+    Returns
+    -------
+    dict
+        A ``mi.load_dict`` entry with an RGB float32 ``hdrfilm`` of width x height px, a box
+        reconstruction filter (samples stay in their pixel, as the analytic PSFs assume) and an
+        ``independent`` sampler of ``spec.spp`` samples per pixel. For ``reference`` it is a
+        ``perspective`` (pinhole) sensor; otherwise
+        :func:`~pacam_render.render.registry.sensor_dict` with pixel values scaled to the
+        :data:`REFERENCE_EXPOSURE_MS` exposure.
+
+    Raises
+    ------
+    ParameterError
+        If :func:`~pacam_render.render.registry.sensor_dict` rejects the parameters.
+
+    Notes
+    -----
+    Except for the reference, this activates a Mitsuba variant if none is active and registers
+    the sensor plugins.
+    """
     from ..render.registry import sensor_dict
 
     film = {
@@ -134,11 +217,39 @@ class Step:
 
     @property
     def t_mid_paper_ms(self) -> float:
+        """Mid-time of the window, ms, on the shutter's clock (t0, t1): subtract T for the paper's
+        t in [-T, T]."""
         return 0.5 * (self.t0 + self.t1)
 
 
 def plan_steps(edges: np.ndarray, is_open: np.ndarray, speed_px_per_ms: float, spec) -> list[Step]:
-    """Time steps within each open pattern window, and their share of the spp budget."""
+    """Time steps within each open pattern window, and their share of the spp budget.
+
+    Parameters
+    ----------
+    edges : ndarray
+        The n + 1 pattern boundaries on the shutter's clock, ms.
+    is_open : ndarray of bool
+        Whether each of the n pattern windows lets light in; closed windows get no steps.
+    speed_px_per_ms : float
+        The fastest image speed of any moving shape, px/ms.
+    spec : CaptureSpec
+        Uses ``max_step_px`` (px) and ``spp``.
+
+    Returns
+    -------
+    list of Step
+        In time order: each open window [a, b] is cut into
+        m = max(1, ceil(v_max (b - a) / max_step_px)) equal steps, so that nothing moves more
+        than ``max_step_px`` between steps.
+
+    Notes
+    -----
+    The spp budget is shared in proportion to duration: a step of duration d gets
+    floor(spp d / D) samples (D the open time), at least 1, and the samples still to give go to
+    the largest remainders. The total is ``spec.spp``, or more where the minimum of 1 per step
+    forces it.
+    """
     windows = [(k, a, b) for k, (a, b, o) in enumerate(zip(edges[:-1], edges[1:], is_open)) if o]
     pieces = []
     for k, a, b in windows:
@@ -225,7 +336,47 @@ def render_capture(
 ) -> Capture:
     """Render one capture. ``partial_dir`` keeps finished steps for resuming;
     ``stop_after_steps`` interrupts deliberately (for tests of resuming); ``description`` (a
-    :class:`~pacam_render.scenes.SceneDescription`, e.g. a PSF scene) replaces ``spec.scene``."""
+    :class:`~pacam_render.scenes.SceneDescription`, e.g. a PSF scene) replaces ``spec.scene``.
+
+    A static scene, or the reference, is one render; a moving scene is integrated over the
+    time steps of :func:`plan_steps` (see the module docstring).
+
+    Parameters
+    ----------
+    spec : CaptureSpec
+        What to capture.
+    partial_dir : pathlib.Path, optional
+        Folder for the finished steps of a moving scene: a capture with the same
+        :meth:`CaptureSpec.key` resumes from them, and the folder is removed when the capture
+        finishes. None keeps nothing.
+    progress : bool, optional
+        Show a progress bar over the steps.
+    save_every_s : float, optional
+        Seconds between saves of the finished steps to ``partial_dir``, s.
+    stop_after_steps : int, optional
+        Stop after this many steps: they are saved and :class:`CaptureInterrupted` is raised.
+    description : SceneDescription, optional
+        A scene to capture instead of ``spec.scene``.
+
+    Returns
+    -------
+    Capture
+        The image, (height, width, 3) float64 in radiance x (open area / full aperture) x
+        (exposure / 45 ms); the per-pattern images of a moving scene when ``spec.per_pattern``
+        is set; and the :class:`~pacam_render.exposure.record.CaptureRecord`.
+
+    Raises
+    ------
+    ParameterError
+        If the preset, mode or scene is unknown, or the camera cannot be built.
+    CaptureInterrupted
+        When ``stop_after_steps`` steps are done.
+
+    Notes
+    -----
+    Selects and activates a Mitsuba variant. The fastest image speed is taken over the paper's
+    t in [-T, T] (the exposure is 2T), and each step renders the geometry at its mid-time.
+    """
     import mitsuba as mi
 
     from ..render.backend import select_variant
@@ -355,7 +506,34 @@ def _record(spec, design, cam, params, sensor, variant, seconds, steps: dict) ->
 
 
 def write_capture(cap: Capture, out: Path, force: bool) -> list[Path]:
-    """capture.exr (float32 layers), capture.png (sRGB preview), capture.json."""
+    """capture.exr (float32 layers), capture.png (sRGB preview), capture.json.
+
+    Parameters
+    ----------
+    cap : Capture
+        The capture to write.
+    out : pathlib.Path
+        The output folder (created if missing).
+    force : bool
+        Overwrite existing files.
+
+    Returns
+    -------
+    list of pathlib.Path
+        The three files, in that order.
+
+    Raises
+    ------
+    ParameterError
+        If a file already exists and ``force`` is false.
+
+    Notes
+    -----
+    capture.exr holds the layers ``capture`` (the image), the extra layers (``raw`` and
+    ``noisy`` after the sensor) and ``subNN`` per pattern image. The preview is exposed by
+    1 / ``light_factor`` (auto-exposed when that is 0); capture.json is the record. Each file is
+    written to a temporary file and renamed.
+    """
     from ..io.exr import write_exr
     from ..io.preview import srgb8, write_png
 

@@ -31,7 +31,21 @@ _warned = False
 
 
 def llvm_status() -> tuple[bool, str]:
-    """Whether drjit's LLVM backend can render here, and why not."""
+    """Whether drjit's LLVM backend can render here, and why not.
+
+    Returns
+    -------
+    ok : bool
+        True if the ``llvm_ad_rgb`` variant loads and drjit's libLLVM is at least
+        :data:`MIN_LLVM` (16).
+    reason : str
+        The libLLVM version found, or why the backend cannot render.
+
+    Notes
+    -----
+    Imports Mitsuba and drjit, and probes by activating ``llvm_ad_rgb``: that variant stays
+    active if it loads.
+    """
     import drjit as dr
     import mitsuba as mi
 
@@ -47,7 +61,18 @@ def llvm_status() -> tuple[bool, str]:
 
 
 def cuda_available() -> bool:
-    """Whether the CUDA variant loads (a GPU and driver are present)."""
+    """Whether the CUDA variant loads (a GPU and driver are present).
+
+    Returns
+    -------
+    bool
+        True if ``cuda_ad_rgb`` could be activated.
+
+    Notes
+    -----
+    Imports Mitsuba and probes by activating ``cuda_ad_rgb``: that variant stays active if it
+    loads.
+    """
     import mitsuba as mi
 
     try:
@@ -93,7 +118,29 @@ def _warn_fallback(reason: str) -> None:
 
 
 def choose_variant(gpu: bool = False, mono: bool = False) -> str:
-    """Name of the variant to use, without activating it (beyond probing)."""
+    """Name of the variant to use, without activating it (beyond probing).
+
+    Parameters
+    ----------
+    gpu : bool, optional
+        Prefer the CUDA variant when a GPU is present.
+    mono : bool, optional
+        Pick the single-channel variant (``*_mono``), for grey experiments; there is no
+        ``scalar_mono``, so the scalar fallback is ``scalar_rgb`` either way.
+
+    Returns
+    -------
+    str
+        ``PACAM_VARIANT`` if set; else ``cuda_ad_*`` when ``gpu`` and CUDA loads; else
+        ``llvm_ad_*`` when drjit's LLVM backend works (:func:`llvm_status`); else
+        ``scalar_rgb``, with one :class:`BackendWarning` per process.
+
+    Raises
+    ------
+    ParameterError
+        If ``PACAM_VARIANT`` is not a Mitsuba variant, or names an LLVM variant that cannot
+        render here.
+    """
     override = _override()
     if override:
         return override
@@ -107,7 +154,31 @@ def choose_variant(gpu: bool = False, mono: bool = False) -> str:
 
 
 def select_variant(gpu: bool = False, mono: bool = False) -> str:
-    """Choose (once per process and request) and activate a Mitsuba variant; return its name."""
+    """Choose (once per process and request) and activate a Mitsuba variant; return its name.
+
+    Parameters
+    ----------
+    gpu : bool, optional
+        Prefer the CUDA variant when a GPU is present (see :func:`choose_variant`).
+    mono : bool, optional
+        Pick the single-channel variant.
+
+    Returns
+    -------
+    str
+        The variant now active. The choice for each (``gpu``, ``mono``) is made once per
+        process and reused.
+
+    Raises
+    ------
+    ParameterError
+        As :func:`choose_variant`.
+
+    Notes
+    -----
+    Also installs the sensor plugins (:func:`~pacam_render.render.registry.install`): they are
+    registered for this variant and again after every later variant switch.
+    """
     import mitsuba as mi
 
     key = (gpu, mono)

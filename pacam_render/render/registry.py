@@ -38,7 +38,24 @@ def _module(name: str, variant: str):
 
 
 def sensor_class(variant: str | None = None) -> type:
-    """The ``programmable_aperture`` class of the active variant (``variant`` must be it)."""
+    """The ``programmable_aperture`` class of the active variant (``variant`` must be it).
+
+    Parameters
+    ----------
+    variant : str, optional
+        A Mitsuba variant name; None means the active one.
+
+    Returns
+    -------
+    type
+        ``ProgrammableApertureCamera`` from :mod:`pacam_render.render.sensor`, imported (or
+        re-imported) for the active variant.
+
+    Raises
+    ------
+    ParameterError
+        If no Mitsuba variant is active, or ``variant`` is not the active one.
+    """
     import mitsuba as mi
 
     active = mi.variant()
@@ -55,6 +72,17 @@ def register() -> str:
     """Register both sensors for the active variant (choosing one if none is).
 
     Idempotent; :func:`install` makes it follow variant switches. Returns the variant name.
+
+    Returns
+    -------
+    str
+        The active Mitsuba variant, for which ``programmable_aperture`` and
+        ``pacam_psf_camera`` are now registered.
+
+    Notes
+    -----
+    With no variant active, :func:`~pacam_render.render.backend.select_variant` chooses and
+    activates one, and registers through :func:`install`.
     """
     global _registered
     import mitsuba as mi
@@ -77,7 +105,18 @@ def _on_variant_change(old, new):
 
 
 def ensure_registered() -> str:
-    """Make sure both sensors exist for the active variant (choosing one if none is)."""
+    """Make sure both sensors exist for the active variant (choosing one if none is).
+
+    Returns
+    -------
+    str
+        The active Mitsuba variant.
+
+    Notes
+    -----
+    With no variant active, :func:`~pacam_render.render.backend.select_variant` chooses one;
+    otherwise :func:`install` registers the sensors if they are not yet registered for it.
+    """
     import mitsuba as mi
 
     if mi.variant() is None:
@@ -89,7 +128,11 @@ def ensure_registered() -> str:
 
 
 def install() -> None:
-    """Register now if a variant is active, and again after every variant switch."""
+    """Register now if a variant is active, and again after every variant switch.
+
+    Adds a Mitsuba variant callback (adding it twice is harmless) and calls :func:`register`
+    if a variant is active and the sensors are not registered for it yet.
+    """
     import mitsuba as mi
 
     mi.detail.add_variant_callback(_on_variant_change)  # a set: adding twice is harmless
@@ -103,6 +146,40 @@ def sensor_dict(**params) -> dict:
     Example: ``sensor_dict(fov=40, focus_distance=500, lens_radius=4.5,
     aperture_radius=1.3, schedule="parabolic", shutter_open=0, shutter_close=45,
     film={...})``.
+
+    The parameters are checked here, so that bad input raises :class:`ParameterError` itself
+    rather than wrapped in Mitsuba's ``RuntimeError``.
+
+    Parameters
+    ----------
+    **params
+        The sensor's properties (see :mod:`pacam_render.render.sensor`): the plugin's own
+        (:data:`~pacam_render.render.plan.PROP_KEYS`, e.g. ``lens_radius`` R_max and
+        ``aperture_radius`` R in mm, ``schedule``, ``n_patterns``, ``image_acceleration`` in
+        px/ms^2, ``reference_exposure`` in ms) and the camera's (``fov`` in deg, ``fov_axis``,
+        ``focus_distance`` in mm, ``shutter_open`` and ``shutter_close`` in ms, ``film``,
+        ``sampler``, ...).
+
+    Returns
+    -------
+    dict
+        ``{"type": "programmable_aperture", **params}``, with numpy arrays (and list or tuple
+        ``centres`` and ``masks``) converted to float32 ``mi.TensorXf``.
+
+    Raises
+    ------
+    ParameterError
+        If ``lens_radius`` is missing, the focus distance (``focus_distance``, else
+        ``far_clip``) is not > 0 mm, ``fov`` is not in (0, 180) deg, or the schedule's
+        parameters are invalid (:func:`~pacam_render.render.plan.build_plan`).
+
+    Notes
+    -----
+    Imports Mitsuba, activates a variant if none is active and registers the sensors
+    (:func:`ensure_registered`). The schedule is checked with :func:`build_plan` over the
+    shutter interval, except for an ``image_acceleration`` without a horizontal ``fov``:
+    turning it into a camera acceleration, a_c = a_i Z_f / f_px, needs the focal length in px,
+    f_px = (W/2) / tan(fov/2).
     """
     import mitsuba as mi
 

@@ -1,0 +1,55 @@
+"""Restoration: non-blind deconvolution of coded captures and the metrics that score it.
+
+:mod:`.deconvolve` holds the deconvolvers (:data:`METHODS`: our Wiener filter with a 1/f^2
+natural-image prior fitted above the noise, Richardson-Lucy and unsupervised Wiener from
+scikit-image, and optional BM3D deblurring), all with the same tapered reflect padding;
+:mod:`.metrics` holds PSNR, SSIM, shift-aligned PSNR and the fits of rendered PSFs (centroid,
+the image acceleration of Eq. 18, the defocus disc of Eq. 12). Images are float (H, W) or
+(H, W, C), PSFs (h, w) or (h, w, C) in px. The dispatcher ``deconvolve`` is not re-exported
+here, because its name would hide the :mod:`.deconvolve` module: use
+``pacam_render.restore.deconvolve.deconvolve``.
+"""
+
+from .deconvolve import (
+    METHODS,
+    bm3d_deblur,
+    estimate_noise_sigma,
+    oracle_wiener,
+    richardson_lucy,
+    unsupervised_wiener,
+    wiener,
+)
+from .metrics import (
+    MAX_SHIFT_PX,
+    aligned_psnr,
+    best_shift_px,
+    crop,
+    fit_acceleration,
+    fit_disc_radius,
+    kernel_centroid,
+    psnr,
+    psnr_batch,
+    rel_l1,
+    ssim,
+)
+
+__all__ = [
+    "MAX_SHIFT_PX",
+    "METHODS",
+    "aligned_psnr",
+    "best_shift_px",
+    "bm3d_deblur",
+    "crop",
+    "estimate_noise_sigma",
+    "fit_acceleration",
+    "fit_disc_radius",
+    "kernel_centroid",
+    "oracle_wiener",
+    "psnr",
+    "psnr_batch",
+    "rel_l1",
+    "richardson_lucy",
+    "ssim",
+    "unsupervised_wiener",
+    "wiener",
+]

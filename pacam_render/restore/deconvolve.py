@@ -38,7 +38,28 @@ WORKERS = os.cpu_count() or 1
 
 # --- validation -------------------------------------------------------------------------------
 def check_psf(psf, image_shape: tuple[int, ...]) -> np.ndarray:
-    """A finite, non-negative, normalised PSF that fits inside the image; float64."""
+    """Validate a PSF against an image and return it normalised to unit mass, as float64.
+
+    Parameters
+    ----------
+    psf : array_like
+        The point-spread function on the image's pixel grid (px): 2-D (h, w), shared by all
+        channels, or 3-D (h, w, C), one kernel per channel. Finite and non-negative.
+    image_shape : tuple of int
+        Shape of the image it will deconvolve, (H, W) or (H, W, C).
+
+    Returns
+    -------
+    psf : ndarray of float64
+        The PSF divided by its sum (per channel for an (h, w, C) PSF), so each kernel sums to 1.
+
+    Raises
+    ------
+    ParameterError
+        If the PSF is not 2-D or 3-D, contains NaN or infinite values, has a negative value, has
+        zero total mass (in any channel), is larger than the image in either direction, or is
+        3-D with a channel count other than the image's (1 for an (H, W) image).
+    """
     k = np.asarray(psf, dtype=float)
     if k.ndim not in (2, 3):
         raise ParameterError(f"psf must be 2-D (h, w) or (h, w, C), got shape {k.shape}")
@@ -64,7 +85,23 @@ def check_psf(psf, image_shape: tuple[int, ...]) -> np.ndarray:
 
 
 def check_image(image) -> np.ndarray:
-    """A finite float image of shape (H, W) or (H, W, C)."""
+    """Validate an image and return it as a finite float64 array.
+
+    Parameters
+    ----------
+    image : array_like
+        Image of shape (H, W) or (H, W, C), on any linear scale.
+
+    Returns
+    -------
+    image : ndarray of float64
+        The image, same shape.
+
+    Raises
+    ------
+    ParameterError
+        If the image is not 2-D or 3-D, or contains NaN or infinite values.
+    """
     y = np.asarray(image, dtype=float)
     if y.ndim not in (2, 3):
         raise ParameterError(f"image must be (H, W) or (H, W, C), got shape {y.shape}")
@@ -75,7 +112,18 @@ def check_image(image) -> np.ndarray:
 
 # --- boundaries ----------------------------------------------------------------------------------
 def pad_width(psf_shape: tuple[int, ...]) -> tuple[int, int]:
-    """Rows and columns of padding: the PSF's full extent, so blur never wraps."""
+    """Rows and columns of padding for a PSF: its full extent, so the blur never wraps.
+
+    Parameters
+    ----------
+    psf_shape : tuple of int
+        Shape of the PSF, (h, w) or (h, w, C), px.
+
+    Returns
+    -------
+    pad : tuple of int
+        (h, w): the rows and columns of padding, px (see :func:`taper_pad`).
+    """
     return int(psf_shape[0]), int(psf_shape[1])
 
 
@@ -92,7 +140,33 @@ def _ramp(n: int, head: int, tail: int) -> np.ndarray:
 def taper_pad(image2d: np.ndarray, pad: tuple[int, int]) -> tuple[np.ndarray, tuple[slice, slice]]:
     """Reflect-pad to an FFT-friendly size, fade the pad to the image mean with a raised cosine.
 
-    Returns the padded image and the slices that crop the original region back out.
+    The image gets ``pad`` rows above and columns to the left, and at least as many below and to
+    the right: up to the next size that :func:`scipy.fft.next_fast_len` finds fast for a real
+    FFT. The pad is reflected (``symmetric`` instead when the image is one pixel thick or the pad
+    is not smaller than the image's shorter side), then faded towards the image mean, so that
+    the padded image is periodic and continuous and the circular FFT does not ring at the
+    borders.
+
+    Parameters
+    ----------
+    image2d : ndarray
+        One channel, shape (H, W).
+    pad : tuple of int
+        (py, px): rows and columns of padding on each side, px; usually :func:`pad_width`.
+
+    Returns
+    -------
+    padded : ndarray
+        The padded, tapered image, shape (Hp, Wp) with
+        Hp = ``next_fast_len(H + 2 py, real=True)`` and Wp likewise.
+    keep : tuple of slice
+        (rows, columns) that crop the original (H, W) region back out of ``padded``.
+
+    Notes
+    -----
+    With m the image mean and w(y, x) = w_y(y) w_x(x) a separable window,
+    padded = m + (reflected - m) w. Each 1-D window is 1 over the image and, over a pad of p
+    samples, rises from the outer edge as 0.5 - 0.5 cos(pi (k + 1/2) / p), k = 0 .. p - 1.
     """
     h, w = image2d.shape
     py, px = pad
@@ -118,7 +192,26 @@ def _per_channel(image: np.ndarray, psf: np.ndarray, fn) -> np.ndarray:
 
 # --- Wiener -------------------------------------------------------------------------------------
 def psf_to_otf(psf2d: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
-    """Real-FFT transfer function of a centred PSF on a grid of ``shape``."""
+    """Real-FFT transfer function (OTF) of a centred PSF on a grid of ``shape``.
+
+    Parameters
+    ----------
+    psf2d : ndarray
+        2-D PSF (h, w) whose origin is its centre pixel (h//2, w//2); at most ``shape``.
+    shape : tuple of int
+        (H, W) of the (padded) image grid, px.
+
+    Returns
+    -------
+    otf : ndarray of complex128
+        ``scipy.fft.rfft2`` of the PSF zero-padded to ``shape`` and rolled circularly so that
+        its centre pixel sits at (0, 0); shape (H, W // 2 + 1).
+
+    Notes
+    -----
+    With the origin at (0, 0), multiplying an image spectrum by the OTF convolves the image with
+    the PSF (circularly) without shifting it.
+    """
     big = np.zeros(shape)
     h, w = psf2d.shape
     big[:h, :w] = psf2d
@@ -135,9 +228,34 @@ def _freq2(shape: tuple[int, int]) -> np.ndarray:
 def prior_spectrum(Y: np.ndarray, H2: np.ndarray, shape, sigma: float) -> np.ndarray:
     """1/f^2 image spectrum S(f) = c g(f) in per-pixel DFT units (E|X(f)|^2 = N S(f)).
 
+    The natural-image prior of the Wiener filter, fitted to the observation where it stands
+    above the noise.
+
+    Parameters
+    ----------
+    Y : ndarray of complex
+        ``rfft2`` of the (padded) observed image, shape (H, W // 2 + 1).
+    H2 : ndarray of float
+        |H|^2, the squared magnitude of the OTF on the same grid (:func:`psf_to_otf`).
+    shape : tuple of int
+        (H, W) of the real-space grid, px; N = H W.
+    sigma : float
+        Standard deviation of the white noise, in the image's units.
+
+    Returns
+    -------
+    S : ndarray of float64
+        The prior spectrum c g(f), same shape as ``Y``.
+
+    Notes
+    -----
+    g(f) = 1 / (|f|^2 + f0^2), with f = (f_y, f_x) in cycles/px and f0 = 1 / max(H, W).
     c is the median, over the frequencies where the observation is well above the noise
-    (|Y|^2 / N > 4 sigma^2), of (|Y|^2 / N - sigma^2) / (|H|^2 g): the prior's level where the
-    data can see it. A median, not a mean, so the brightest low frequencies do not dominate.
+    (|Y|^2 / N > 4 sigma^2) and |H|^2 g > 0, DC excluded, of (|Y|^2 / N - sigma^2) / (|H|^2 g):
+    the prior's level where the data can see it. A median, not a mean, so the brightest low
+    frequencies do not dominate. If fewer than 8 frequencies qualify (the image is all noise),
+    c matches the observed variance instead: c = max(mean(p) - sigma^2, 1e-20) / mean(g), with
+    p = |Y|^2 / N and both means over every row of the grid but the first (which holds DC).
     """
     n = shape[0] * shape[1]
     g = 1.0 / (_freq2(shape) + (1.0 / max(shape)) ** 2)
@@ -152,7 +270,35 @@ def prior_spectrum(Y: np.ndarray, H2: np.ndarray, shape, sigma: float) -> np.nda
 
 
 def wiener_spectrum(Y, H, shape, sigma: float, nsr="prior", scale: float = 1.0) -> np.ndarray:
-    """Wiener estimate in the Fourier domain: H* Y / (|H|^2 + NSR(f)), rfft layout."""
+    """Wiener estimate in the Fourier domain: H* Y / (|H|^2 + NSR(f)), rfft layout.
+
+    Parameters
+    ----------
+    Y : ndarray of complex
+        ``rfft2`` of the (padded) observed image, shape (H, W // 2 + 1).
+    H : ndarray of complex
+        The OTF on the same grid (:func:`psf_to_otf`).
+    shape : tuple of int
+        (H, W) of the real-space grid, px.
+    sigma : float
+        Standard deviation of the white noise, in the image's units; used by the prior only.
+    nsr : str or float, optional
+        A string (``"prior"``, not checked here: see :func:`wiener`) selects the 1/f^2 prior of
+        :func:`prior_spectrum`; a number is a constant noise-to-signal ratio.
+    scale : float, optional
+        Multiplies the regulariser, of either kind.
+
+    Returns
+    -------
+    X : ndarray of complex
+        The estimate's spectrum, same shape as ``Y``.
+
+    Notes
+    -----
+    X(f) = H*(f) Y(f) / (|H(f)|^2 + NSR(f)). With the prior, NSR(f) = scale sigma^2 / S(f)
+    (S floored at 1e-300) and NSR = 0 at DC: the mean is measured, not guessed. With a constant,
+    NSR = scale nsr. The denominator is floored at 1e-300.
+    """
     H2 = (H * H.conj()).real
     if isinstance(nsr, str):
         reg = scale * sigma**2 / np.maximum(prior_spectrum(Y, H2, shape, sigma), 1e-300)
@@ -172,14 +318,72 @@ def _wiener2d(y: np.ndarray, k: np.ndarray, sigma: float, nsr, scale: float) -> 
 
 
 def estimate_noise_sigma(image: np.ndarray) -> float:
-    """Wavelet (MAD) estimate of white-noise sigma, averaged over channels."""
+    """Wavelet (MAD) estimate of white-noise sigma, averaged over channels.
+
+    Parameters
+    ----------
+    image : ndarray
+        (H, W), or (H, W, C) with the channels on the last axis.
+
+    Returns
+    -------
+    sigma : float
+        Standard deviation of the noise, in the image's units: the mean over the channels of
+        scikit-image's :func:`~skimage.restoration.estimate_sigma` (median absolute deviation of
+        the finest wavelet detail coefficients).
+    """
     from skimage.restoration import estimate_sigma
 
     return float(np.mean(estimate_sigma(image, channel_axis=-1 if image.ndim == 3 else None)))
 
 
 def wiener(image, psf, noise_sigma: float | None = None, nsr="prior", scale: float = 1.0):
-    """Wiener deconvolution. ``nsr``: "prior" (1/f^2 prior, see module doc) or a constant."""
+    """Wiener deconvolution. ``nsr``: "prior" (1/f^2 prior, see module doc) or a constant.
+
+    Each channel is reflect-padded by the PSF's extent and tapered (:func:`taper_pad`), filtered
+    in the Fourier domain (:func:`wiener_spectrum`) and cropped back.
+
+    Parameters
+    ----------
+    image : array_like
+        Blurred, noisy image, (H, W) or (H, W, C), float on any linear scale.
+    psf : array_like
+        PSF, px: (h, w) shared by all channels or (h, w, C), with its origin at the centre pixel
+        (h//2, w//2); normalised to unit sum here (:func:`check_psf`).
+    noise_sigma : float, optional
+        Standard deviation of the white noise, in the image's units: the known one (capture
+        metadata, or the ``paper`` sensor preset's 0.01 on a [0, 1] image). None: estimated
+        with :func:`estimate_noise_sigma`. Used only with ``nsr="prior"``; there 0 (a noiseless
+        image) becomes 1e-6, a vanishing but finite regulariser that keeps H = 0 bins finite.
+    nsr : {"prior"} or float, optional
+        ``"prior"`` (default): NSR(f) = sigma^2 / S(f), with S the 1/f^2 natural-image spectrum
+        fitted to the observation where it stands above the noise (:func:`prior_spectrum`).
+        A finite constant >= 0: the classic constant-balance filter.
+    scale : float, optional
+        Multiplies the regulariser; 1 uses the prior as fitted (:func:`oracle_wiener` tunes it).
+
+    Returns
+    -------
+    estimate : ndarray of float64
+        The deconvolved image, same shape as ``image``.
+
+    Raises
+    ------
+    ParameterError
+        If ``nsr`` is neither ``"prior"`` nor a finite constant >= 0, if ``noise_sigma`` is
+        negative or not finite, or if the image or the PSF is invalid (:func:`check_image`,
+        :func:`check_psf`).
+
+    Notes
+    -----
+    The filter is
+
+        W(f) = H*(f) / (|H(f)|^2 + scale sigma^2 / S(f)),    S(f) = c / (|f|^2 + f0^2),
+
+    with f in cycles/px, f0 = 1 / N_max (the padded grid's longer side), c fitted to the
+    observed spectrum where it stands above the noise, and no regularisation at DC. With a
+    constant ``nsr``: W(f) = H*(f) / (|H(f)|^2 + scale nsr). One sigma serves every channel.
+    """
     y = check_image(image)
     k = check_psf(psf, y.shape)
     if not isinstance(nsr, str):
@@ -208,7 +412,36 @@ def _check_sigma(sigma: float) -> float:
 def oracle_wiener(image, psf, truth, noise_sigma: float | None = None):
     """Wiener with the prior's scale tuned to maximise PSNR against ``truth`` (best case).
 
-    Returns (estimate, scale).
+    An oracle, for experiments that need the best case of the prior Wiener filter.
+
+    Parameters
+    ----------
+    image : array_like
+        Blurred, noisy image, (H, W) or (H, W, C).
+    psf : array_like
+        PSF, as for :func:`wiener`.
+    truth : array_like
+        The sharp image, same shape as ``image``.
+    noise_sigma : float, optional
+        Noise standard deviation, image units, as for :func:`wiener` (None: estimated).
+
+    Returns
+    -------
+    estimate : ndarray of float64
+        :func:`wiener` with ``nsr="prior"`` at the best scale, same shape as ``image``.
+    scale : float
+        That scale of the regulariser, in [1e-4, 1e4].
+
+    Raises
+    ------
+    ParameterError
+        If ``truth`` is invalid or its shape differs from the image's, or as :func:`wiener`.
+
+    Notes
+    -----
+    Maximises PSNR(wiener(image, psf, noise_sigma, "prior", 10^u), truth) (peak 1, so it
+    minimises the mean squared error) over u = log10(scale) in [-4, 4], by bounded scalar
+    minimisation (:func:`scipy.optimize.minimize_scalar`, ``xatol`` 0.02 decade).
     """
     truth = check_image(truth)
     if truth.shape != np.shape(image):
@@ -235,8 +468,37 @@ def _padded(fn):
 
 
 def richardson_lucy(image, psf, iterations: int = 30):
-    """Richardson-Lucy (scikit-image). Needs a non-negative image; amplifies noise with more
-    iterations, so ``iterations`` is the regulariser."""
+    """Richardson-Lucy deconvolution (scikit-image).
+
+    Needs a non-negative image; amplifies noise with more iterations, so ``iterations`` is the
+    regulariser. Runs on the tapered, padded image (:func:`taper_pad`), cropped back.
+
+    Parameters
+    ----------
+    image : array_like
+        Blurred, noisy image, (H, W) or (H, W, C), non-negative.
+    psf : array_like
+        PSF, as for :func:`wiener`.
+    iterations : int, optional
+        Number of iterations, an integer >= 1.
+
+    Returns
+    -------
+    estimate : ndarray of float64
+        The deconvolved image, same shape as ``image``.
+
+    Raises
+    ------
+    ParameterError
+        If ``iterations`` is not an integer >= 1, the image has a negative value, or the image or
+        the PSF is invalid.
+
+    Notes
+    -----
+    Each iteration multiplies the estimate by the back-projected ratio of data to prediction,
+    x <- x (k' * (y / (k * x))), with * convolution and k' the PSF flipped in both axes.
+    scikit-image's ``richardson_lucy`` is called with ``clip=False``: nothing is clipped.
+    """
     from skimage.restoration import richardson_lucy as rl
 
     y = check_image(image)
@@ -251,7 +513,37 @@ def richardson_lucy(image, psf, iterations: int = 30):
 
 
 def unsupervised_wiener(image, psf, seed: int = 0):
-    """Unsupervised Wiener-Hunt (scikit-image): regularisation estimated by Gibbs sampling."""
+    """Unsupervised Wiener-Hunt (scikit-image): regularisation estimated by Gibbs sampling.
+
+    Runs on the tapered, padded image (:func:`taper_pad`), cropped back.
+
+    Parameters
+    ----------
+    image : array_like
+        Blurred, noisy image, (H, W) or (H, W, C).
+    psf : array_like
+        PSF, as for :func:`wiener`.
+    seed : int, optional
+        Seed of the :func:`numpy.random.default_rng` generator that drives the sampler (one
+        generator, used by the channels in turn): the same seed gives the same estimate.
+
+    Returns
+    -------
+    estimate : ndarray of float64
+        The posterior mean image, same shape as ``image``.
+
+    Raises
+    ------
+    ParameterError
+        If the image or the PSF is invalid.
+
+    Notes
+    -----
+    scikit-image's :func:`~skimage.restoration.unsupervised_wiener` (Orieux, Giovannelli and
+    Rodet 2010, with its default Laplacian regulariser) samples the image together with the
+    noise and image precisions, so no noise level or regularisation weight is given; it is
+    called with ``clip=False``.
+    """
     from skimage.restoration import unsupervised_wiener as uw
 
     y = check_image(image)
@@ -261,8 +553,38 @@ def unsupervised_wiener(image, psf, seed: int = 0):
 
 
 def bm3d_deblur(image, psf, noise_sigma: float | None = None):
-    """BM3D deblurring (Dabov et al.), as in the paper's real experiments. Optional extra:
-    ``pip install bm3d``. Licence: free for non-commercial use only."""
+    """BM3D deblurring (Dabov et al.), as in the paper's real experiments.
+
+    Optional extra: ``pip install bm3d``. Licence: free for non-commercial use only
+    (:data:`BM3D_LICENCE`). Runs on the tapered, padded image (:func:`taper_pad`), cropped back.
+
+    Parameters
+    ----------
+    image : array_like
+        Blurred, noisy image, (H, W) or (H, W, C).
+    psf : array_like
+        PSF, as for :func:`wiener`.
+    noise_sigma : float, optional
+        Standard deviation of the white noise, in the image's units; None: estimated with
+        :func:`estimate_noise_sigma`. Values below 1e-4 are used as 1e-4.
+
+    Returns
+    -------
+    estimate : ndarray of float64
+        The deconvolved image, same shape as ``image``.
+
+    Raises
+    ------
+    ParameterError
+        If the ``bm3d`` package is not installed, ``noise_sigma`` is negative or not finite, or
+        the image or the PSF is invalid.
+
+    Notes
+    -----
+    Calls ``bm3d.bm3d_deblurring`` once per channel, with its warnings silenced. On a numpy
+    without ``np.trapz`` (removed in numpy 2.4), it first sets ``np.trapz = np.trapezoid`` for
+    the whole process, because bm4d still calls it.
+    """
     try:
         import bm3d as _bm3d
     except ImportError as exc:
@@ -286,7 +608,31 @@ def bm3d_deblur(image, psf, noise_sigma: float | None = None):
 
 
 def deconvolve(image, psf, method: str = "wiener", **kwargs):
-    """Dispatch to one of :data:`METHODS`."""
+    """Dispatch to one of :data:`METHODS`.
+
+    Parameters
+    ----------
+    image : array_like
+        Blurred, noisy image, (H, W) or (H, W, C).
+    psf : array_like
+        PSF, px: (h, w) or (h, w, C), origin at the centre pixel (h//2, w//2).
+    method : {"wiener", "rl", "uwiener", "bm3d"}, optional
+        :func:`wiener` (default), :func:`richardson_lucy`, :func:`unsupervised_wiener` or
+        :func:`bm3d_deblur`.
+    **kwargs
+        Passed on to the method: e.g. ``noise_sigma`` (wiener, bm3d), ``nsr`` and ``scale``
+        (wiener), ``iterations`` (rl), ``seed`` (uwiener).
+
+    Returns
+    -------
+    estimate : ndarray of float64
+        The deconvolved image, same shape as ``image``.
+
+    Raises
+    ------
+    ParameterError
+        If ``method`` is not one of :data:`METHODS`, or as the method raises it.
+    """
     funcs = {
         "wiener": wiener,
         "rl": richardson_lucy,

@@ -20,13 +20,49 @@ PSF moves each object by -s^2 / (2 a_i) (Eq. 2 with the square completed)."""
 
 
 def psnr(estimate, truth, data_range: float = 1.0) -> float:
-    """Peak signal-to-noise ratio in dB."""
+    """Peak signal-to-noise ratio in dB.
+
+    Parameters
+    ----------
+    estimate : array_like
+        The image to score.
+    truth : array_like
+        The reference image, same shape.
+    data_range : float, optional
+        The peak (white) value, in the images' units.
+
+    Returns
+    -------
+    psnr : float
+        10 log10(data_range^2 / MSE), dB, with MSE the mean of (estimate - truth)^2 over every
+        element; ``inf`` when the two are equal.
+    """
     mse = float(np.mean((np.asarray(estimate, float) - np.asarray(truth, float)) ** 2))
     return float("inf") if mse == 0 else 10.0 * np.log10(data_range**2 / mse)
 
 
 def psnr_batch(est: np.ndarray, truth: np.ndarray, margin_px: int = 0) -> np.ndarray:
-    """PSNR (dB, peak 1) per image of (N, H, W) stacks, on columns [margin, W - margin)."""
+    """PSNR (dB, peak 1) per image of (N, H, W) stacks, on columns [margin, W - margin).
+
+    Parameters
+    ----------
+    est : ndarray
+        Estimates, shape (N, H, W), white = 1.
+    truth : ndarray
+        The references, same shape.
+    margin_px : int, optional
+        Columns left out at each side, px.
+
+    Returns
+    -------
+    psnr : ndarray of float
+        10 log10(1 / MSE) per image, dB, shape (N,); the MSE is floored at 1e-30 (300 dB).
+
+    Raises
+    ------
+    ParameterError
+        If 2 ``margin_px`` >= W, which leaves no columns.
+    """
     m = int(margin_px)
     W = truth.shape[-1]
     if 2 * m >= W:
@@ -50,6 +86,28 @@ def best_shift_px(est_spectra: np.ndarray, truth_spectra: np.ndarray, width: int
 
     The zero-vertical-shift cross-correlation is a 1-D inverse FFT of the column sums of
     X_est X_truth^*: one cheap transform per image.
+
+    Parameters
+    ----------
+    est_spectra : ndarray of complex
+        ``scipy.fft.rfft2`` of the estimates over their last two axes, shape (N, H, W // 2 + 1).
+    truth_spectra : ndarray of complex
+        The same for the truths.
+    width : int
+        W, the images' width, px.
+
+    Returns
+    -------
+    shift : ndarray of float
+        One signed, sub-pixel shift d per image, px, within about +-W/2: est(y, x + d) best
+        matches truth(y, x), i.e. the estimate lies d px to the right of the truth.
+
+    Notes
+    -----
+    The circular cross-correlation c(d) = sum_{y, x} est(y, x + d) truth(y, x) is the inverse
+    real FFT, over f_x, of sum_{f_y} X_est(f) X_truth^*(f). Its peak is refined by a parabola
+    through the peak sample and its two neighbours (left at the whole pixel when they do not
+    curve downwards).
     """
     P = (est_spectra * truth_spectra.conj()).sum(axis=-2)
     c = sfft.irfft(P, n=width, axis=-1)
@@ -57,13 +115,49 @@ def best_shift_px(est_spectra: np.ndarray, truth_spectra: np.ndarray, width: int
 
 
 def crop(img: np.ndarray, frac) -> np.ndarray:
+    """The part of an image between fractions of its height and width.
+
+    Parameters
+    ----------
+    img : ndarray
+        Image, (H, W) or (H, W, C).
+    frac : tuple of float
+        (r0, r1, c0, c1): rows [r0 H, r1 H) and columns [c0 W, c1 W), fractions in [0, 1].
+
+    Returns
+    -------
+    ndarray
+        ``img[int(r0 H):int(r1 H), int(c0 W):int(c1 W)]`` (a view).
+    """
     h, w = img.shape[:2]
     r0, r1, c0, c1 = frac
     return img[int(r0 * h) : int(r1 * h), int(c0 * w) : int(c1 * w)]
 
 
 def aligned_psnr(est: np.ndarray, ref: np.ndarray, frac) -> float:
-    """Best PSNR of a crop over whole-pixel horizontal shifts of the estimate."""
+    """Best PSNR of a crop over whole-pixel horizontal shifts of the estimate.
+
+    A motion-invariant PSF moves each object by -s^2 / (2 a_i) px (Eq. 2 with the square
+    completed), so the estimate is compared with the reference at every horizontal shift d in
+    [-MAX_SHIFT_PX, MAX_SHIFT_PX] and the best PSNR is kept.
+
+    Parameters
+    ----------
+    est : ndarray
+        The estimate, (H, W) or (H, W, C), white = 1.
+    ref : ndarray
+        The reference, same shape.
+    frac : tuple of float
+        (r0, r1, c0, c1): the crop, as fractions of the height and width (see :func:`crop`).
+        Its columns are kept at least :data:`MAX_SHIFT_PX` px inside the image, so that every
+        shifted window exists.
+
+    Returns
+    -------
+    float
+        max over d of PSNR(est[rows, a + d : b + d], ref[rows, a : b]), dB, peak 1, with
+        a = max(int(c0 W), MAX_SHIFT_PX) and b = min(int(c1 W), W - MAX_SHIFT_PX).
+    """
     h, w = ref.shape[:2]
     r0, r1, c0, c1 = frac
     rows = slice(int(r0 * h), int(r1 * h))
@@ -75,6 +169,25 @@ def aligned_psnr(est: np.ndarray, ref: np.ndarray, frac) -> float:
 
 
 def ssim(est: np.ndarray, ref: np.ndarray) -> float:
+    """Structural similarity (scikit-image) of an estimate and a reference, both clipped to [0, 1].
+
+    Parameters
+    ----------
+    est : ndarray
+        The estimate, (H, W, C) with white = 1; the last axis is the channel axis.
+    ref : ndarray
+        The reference, same shape.
+
+    Returns
+    -------
+    float
+        The mean SSIM over the image and the channels (1 for identical images).
+
+    Notes
+    -----
+    :func:`skimage.metrics.structural_similarity` with ``channel_axis=-1`` and
+    ``data_range=1.0``, on ``np.clip(est, 0, 1)`` and ``np.clip(ref, 0, 1)``.
+    """
     from skimage.metrics import structural_similarity
 
     return float(
@@ -85,7 +198,24 @@ def ssim(est: np.ndarray, ref: np.ndarray) -> float:
 
 
 def kernel_centroid(kernel: np.ndarray) -> tuple[float, float]:
-    """(u, v) centroid in px from the kernel origin (centre of pixel (h//2, w//2))."""
+    """(u, v) centroid in px from the kernel origin (centre of pixel (h//2, w//2)).
+
+    Parameters
+    ----------
+    kernel : array_like
+        2-D kernel (h, w); it need not be normalised.
+
+    Returns
+    -------
+    u : float
+        Horizontal centroid (along the columns, + to the right), px; NaN if the sum is not > 0.
+    v : float
+        Vertical centroid (along the rows, + downwards), px; NaN if the sum is not > 0.
+
+    Notes
+    -----
+    u = sum_{y, x} k(y, x) (x - w//2) / sum k and v = sum_{y, x} k(y, x) (y - h//2) / sum k.
+    """
     k = np.asarray(kernel, dtype=np.float64)
     s = k.sum()
     if not s > 0:
@@ -98,7 +228,28 @@ def kernel_centroid(kernel: np.ndarray) -> tuple[float, float]:
 
 def fit_acceleration(t_ms, centroid_px, mass=None) -> float:
     """Image acceleration (px/ms^2): 2 x the t^2 coefficient of a parabola through the
-    centroids of the windows that received light."""
+    centroids of the windows that received light.
+
+    Parameters
+    ----------
+    t_ms : array_like
+        The windows' times (e.g. their mid-times), ms; any origin.
+    centroid_px : array_like
+        Each window's centroid along the motion, px; NaN for a window without light.
+    mass : array_like, optional
+        Each window's light; only windows with mass > 0 (and a finite centroid) are fitted.
+
+    Returns
+    -------
+    a_i : float
+        The image acceleration, px/ms^2; NaN with fewer than 3 usable windows.
+
+    Notes
+    -----
+    A least-squares fit of c(t) = c0 + c1 t + c2 t^2. The image of a point moves as
+    x(t) = x0 + s t + a_i t^2 / 2 (Eq. 2), so a_i = 2 c2, to compare with Eq. 18's
+    a_i = beta a_a.
+    """
     t = np.asarray(t_ms, dtype=float)
     c = np.asarray(centroid_px, dtype=float)
     ok = np.isfinite(c) & (np.ones_like(t, bool) if mass is None else np.asarray(mass) > 0)
@@ -109,7 +260,34 @@ def fit_acceleration(t_ms, centroid_px, mass=None) -> float:
 
 def fit_disc_radius(kernel: np.ndarray, r_guess: float) -> float:
     """Radius (px) of the pixel-integrated pillbox centred on the kernel origin that best fits
-    ``kernel`` (least squares), searched in [r_guess / 2, 2 r_guess] within the kernel."""
+    ``kernel`` (least squares), searched in [r_guess / 2, 2 r_guess] within the kernel.
+
+    Parameters
+    ----------
+    kernel : array_like
+        2-D kernel (h, w), origin at the centre pixel (h//2, w//2); normalised to unit sum here.
+    r_guess : float
+        Expected radius, px, > 0: e.g. the defocus radius r = |beta| R (Eq. 12).
+
+    Returns
+    -------
+    r : float
+        The radius, px, of the pillbox (Eq. 13, :func:`~pacam_render.psf.analytic.pillbox_psf`)
+        that minimises sum (pillbox_r - kernel)^2, within
+        [r_guess / 2, min(2 r_guess, min(h, w) / 2 - 0.5)] (a larger disc would leave the
+        kernel).
+
+    Raises
+    ------
+    ParameterError
+        If ``r_guess`` is not a finite number > 0, or the kernel is too small for the search
+        (min(h, w) / 2 - 0.5 <= r_guess / 2).
+
+    Notes
+    -----
+    Bounded scalar minimisation (:func:`scipy.optimize.minimize_scalar`), ``xatol``
+    1e-6 r_guess.
+    """
     from scipy.optimize import minimize_scalar
 
     from ..psf.analytic import pillbox_psf
@@ -132,5 +310,18 @@ def fit_disc_radius(kernel: np.ndarray, r_guess: float) -> float:
 
 
 def rel_l1(a: np.ndarray, b: np.ndarray) -> float:
-    """L1 distance of two kernels that each sum to 1 (0 equal, 2 disjoint)."""
+    """L1 distance of two kernels that each sum to 1 (0 equal, 2 disjoint).
+
+    Parameters
+    ----------
+    a : array_like
+        A non-negative kernel that sums to 1 (not checked).
+    b : array_like
+        Another, same shape.
+
+    Returns
+    -------
+    float
+        sum |a - b|, in [0, 2] for such kernels.
+    """
     return float(np.abs(np.asarray(a, float) - np.asarray(b, float)).sum())

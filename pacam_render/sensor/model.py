@@ -141,7 +141,13 @@ _FILE_EXTRA_KEYS = ("base", "sigma", "description")
 
 
 def available_presets() -> list[str]:
-    """Names of the built-in presets."""
+    """Names of the built-in presets.
+
+    Returns
+    -------
+    list of str
+        The keys of :data:`PRESETS`, sorted (``grasshopper-icx285`` and ``paper``).
+    """
     return sorted(PRESETS)
 
 
@@ -623,7 +629,24 @@ def _check_image(name: str, image: Any) -> np.ndarray:
 
 # --------------------------------------------------------------------------- light levels
 def aperture_area_mm2(radius_mm: float) -> float:
-    """Area of a circular opening, pi r^2, mm^2."""
+    """Area of a circular opening, pi r^2, mm^2.
+
+    Parameters
+    ----------
+    radius_mm : float
+        Radius of the opening, mm, > 0: e.g. the aperture radius R, or R_max for the lens's full
+        clear aperture.
+
+    Returns
+    -------
+    float
+        The area, mm^2.
+
+    Raises
+    ------
+    ParameterError
+        If ``radius_mm`` is not a finite number > 0.
+    """
     return math.pi * check_positive("radius_mm", radius_mm, "mm") ** 2
 
 
@@ -634,6 +657,27 @@ def photons_per_unit(
 
     ``light_level`` (photons/px/ms) is what a white diffuse surface delivers with
     ``reference_area_mm2`` open; photons scale with ``exposure_ms`` and ``open_area_mm2``.
+
+    Parameters
+    ----------
+    light_level : float
+        Photons/px/ms from a white diffuse surface with ``reference_area_mm2`` open, > 0.
+    exposure_ms : float
+        Exposure time, ms, > 0.
+    open_area_mm2 : float
+        Open aperture area during the exposure, mm^2, > 0.
+    reference_area_mm2 : float
+        Aperture area at which ``light_level`` is given, mm^2, > 0.
+
+    Returns
+    -------
+    float
+        light_level x exposure_ms x open_area_mm2 / reference_area_mm2, photons.
+
+    Raises
+    ------
+    ParameterError
+        If any argument is not a finite number > 0.
     """
     level = check_positive("light_level", light_level, "photons/px/ms")
     t = check_positive("exposure_ms", exposure_ms, "ms")
@@ -653,6 +697,30 @@ def photons_from_render(
 
     The render must not already include the open-area factor: pass the area that the image was
     normalised to as ``reference_area_mm2`` if it does (then ``open_area_mm2`` equal to it).
+
+    Parameters
+    ----------
+    linear_image : array_like
+        The linear render, any shape, real, finite and >= 0.
+    light_level : float
+        Photons/px/ms from a white diffuse surface with ``reference_area_mm2`` open, > 0.
+    exposure_ms : float
+        Exposure time, ms, > 0.
+    open_area_mm2 : float
+        Open aperture area, mm^2, > 0.
+    reference_area_mm2 : float
+        Aperture area at which ``light_level`` is given, mm^2, > 0.
+
+    Returns
+    -------
+    ndarray of float64
+        ``linear_image`` x :func:`photons_per_unit`, photons, same shape.
+
+    Raises
+    ------
+    ParameterError
+        If the image is not a real numeric array, has NaN, infinite or negative values, or a
+        scalar argument is not a finite number > 0.
     """
     img = _check_image("linear_image", linear_image)
     return img * photons_per_unit(light_level, exposure_ms, open_area_mm2, reference_area_mm2)
@@ -686,6 +754,48 @@ def simulate_capture(
     With ``light_level`` (photons/px/ms at ``reference_area_mm2``), both areas are required.
     With ``light_level=None``, 1.0 of the render fills the full well (the paper's convention,
     for the ``paper`` preset), independent of exposure and aperture; then give no areas.
+
+    Parameters
+    ----------
+    linear_image : array_like
+        The linear render, 1.0 = a white diffuse surface; real, finite and >= 0. Any shape
+        without a Bayer filter; (H, W, 3), or an (H, W) mosaic, with one.
+    model : SensorModel
+        The sensor.
+    exposure_ms : float
+        Exposure time, ms: scales the photons (with a ``light_level``) and the dark current.
+    seed : int, numpy.random.SeedSequence or None
+        Per-frame noise seed; None draws fresh entropy.
+    light_level : float, optional
+        Photons/px/ms from a white diffuse surface with ``reference_area_mm2`` open
+        (:data:`DEFAULT_LIGHT_LEVEL` is a typical value).
+    open_area_mm2 : float, optional
+        Open aperture area, mm^2; required with ``light_level``, forbidden without.
+    reference_area_mm2 : float, optional
+        Aperture area at which ``light_level`` is given, mm^2; likewise.
+    workers : int, optional
+        Threads to use (default: all cores); the result does not depend on it.
+
+    Returns
+    -------
+    SensorCapture
+        ``raw_dn`` (DN, ``model.dtype``: the render's shape, or (H, W) for a Bayer model),
+        ``linear`` (float32, the noisy image in the render's units: dark-subtracted and
+        demosaicked) and ``photons_per_unit`` (photons per pixel for 1.0 of the render).
+
+    Raises
+    ------
+    ParameterError
+        If ``light_level`` comes without both areas, or an area without it; if the light
+        level, an area or (with a light level) the exposure is not a finite number > 0; if
+        ``exposure_ms`` is negative; or if the image or ``seed`` is invalid.
+
+    Notes
+    -----
+    photons = linear_image x p, with p = light_level x exposure_ms x open_area_mm2 /
+    reference_area_mm2 (:func:`photons_per_unit`), or p = full_well_e / qe without a light
+    level. :meth:`SensorModel.capture` turns them into DN, and
+    :meth:`SensorModel.linear_from_dn` maps the DN back to the render's units.
     """
     if light_level is None:
         if open_area_mm2 is not None or reference_area_mm2 is not None:
