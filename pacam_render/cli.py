@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 from collections.abc import Sequence
 from pathlib import Path
@@ -304,10 +305,17 @@ def _add_design_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--json", action="store_true", help="print one JSON object instead of the table")
 
 
+def _version() -> str:
+    from importlib.metadata import version
+
+    return version("pacam_render")
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="pacam", description="Programmable-aperture motion-invariant camera simulator"
     )
+    parser.add_argument("--version", action="version", version=f"pacam {_version()}")
     sub = parser.add_subparsers(dest="command", required=True)
     _add_design(sub)
     _add_psf(sub)
@@ -474,6 +482,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     except ParameterError as exc:
         print(f"pacam {args.command}: error: {exc}", file=sys.stderr)
         return 2
+    except BrokenPipeError:  # e.g. `pacam design | head`: the reader left, nothing is wrong
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())  # so that the interpreter's final flush is quiet
+        return 0
 
 
 if __name__ == "__main__":

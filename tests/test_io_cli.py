@@ -162,3 +162,42 @@ def test_cli_deconvolve_uses_the_noise_a_sensor_capture_recorded(tmp_path, capsy
     cmd = ["deconvolve", str(cap / "capture.exr"), "--layer", "capture", "--out", str(out2)]
     assert main(cmd) == 0
     assert "layer capture, noise sigma estimated" in capsys.readouterr().out
+
+
+def test_cli_version(capsys):
+    from importlib.metadata import version
+
+    with pytest.raises(SystemExit) as exc:
+        main(["--version"])
+    assert exc.value.code == 0
+    assert capsys.readouterr().out.strip() == f"pacam {version('pacam_render')}"
+
+
+def test_cli_output_to_a_closed_pipe_is_quiet():
+    """`pacam design | head`: the reader leaves early; no BrokenPipe traceback."""
+    import subprocess
+    import sys
+
+    code = "import sys; from pacam_render.cli import main; sys.exit(main(['design']))"
+    proc = subprocess.Popen(
+        [sys.executable, "-c", code], stdout=subprocess.PIPE, stderr=subprocess.PIPE
+    )
+    proc.stdout.close()  # the reader is gone before anything is written
+    err = proc.stderr.read().decode()
+    assert proc.wait(timeout=120) == 0
+    assert "Traceback" not in err and "BrokenPipe" not in err
+
+
+def test_outputs_get_the_umask_permissions(tmp_path):
+    """Results are created with the process umask's mode, not mkstemp's 0600."""
+    import os
+    import stat
+
+    from pacam_render.io.outputs import write_text
+
+    old = os.umask(0o027)
+    try:
+        p = write_text(tmp_path / "a.txt", "x")
+    finally:
+        os.umask(old)
+    assert stat.S_IMODE(p.stat().st_mode) == 0o640

@@ -21,6 +21,13 @@ def check_writable(path: str | os.PathLike, force: bool) -> Path:
     return p
 
 
+def _umask() -> int:
+    """The process's umask (reading it means setting it: set it straight back)."""
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
 def atomic_save(path: str | os.PathLike, save: Callable[[str], None], force: bool = False) -> Path:
     """Call ``save(tmp_path)``, then rename the temporary file onto ``path``."""
     p = check_writable(path, force)
@@ -28,6 +35,7 @@ def atomic_save(path: str | os.PathLike, save: Callable[[str], None], force: boo
     os.close(fd)
     try:
         save(tmp)
+        os.chmod(tmp, 0o666 & ~_umask())  # mkstemp makes 0600; a result gets the umask's mode
         os.replace(tmp, p)
     except BaseException:
         if os.path.exists(tmp):
