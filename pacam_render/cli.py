@@ -13,7 +13,7 @@ import numpy as np
 
 from .errors import ParameterError, check_finite, check_positive
 from .exposure.record import CaptureRecord, analytic_psf
-from .io.exr import read_exr, read_layer, write_exr
+from .io.exr import pick_layer, read_exr, write_exr
 from .io.outputs import check_writable, prepare_out_dir, write_json
 from .io.preview import srgb8, write_png
 from .model.camera import CameraDesign, preset, prototype
@@ -130,8 +130,10 @@ def _odd_size(n: int) -> int:
     return n
 
 
-def _capture_record(capture: Path) -> CaptureRecord | None:
-    """The capture's record from its JSON sidecar, or None if it has none."""
+def _capture_record(capture: Path, required: bool) -> CaptureRecord | None:
+    """The capture's record from its JSON sidecar, or None if it has none. Only ``--psf
+    analytic`` needs the camera in it (``required``); otherwise an incomplete sidecar is read
+    for nothing but its noise, with a note."""
     path = capture.with_suffix(".json")
     if not path.is_file():
         return None
@@ -139,7 +141,13 @@ def _capture_record(capture: Path) -> CaptureRecord | None:
         data = json.loads(path.read_text())
     except json.JSONDecodeError as exc:
         raise ParameterError(f"{path} is not valid JSON ({exc})") from exc
-    return CaptureRecord.from_json(data, where=str(path))
+    try:
+        return CaptureRecord.from_json(data, where=str(path))
+    except ParameterError as exc:
+        if required:
+            raise
+        print(f"note: {exc}; its noise sigma is not used", file=sys.stderr)
+        return None
 
 
 def _load_psf(spec: str, capture: Path, record: CaptureRecord | None) -> np.ndarray:
@@ -182,13 +190,13 @@ def _noise_sigma(args, layer: str, layers: list[str], record) -> float | None:
 
 def _cmd_deconvolve(args: argparse.Namespace) -> int:
     capture = Path(args.capture)
-    layers = list(read_exr(capture)) if capture.is_file() else []
-    layer = _deconvolve_layer(layers, args.layer)
-    image = read_layer(capture, layer)
-    record = _capture_record(capture)
+    layers = read_exr(capture)
+    layer = _deconvolve_layer(list(layers), args.layer)
+    image = pick_layer(layers, layer, capture)
+    record = _capture_record(capture, required=args.psf == "analytic")
     k = _load_psf(args.psf, capture, record)
     kw = {}
-    sigma = _noise_sigma(args, layer, layers, record)
+    sigma = _noise_sigma(args, layer, list(layers), record)
     if args.method in ("wiener", "bm3d"):
         kw["noise_sigma"] = sigma
     if args.method == "bm3d":

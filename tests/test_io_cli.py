@@ -201,3 +201,21 @@ def test_outputs_get_the_umask_permissions(tmp_path):
     finally:
         os.umask(old)
     assert stat.S_IMODE(p.stat().st_mode) == 0o640
+
+
+def test_cli_deconvolve_psf_file_beside_a_json_without_camera(tmp_path, capsys):
+    """Only --psf analytic needs the capture's camera; a PSF file works beside any sidecar."""
+    y = np.random.default_rng(1).uniform(0.2, 0.8, (40, 40))
+    cap = tmp_path / "capture.exr"
+    exrio.write_exr(cap, {"capture": y})
+    (tmp_path / "capture.json").write_text(json.dumps({"note": "hand-made"}))
+    k = np.zeros((5, 5))
+    k[2, 1:4] = 1 / 3
+    np.save(tmp_path / "k.npy", k)
+    out = tmp_path / "d.exr"
+    cmd = ["deconvolve", str(cap), "--psf", str(tmp_path / "k.npy"), "--out", str(out)]
+    assert main(cmd) == 0
+    assert "lacks 'mode' and 'camera'" in capsys.readouterr().err
+    assert np.isfinite(exrio.read_exr(out)["deconvolved"]).all()
+    bad = ["deconvolve", str(cap), "--psf", "analytic", "--out", str(tmp_path / "e.exr")]
+    assert main(bad) == 2

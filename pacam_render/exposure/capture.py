@@ -334,9 +334,7 @@ def render_capture(
     stop_after_steps: int | None = None,
     description=None,
 ) -> Capture:
-    """Render one capture. ``partial_dir`` keeps finished steps for resuming;
-    ``stop_after_steps`` interrupts deliberately (for tests of resuming); ``description`` (a
-    :class:`~pacam_render.scenes.SceneDescription`, e.g. a PSF scene) replaces ``spec.scene``.
+    """Render one capture.
 
     A static scene, or the reference, is one render; a moving scene is integrated over the
     time steps of :func:`plan_steps` (see the module docstring).
@@ -380,33 +378,37 @@ def render_capture(
     import mitsuba as mi
 
     from ..render.backend import select_variant
-    from ..scenes import fastest_image_speed_px_per_ms, load_scene
+    from ..scenes import load_scene
 
     variant = select_variant()
     design = capture_design(spec)
     cam, params = mode_camera(design, spec.mode)
-    exposure = cam.exposure_ms
     desc = description if description is not None else load_scene(spec.scene)
     t_start = time.perf_counter()
-    scene = desc.load(sensor=sensor_entry(spec, cam, params, exposure))
+    scene = desc.load(sensor=sensor_entry(spec, cam, params, cam.exposure_ms))
     sensor = scene.sensors()[0]
-    moving = not desc.is_static and spec.mode != "reference"
-    shape = (spec.height, spec.width, 3)
-    meta = {"n_steps": 1, "n_geometry_updates": 0, "effective_spp": spec.spp}
-    if not moving:
+    if desc.is_static or spec.mode == "reference":  # one pass, no geometry update
         image = np.array(mi.render(scene, spp=spec.spp, seed=spec.seed), dtype=np.float64)
-        patterns = {}
+        patterns, steps = {}, {"n_steps": 1, "n_geometry_updates": 0, "effective_spp": spec.spp}
     else:
-        plan = sensor.plan
-        speed = fastest_image_speed_px_per_ms(desc, design, (-0.5 * exposure, 0.5 * exposure))
-        steps = plan_steps(plan.pattern_edges, plan.is_open, speed, spec)
         run = _Run(partial_dir, progress, save_every_s, stop_after_steps)
-        image, patterns, meta = _integrate(scene, sensor, desc, steps, spec, shape, exposure, run)
-        meta["fastest_image_speed_px_per_ms"] = speed
-    record = _record(
-        spec, design, cam, params, sensor, variant, time.perf_counter() - t_start, meta
+        image, patterns, steps = _render_moving(scene, sensor, desc, design, cam, spec, run)
+    seconds = time.perf_counter() - t_start
+    return Capture(
+        image, patterns, _record(spec, design, cam, params, sensor, variant, seconds, steps)
     )
-    return Capture(image, patterns, record)
+
+
+def _render_moving(scene, sensor, desc, design, cam, spec, run: _Run):
+    """Integrate a moving scene over the time steps of :func:`plan_steps`."""
+    from ..scenes import fastest_image_speed_px_per_ms
+
+    exposure = cam.exposure_ms
+    speed = fastest_image_speed_px_per_ms(desc, design, (-0.5 * exposure, 0.5 * exposure))
+    steps = plan_steps(sensor.plan.pattern_edges, sensor.plan.is_open, speed, spec)
+    shape = (spec.height, spec.width, 3)
+    image, patterns, meta = _integrate(scene, sensor, desc, steps, spec, shape, exposure, run)
+    return image, patterns, {**meta, "fastest_image_speed_px_per_ms": speed}
 
 
 class CaptureInterrupted(RuntimeError):

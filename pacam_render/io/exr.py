@@ -79,7 +79,11 @@ def read_exr(path: str | os.PathLike) -> dict[str, np.ndarray]:
 
 def read_layer(path: str | os.PathLike, name: str) -> np.ndarray:
     """One layer, or an error naming the layers the file has."""
-    layers = read_exr(path)
+    return pick_layer(read_exr(path), name, path)
+
+
+def pick_layer(layers: dict[str, np.ndarray], name: str, path) -> np.ndarray:
+    """Layer ``name`` of the already read ``layers`` of ``path``, or an error naming them."""
     if name not in layers:
         raise ParameterError(
             f"{path} has no layer {name!r}; it has: {', '.join(sorted(layers)) or '(none)'}"

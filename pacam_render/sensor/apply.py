@@ -11,7 +11,6 @@ import numpy as np
 
 from ..errors import check_positive
 from ..exposure.record import SensorRecord
-from ..model.paper import EXPOSURE_MS as REFERENCE_EXPOSURE_MS
 from .model import DEFAULT_LIGHT_LEVEL, SensorModel, simulate_capture
 
 
@@ -41,7 +40,7 @@ def apply_sensor(cap, model: SensorModel, light_level: float | None, seed: int):
         res = simulate_capture(cap.image / lf, model, exposure_ms=exposure, seed=seed)
         return res.raw_dn, res.linear * lf, res.photons_per_unit
     level = check_positive("light_level", light_level, "photons/px/ms")
-    scale = REFERENCE_EXPOSURE_MS / exposure  # undo the render's exposure factor ...
+    scale = rec.reference_exposure_ms / exposure  # undo the render's exposure factor ...
     res = simulate_capture(
         cap.image * scale,
         model,
@@ -64,7 +63,7 @@ def sensor_sigma(cap, model: SensorModel, light_level: float | None, level: floa
     if light_level is None:
         e_white = model.full_well_e
     else:
-        e_white = model.qe * rec.light_factor * light_level * REFERENCE_EXPOSURE_MS
+        e_white = model.qe * rec.light_factor * light_level * rec.reference_exposure_ms
     e = float(model.temporal_noise_e(level * e_white, rec.exposure_ms))
     return e / e_white
 
