@@ -10,89 +10,70 @@ integrated over moving geometry, rendered PSFs) -> ``sensor`` (photons to DN) ->
 (deconvolution and metrics) -> ``experiments`` (figures, demo, validation) -> ``cli``.
 
 Importing the package imports neither Mitsuba nor Dr.Jit: the sensor plugin registers on the
-first :func:`select_variant`, :func:`sensor_dict` or render.
+first :func:`select_variant`, :func:`sensor_dict` or render. The names below load their modules
+on first use (PEP 562), so ``import pacam_render`` is quick and the ``pacam`` command can catch
+Ctrl-C from its first moment.
 """
 
-from importlib.metadata import version
+from __future__ import annotations
 
-from .errors import ParameterError
-from .exposure.capture import Capture, CaptureSpec, render_capture, write_capture
-from .exposure.record import CaptureRecord, analytic_psf
-from .model.camera import CameraDesign, preset, prototype
-from .model.design import solve as solve_design
-from .model.modes import MODES, Mode, capture_camera, mode
-from .model.report import design_report
-from .psf.analytic import (
-    PSFTruncationWarning,
-    coded_psf,
-    design_psf,
-    discrete_coded_psf,
-    flutter_psf,
-    levin_psf,
-    pillbox_psf,
-    short_exposure_psf,
-    static_psf,
-)
-from .render import select_variant, sensor_dict
-from .restore import metrics
-from .restore.deconvolve import METHODS as DECONVOLUTION_METHODS
-from .restore.deconvolve import deconvolve, wiener
-from .scenes import load_scene, psf_scene
-from .sensor.apply import add_sensor_layers
-from .sensor.model import (
-    DEFAULT_LIGHT_LEVEL,
-    SensorCapture,
-    SensorModel,
-    aperture_area_mm2,
-    available_presets,
-    photons_from_render,
-    photons_per_unit,
-    simulate_capture,
-)
+import importlib
+from importlib.metadata import version
+from typing import Any
+
+_EXPORTS = {
+    ".errors": ["ParameterError"],
+    ".exposure.capture": ["Capture", "CaptureSpec", "render_capture", "write_capture"],
+    ".exposure.record": ["CaptureRecord", "analytic_psf"],
+    ".model.camera": ["CameraDesign", "preset", "prototype"],
+    ".model.design": [("solve_design", "solve")],
+    ".model.modes": ["MODES", "Mode", "capture_camera", "mode"],
+    ".model.report": ["design_report"],
+    ".psf.analytic": [
+        "PSFTruncationWarning",
+        "coded_psf",
+        "design_psf",
+        "discrete_coded_psf",
+        "flutter_psf",
+        "levin_psf",
+        "pillbox_psf",
+        "short_exposure_psf",
+        "static_psf",
+    ],
+    ".render": ["select_variant", "sensor_dict"],
+    ".restore": ["metrics"],
+    ".restore.deconvolve": [("DECONVOLUTION_METHODS", "METHODS"), "deconvolve", "wiener"],
+    ".scenes": ["load_scene", "psf_scene"],
+    ".sensor.apply": ["add_sensor_layers"],
+    ".sensor.model": [
+        "DEFAULT_LIGHT_LEVEL",
+        "SensorCapture",
+        "SensorModel",
+        "aperture_area_mm2",
+        "available_presets",
+        "photons_from_render",
+        "photons_per_unit",
+        "simulate_capture",
+    ],
+}
+_WHERE = {
+    (e if isinstance(e, str) else e[0]): (mod, e if isinstance(e, str) else e[1])
+    for mod, names in _EXPORTS.items()
+    for e in names
+}
 
 __version__ = version("pacam_render")
+__all__ = sorted(_WHERE)
 
-__all__ = [
-    "DECONVOLUTION_METHODS",
-    "DEFAULT_LIGHT_LEVEL",
-    "MODES",
-    "CameraDesign",
-    "Capture",
-    "CaptureRecord",
-    "CaptureSpec",
-    "Mode",
-    "PSFTruncationWarning",
-    "ParameterError",
-    "SensorCapture",
-    "SensorModel",
-    "add_sensor_layers",
-    "analytic_psf",
-    "aperture_area_mm2",
-    "available_presets",
-    "capture_camera",
-    "coded_psf",
-    "deconvolve",
-    "design_psf",
-    "design_report",
-    "discrete_coded_psf",
-    "flutter_psf",
-    "levin_psf",
-    "load_scene",
-    "metrics",
-    "mode",
-    "photons_from_render",
-    "photons_per_unit",
-    "pillbox_psf",
-    "preset",
-    "prototype",
-    "psf_scene",
-    "render_capture",
-    "select_variant",
-    "sensor_dict",
-    "short_exposure_psf",
-    "simulate_capture",
-    "solve_design",
-    "static_psf",
-    "wiener",
-    "write_capture",
-]
+
+def __getattr__(name: str) -> Any:
+    if name not in _WHERE:
+        raise AttributeError(f"module 'pacam_render' has no attribute {name!r}")
+    module, attr = _WHERE[name]
+    value = getattr(importlib.import_module(module, __name__), attr)
+    globals()[name] = value  # later lookups skip this function
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted({*globals(), *__all__})

@@ -3,19 +3,25 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import os
+import re
+import signal
 import sys
+import warnings
 from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
 
 from .errors import ParameterError, check_finite, check_positive
+from .exposure.capture import CaptureInterrupted
 from .exposure.record import CaptureRecord, analytic_psf
 from .io.exr import pick_layer, read_exr, write_exr
-from .io.outputs import check_writable, prepare_out_dir, write_json
+from .io.outputs import check_writable, prepare_out_dir, writable_dir, write_json
 from .io.preview import srgb8, write_png
+from .limits import DEFAULT_MAX_SAMPLES, DEFAULT_MAX_STEPS, PacamWarning
 from .model.camera import CameraDesign, preset, prototype
 from .model.design import solve
 from .model.modes import MODES, MODES_WITH_PSF
@@ -57,11 +63,14 @@ def _cmd_design(args: argparse.Namespace) -> int:
 
 def _cmd_demo(args: argparse.Namespace) -> int:
     from .experiments.demo import check_size, run_demo
+    from .io.lock import output_lock
 
     check_size(args.width, args.height, args.spp)
+    out = prepare_out_dir(args.out, args.force)
     print(design_report(prototype()))
     print(f"\nrendering the train set ({args.width}x{args.height}, {args.spp} spp) ...")
-    fig = run_demo(Path(args.out), args.width, args.height, args.spp, args.force)
+    with output_lock(out):
+        fig = run_demo(out, args.width, args.height, args.spp, args.force)
     print((fig.parent / "demo.md").read_text())
     print(f"figure: {fig}")
     return 0
@@ -71,7 +80,8 @@ def _cmd_psf(args: argparse.Namespace) -> int:
     check_positive("--depth", args.depth, "mm")
     check_finite("--velocity", args.velocity)
     cam = preset(args.preset).with_(object_depth_mm=args.depth)
-    size = None if args.size is None else _odd_size(args.size)
+    if args.size is not None:
+        _odd_size(args.size)
     seed = 0 if args.seed is None else args.seed
     if args.render:  # check everything before computing or writing anything
         from .exposure.psf_render import check_request, plan_render, render_psf
@@ -80,12 +90,12 @@ def _cmd_psf(args: argparse.Namespace) -> int:
         check_request(cam, args.spp, seed, args.film)
     elif args.spp is not None or args.seed is not None:
         raise ParameterError("--spp and --seed need --render")
-    k = design_psf(cam, args.mode, args.velocity, size, origin=args.origin)
+    out = prepare_out_dir(args.out, args.force)
+    k = _checked_psf(cam, args)
     if args.render:
         plan_render(
             cam, args.mode, args.velocity, k.shape, args.spp, seed, args.film, origin=args.origin
         )
-    out = prepare_out_dir(args.out, args.force)
     write_exr(out / "psf_analytic.exr", {"psf": k}, force=args.force)
     write_png(out / "psf_analytic.png", srgb8(k), force=args.force)
     meta = {
@@ -124,6 +134,27 @@ def _cmd_psf(args: argparse.Namespace) -> int:
     return 0
 
 
+def _checked_psf(cam: CameraDesign, args: argparse.Namespace) -> np.ndarray:
+    """The analytic kernel, refused if more than MAX_LOST_FRACTION of it falls outside."""
+    from .psf.analytic import MAX_LOST_FRACTION, PSFTruncationWarning
+
+    size = None if args.size is None else _odd_size(args.size)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", PSFTruncationWarning)
+        k = design_psf(cam, args.mode, args.velocity, size, origin=args.origin)
+    lost = max((getattr(w.message, "lost", 0.0) for w in caught), default=0.0)
+    if lost > MAX_LOST_FRACTION:
+        raise ParameterError(
+            f"{lost:.3%} of the PSF (--velocity {args.velocity:g} px/ms at --depth "
+            f"{args.depth:g} mm) falls outside the {k.shape[0]}x{k.shape[1]} kernel, more than "
+            f"the {MAX_LOST_FRACTION:.0%} allowed; give a larger --size (the automatic size "
+            "stops at 2049 px) or a lower --velocity"
+        )
+    for w in caught:
+        warnings.showwarning(w.message, PacamWarning, w.filename, w.lineno)
+    return k
+
+
 def _odd_size(n: int) -> int:
     if n < 1 or n % 2 == 0:
         raise ParameterError(f"--size must be a positive odd number of px, got {n}")
@@ -157,16 +188,37 @@ def _load_psf(spec: str, capture: Path, record: CaptureRecord | None) -> np.ndar
             raise ParameterError(f"--psf analytic needs the capture's parameters in {path}")
         return analytic_psf(record)
     path = capture.parent / "psf_rendered.exr" if spec == "rendered" else Path(spec)
+    if spec == "rendered" and not path.is_file():
+        raise ParameterError(
+            f"--psf rendered reads {path}, which does not exist; make it with `pacam psf "
+            f"--render --out {capture.parent} ...` at the capture's depth and mode, or use "
+            "--psf analytic"
+        )
     if path.suffix == ".npy":
-        if not path.is_file():
-            raise ParameterError(f"--psf file {path} does not exist")
-        return np.load(path)
+        return _load_npy_psf(path)
     layers = read_exr(path)
     if "psf" in layers:
         return layers["psf"]
     if len(layers) == 1:
         return next(iter(layers.values()))
     raise ParameterError(f"{path} has no 'psf' layer; it has: {', '.join(sorted(layers))}")
+
+
+def _load_npy_psf(path: Path) -> np.ndarray:
+    """A kernel from a ``.npy`` file: numbers only (never unpickle a file from elsewhere)."""
+    if not path.is_file():
+        raise ParameterError(f"--psf file {path} does not exist")
+    try:
+        k = np.load(path, allow_pickle=False)
+    except ValueError as exc:  # object arrays, or not a .npy file at all
+        why = "holds Python objects" if "allow_pickle" in str(exc) else f"is not readable ({exc})"
+        raise ParameterError(
+            f"--psf file {path} {why}; save the kernel as numbers: "
+            "np.save(path, np.asarray(kernel, dtype=float))"
+        ) from None
+    if not isinstance(k, np.ndarray) or k.dtype.kind not in "biuf":
+        raise ParameterError(f"--psf file {path} holds {k.dtype} values, not real numbers")
+    return k
 
 
 def _deconvolve_layer(layers: list[str], layer: str | None) -> str:
@@ -189,6 +241,10 @@ def _noise_sigma(args, layer: str, layers: list[str], record) -> float | None:
 
 
 def _cmd_deconvolve(args: argparse.Namespace) -> int:
+    out = Path(args.out)
+    if out.suffix not in (".exr", ".png"):
+        raise ParameterError(f"--out must end in .exr or .png, got {out}")
+    check_writable(out, args.force, "--out")
     capture = Path(args.capture)
     layers = read_exr(capture)
     layer = _deconvolve_layer(list(layers), args.layer)
@@ -201,10 +257,6 @@ def _cmd_deconvolve(args: argparse.Namespace) -> int:
         kw["noise_sigma"] = sigma
     if args.method == "bm3d":
         print(f"note: {BM3D_LICENCE}", file=sys.stderr)
-    out = Path(args.out)
-    if out.suffix not in (".exr", ".png"):
-        raise ParameterError(f"--out must end in .exr or .png, got {out}")
-    check_writable(out, args.force)
     est = deconvolve(image, k, args.method, **kw)
     if out.suffix == ".exr":
         write_exr(out, {"deconvolved": est}, force=args.force)
@@ -224,10 +276,7 @@ def _cmd_reproduce(args: argparse.Namespace) -> int:
     names = list(reproduce.FIGURES) if args.figure == "all" else [args.figure]
     if not 0 <= args.seed < 2**31:
         raise ParameterError(f"--seed must be an integer in [0, 2^31), got {args.seed}")
-    out = Path(args.out)
-    if out.exists() and not out.is_dir():
-        raise ParameterError(f"--out {out} exists and is not a folder")
-    out.mkdir(parents=True, exist_ok=True)
+    out = writable_dir(args.out)
     for fig in reproduce.run(names, out, args.quick, args.force, args.seed):
         print(f"{fig.name}: {out / fig.name}.csv .png .md ({fig.seconds:.1f} s)")
     return 0
@@ -240,7 +289,8 @@ def _sensor_model(name: str):
 
 
 def _cmd_render(args: argparse.Namespace) -> int:
-    from .exposure.capture import CaptureSpec, render_capture, write_capture
+    from .exposure.capture import CaptureSpec, check_budget, render_capture, write_capture
+    from .io.lock import output_lock
 
     spec = CaptureSpec(
         scene=args.scene,
@@ -258,17 +308,26 @@ def _cmd_render(args: argparse.Namespace) -> int:
         raise ParameterError("--light-level needs --sensor")
     if args.light_level is not None:  # refuse before rendering, not after
         check_positive("--light-level", args.light_level, "photons/px/ms")
+    for flag in ("max_steps", "max_samples", "checkpoint_every"):
+        check_positive("--" + flag.replace("_", "-"), getattr(args, flag) or 1)
+    check_budget(spec, args.max_samples)
     out = Path(args.out)
-    if out.exists() and not out.is_dir():
-        raise ParameterError(f"--out {out} exists and is not a folder")
     if (out / "capture.exr").exists() and not args.force:
         raise ParameterError(f"--out {out} already holds a capture; pass --force to overwrite it")
-    cap = render_capture(spec, partial_dir=out / ".partial", progress=not args.quiet)
-    if model is not None:
-        from .sensor.apply import add_sensor_layers
+    with _new_folder(out), output_lock(out):
+        cap = render_capture(
+            spec,
+            partial_dir=out / ".partial",
+            progress=not args.quiet,
+            save_every_s=args.checkpoint_every,
+            max_steps=args.max_steps,
+            max_samples=args.max_samples,
+        )
+        if model is not None:
+            from .sensor.apply import add_sensor_layers
 
-        add_sensor_layers(cap, model, args.sensor, args.light_level, spec.seed)
-    paths = write_capture(cap, out, force=args.force)
+            add_sensor_layers(cap, model, args.sensor, args.light_level, spec.seed)
+        paths = write_capture(cap, out, force=args.force)
     m = cap.meta
     print(
         f"{spec.mode} capture of {spec.scene}: {spec.width}x{spec.height}, "
@@ -276,6 +335,19 @@ def _cmd_render(args: argparse.Namespace) -> int:
         + ", ".join(p.name for p in paths)
     )
     return 0
+
+
+@contextlib.contextmanager
+def _new_folder(out: Path):
+    """Create ``out`` (proven writable); if the command fails and leaves it empty, remove it."""
+    created = not out.exists()
+    writable_dir(out)
+    try:
+        yield out
+    except BaseException:
+        if created and out.is_dir() and not any(out.iterdir()):
+            out.rmdir()
+        raise
 
 
 def _cmd_validate_psf(args: argparse.Namespace) -> int:
@@ -455,6 +527,28 @@ def _add_render(sub) -> None:
         metavar="L",
         help="photons/px/ms of white through the full aperture (default 7000)",
     )
+    p.add_argument(
+        "--max-steps",
+        type=int,
+        default=DEFAULT_MAX_STEPS,
+        metavar="N",
+        help=f"refuse a capture of more time steps (default {DEFAULT_MAX_STEPS})",
+    )
+    p.add_argument(
+        "--max-samples",
+        type=int,
+        default=DEFAULT_MAX_SAMPLES,
+        metavar="N",
+        help=f"refuse more than N = spp x width x height samples (default 2^35 = "
+        f"{DEFAULT_MAX_SAMPLES}, about 1.5 h on 2 cores)",
+    )
+    p.add_argument(
+        "--checkpoint-every",
+        type=float,
+        default=5.0,
+        metavar="S",
+        help="seconds between saves of the finished steps to DIR/.partial (default 5)",
+    )
     p.add_argument("--out", required=True, metavar="DIR")
     p.add_argument("--force", action="store_true", help="overwrite an existing capture")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
@@ -485,15 +579,74 @@ def _add_demo(sub) -> None:
 def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
+    name = f"pacam {args.command}"
+    with warnings.catch_warnings(), _terminate_as_interrupt():
+        warnings.showwarning = _note_printer(name)
+        try:
+            return args.func(args)
+        except ParameterError as exc:
+            print(f"{name}: error: {_user_words(str(exc))}", file=sys.stderr)
+            return 2
+        except CaptureInterrupted as exc:
+            print(f"{name}: {exc}", file=sys.stderr)
+            return 130
+        except KeyboardInterrupt:
+            print(f"{name}: interrupted", file=sys.stderr)
+            return 130
+        except BrokenPipeError:  # e.g. `pacam design | head`: the reader left, nothing is wrong
+            devnull = os.open(os.devnull, os.O_WRONLY)
+            os.dup2(devnull, sys.stdout.fileno())  # so that the interpreter's final flush is quiet
+            return 0
+        except OSError as exc:  # a disk full, a file gone: one line, not a traceback
+            print(f"{name}: error: {exc}", file=sys.stderr)
+            return 1
+
+
+_FLAGS = {
+    "max_step_px": "--max-step-px",
+    "cover_px_per_ms": "--cover",
+    "max_velocity_px_per_ms": "--max-velocity",
+    "object_depth_mm": "--depth",
+    "exposure_ms": "--exposure",
+    "f_number": "--f-number",
+    "r_px": "--r-px",
+    "light_level": "--light-level",
+    "noise_sigma": "--noise-sigma",
+}
+"""Python parameter names in library messages, and the flags a CLI user typed instead."""
+_FLAG_RE = re.compile(r"(?<![\w-])(" + "|".join(_FLAGS) + r")(?![\w-])(?! \(--)")
+
+
+def _user_words(message: str) -> str:
+    """A library message in the CLI's words: parameter names become their flags."""
+    return _FLAG_RE.sub(lambda m: _FLAGS[m.group(1)], message)
+
+
+def _note_printer(name: str):
+    """``warnings.showwarning`` that prints a :class:`PacamWarning` as one ``note:`` line."""
+    default = warnings.showwarning
+
+    def show(message, category, filename, lineno, file=None, line=None):
+        if issubclass(category, PacamWarning):
+            print(f"{name}: note: {_user_words(str(message))}", file=sys.stderr)
+        else:
+            default(message, category, filename, lineno, file, line)
+
+    return show
+
+
+@contextlib.contextmanager
+def _terminate_as_interrupt():
+    """SIGTERM is handled as Ctrl-C (KeyboardInterrupt), so both save and exit alike."""
+
+    def handler(signum, frame):
+        raise KeyboardInterrupt
+
+    old = signal.signal(signal.SIGTERM, handler)
     try:
-        return args.func(args)
-    except ParameterError as exc:
-        print(f"pacam {args.command}: error: {exc}", file=sys.stderr)
-        return 2
-    except BrokenPipeError:  # e.g. `pacam design | head`: the reader left, nothing is wrong
-        devnull = os.open(os.devnull, os.O_WRONLY)
-        os.dup2(devnull, sys.stdout.fileno())  # so that the interpreter's final flush is quiet
-        return 0
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, old)
 
 
 if __name__ == "__main__":

@@ -221,7 +221,7 @@ def test_cli_psf_render(tmp_path):
         (["--render", "--seed", "-1"], "seed"),
         (["--spp", "16"], "need --render"),
         (["--render", "--size", "1001"], "must fit the 1280x960 film"),
-        (["--render", "--depth", "5"], "depth must be in"),
+        (["--render", "--depth", "5"], "--depth must be >= 100 mm"),
         (["--render", "--depth", "-5"], "--depth must be > 0"),
         (["--render", "--depth", "0"], "--depth must be > 0"),
     ],

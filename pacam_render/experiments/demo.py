@@ -122,7 +122,7 @@ def run_train(
     caps = {}
     for key, spec in runs.items():
         sub = out / key
-        sub.mkdir(exist_ok=True)
+        sub.mkdir(parents=True, exist_ok=True)
         caps[key] = _capture(spec, sub, seed)
         write_capture(caps[key], sub, force=True)  # the folder was cleared or created above
     ref = caps["reference"].image

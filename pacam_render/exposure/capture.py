@@ -19,11 +19,13 @@ modes compare directly (``light_factor`` in the JSON is that scale for each mode
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import json
 import math
-import shutil
+import signal
 import time
+import warnings
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
@@ -31,10 +33,18 @@ import numpy as np
 
 from ..errors import ParameterError, check_positive
 from ..io.outputs import write_json
+from ..limits import (
+    DEFAULT_MAX_SAMPLES,
+    DEFAULT_MAX_STEPS,
+    PacamWarning,
+    check_count,
+    check_memory,
+)
 from ..model import paper
 from ..model.camera import CameraDesign, preset
 from ..model.modes import MODES as MODE_TABLE
 from ..model.modes import capture_camera, mode, sensor_params
+from .checkpoint import deferred_signals
 from .record import CaptureRecord
 
 MODES = tuple(MODE_TABLE)
@@ -222,7 +232,13 @@ class Step:
         return 0.5 * (self.t0 + self.t1)
 
 
-def plan_steps(edges: np.ndarray, is_open: np.ndarray, speed_px_per_ms: float, spec) -> list[Step]:
+def plan_steps(
+    edges: np.ndarray,
+    is_open: np.ndarray,
+    speed_px_per_ms: float,
+    spec,
+    max_steps: int = DEFAULT_MAX_STEPS,
+) -> list[Step]:
     """Time steps within each open pattern window, and their share of the spp budget.
 
     Parameters
@@ -235,6 +251,8 @@ def plan_steps(edges: np.ndarray, is_open: np.ndarray, speed_px_per_ms: float, s
         The fastest image speed of any moving shape, px/ms.
     spec : CaptureSpec
         Uses ``max_step_px`` (px) and ``spp``.
+    max_steps : int, optional
+        The most steps allowed (``--max-steps``).
 
     Returns
     -------
@@ -242,6 +260,11 @@ def plan_steps(edges: np.ndarray, is_open: np.ndarray, speed_px_per_ms: float, s
         In time order: each open window [a, b] is cut into
         m = max(1, ceil(v_max (b - a) / max_step_px)) equal steps, so that nothing moves more
         than ``max_step_px`` between steps.
+
+    Raises
+    ------
+    ParameterError
+        If the plan needs more than ``max_steps`` steps (counted before any is built).
 
     Notes
     -----
@@ -251,10 +274,18 @@ def plan_steps(edges: np.ndarray, is_open: np.ndarray, speed_px_per_ms: float, s
     forces it.
     """
     windows = [(k, a, b) for k, (a, b, o) in enumerate(zip(edges[:-1], edges[1:], is_open)) if o]
+    counts = [speed_px_per_ms * (b - a) / spec.max_step_px - 1e-9 for _, a, b in windows]
+    check_count(
+        "time steps of this capture (fastest image speed "
+        f"{speed_px_per_ms:.4g} px/ms, --max-step-px {spec.max_step_px:g})",
+        sum(_n_steps(c) for c in counts),
+        max_steps,
+        "--max-steps",
+        "; or raise --max-step-px",
+    )
     pieces = []
-    for k, a, b in windows:
-        m = max(1, math.ceil(speed_px_per_ms * (b - a) / spec.max_step_px - 1e-9))
-        e = np.linspace(a, b, m + 1)
+    for (k, a, b), c in zip(windows, counts):
+        e = np.linspace(a, b, _n_steps(c) + 1)
         pieces += [(k, float(x), float(y)) for x, y in zip(e[:-1], e[1:])]
     dur = np.array([y - x for _, x, y in pieces])
     share = spec.spp * dur / dur.sum()
@@ -263,6 +294,11 @@ def plan_steps(edges: np.ndarray, is_open: np.ndarray, speed_px_per_ms: float, s
     if left > 0:  # largest remainders get the samples still to give
         spp[np.argsort(-(share - np.floor(share)), kind="stable")[:left]] += 1
     return [Step(k, x, y, int(n)) for (k, x, y), n in zip(pieces, spp)]
+
+
+def _n_steps(count: float) -> float:
+    """Steps for a window that the fastest point crosses in ``count`` step lengths."""
+    return max(1, math.ceil(count)) if math.isfinite(count) else math.inf
 
 
 def _step_seed(seed: int, index: int) -> int:
@@ -285,47 +321,6 @@ class Capture:
         return self.record.to_json()
 
 
-class _Partial:
-    """Finished steps kept on disk so an interrupted capture resumes where it stopped."""
-
-    def __init__(self, folder: Path | None, key: str):
-        self.folder, self.key = folder, key
-
-    def load(self, shape) -> tuple[int, np.ndarray, dict[int, np.ndarray]] | None:
-        if self.folder is None or not (self.folder / "state.json").is_file():
-            return None
-        state = json.loads((self.folder / "state.json").read_text())
-        if state.get("key") != self.key:
-            return None
-        acc = np.load(self.folder / "accum.npy")
-        if acc.shape != shape:
-            return None
-        pats = {}
-        if (self.folder / "patterns.npz").is_file():
-            with np.load(self.folder / "patterns.npz") as z:
-                pats = {int(k): z[k] for k in z.files}
-        return int(state["done"]), acc, pats
-
-    def save(self, done: int, acc: np.ndarray, pats: dict[int, np.ndarray]) -> None:
-        if self.folder is None:
-            return
-        self.folder.mkdir(parents=True, exist_ok=True)
-        tmp = self.folder / "accum.tmp.npy"
-        np.save(tmp, acc)
-        tmp.replace(self.folder / "accum.npy")
-        if pats:
-            tmpz = self.folder / "patterns.tmp.npz"
-            np.savez(tmpz, **{str(k): v for k, v in pats.items()})
-            tmpz.replace(self.folder / "patterns.npz")
-        state = self.folder / "state.tmp.json"  # written last: it vouches for the arrays
-        state.write_text(json.dumps({"key": self.key, "done": done}))
-        state.replace(self.folder / "state.json")
-
-    def clear(self) -> None:
-        if self.folder is not None and self.folder.exists():
-            shutil.rmtree(self.folder)
-
-
 def render_capture(
     spec: CaptureSpec,
     partial_dir: Path | None = None,
@@ -333,6 +328,8 @@ def render_capture(
     save_every_s: float = 5.0,
     stop_after_steps: int | None = None,
     description=None,
+    max_steps: int = DEFAULT_MAX_STEPS,
+    max_samples: int = DEFAULT_MAX_SAMPLES,
 ) -> Capture:
     """Render one capture.
 
@@ -344,9 +341,10 @@ def render_capture(
     spec : CaptureSpec
         What to capture.
     partial_dir : pathlib.Path, optional
-        Folder for the finished steps of a moving scene: a capture with the same
-        :meth:`CaptureSpec.key` resumes from them, and the folder is removed when the capture
-        finishes. None keeps nothing.
+        Folder for the finished steps of a moving scene
+        (:class:`~pacam_render.exposure.checkpoint.Checkpoint`): the same capture resumes from
+        them, and the folder is removed when the capture finishes. Its parent is locked
+        (:func:`~pacam_render.io.lock.output_lock`) while the capture runs. None keeps nothing.
     progress : bool, optional
         Show a progress bar over the steps.
     save_every_s : float, optional
@@ -355,6 +353,10 @@ def render_capture(
         Stop after this many steps: they are saved and :class:`CaptureInterrupted` is raised.
     description : SceneDescription, optional
         A scene to capture instead of ``spec.scene``.
+    max_steps : int, optional
+        The most time steps a moving capture may take (``--max-steps``).
+    max_samples : int, optional
+        The most camera samples, spp x width x height (``--max-samples``).
 
     Returns
     -------
@@ -366,32 +368,91 @@ def render_capture(
     Raises
     ------
     ParameterError
-        If the preset, mode or scene is unknown, or the camera cannot be built.
+        If the preset, mode or scene is unknown, the camera cannot be built, the work exceeds
+        ``max_steps``, ``max_samples`` or the memory available, or ``partial_dir`` is in use.
     CaptureInterrupted
-        When ``stop_after_steps`` steps are done.
+        When ``stop_after_steps`` steps are done, or on SIGINT or SIGTERM during the steps; the
+        finished steps are saved first.
+
+    Warns
+    -----
+    PacamWarning
+        When the steps take more samples than ``spec.spp``, a checkpoint is not resumed, or an
+        option does not apply to the mode; each note is also kept in ``record.notes``.
 
     Notes
     -----
     Selects and activates a Mitsuba variant. The fastest image speed is taken over the paper's
     t in [-T, T] (the exposure is 2T), and each step renders the geometry at its mid-time.
+    Same-seed captures are bit-identical (:mod:`pacam_render.render.passes`).
     """
-    import mitsuba as mi
+    check_budget(spec, max_samples)
+    lock = contextlib.nullcontext()
+    if partial_dir is not None:
+        from ..io.lock import output_lock
 
+        lock = output_lock(Path(partial_dir).parent)
+    with lock, warnings.catch_warnings(record=True) as caught, deferred_signals() as flag:
+        warnings.simplefilter("always", PacamWarning)
+        run = _Run(partial_dir, progress, save_every_s, stop_after_steps, max_steps, flag)
+        cap = _render(spec, description, run)
+    notes = []
+    for w in caught:  # shown to the caller as they would have been, and kept in the record
+        warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+        if issubclass(w.category, PacamWarning):
+            notes.append(str(w.message))
+    cap.record.notes = notes
+    return cap
+
+
+def check_budget(spec: CaptureSpec, max_samples: int = DEFAULT_MAX_SAMPLES) -> None:
+    """Refuse a capture whose samples or memory are beyond bounds, before any work.
+
+    Raises
+    ------
+    ParameterError
+        Naming ``--max-samples``, or ``--width`` and ``--height`` for memory (about 160 bytes
+        per pixel, plus 24 per pixel and pattern with ``per_pattern``).
+    """
+    from ..render.passes import MAX_WAVEFRONT
+
+    pixels = spec.width * spec.height
+    per_px = 160 + (24 * paper.N_PATTERNS if spec.per_pattern else 0)
+    check_memory(f"a {spec.width}x{spec.height} capture", per_px * pixels, "--width/--height")
+    if pixels > MAX_WAVEFRONT:
+        raise ParameterError(
+            f"a {spec.width}x{spec.height} film has more than Mitsuba's {MAX_WAVEFRONT} samples "
+            "per pass at 1 spp; reduce --width/--height"
+        )
+    check_count(
+        f"samples of this capture (--spp {spec.spp} x {spec.width} x {spec.height} px)",
+        spec.spp * pixels,
+        max_samples,
+        "--max-samples",
+    )
+
+
+def _render(spec: CaptureSpec, description, run: _Run) -> Capture:
     from ..render.backend import select_variant
+    from ..render.passes import render_passes
     from ..scenes import load_scene
 
     variant = select_variant()
+    _note_ignored_options(spec)
     design = capture_design(spec)
     cam, params = mode_camera(design, spec.mode)
     desc = description if description is not None else load_scene(spec.scene)
     t_start = time.perf_counter()
     scene = desc.load(sensor=sensor_entry(spec, cam, params, cam.exposure_ms))
     sensor = scene.sensors()[0]
+    run.check_signal()
     if desc.is_static or spec.mode == "reference":  # one pass, no geometry update
-        image = np.array(mi.render(scene, spp=spec.spp, seed=spec.seed), dtype=np.float64)
+        if spec.per_pattern:
+            _note("--per-pattern keeps nothing here: a static scene or the reference is one pass")
+        image = render_passes(scene, spec.spp, spec.seed, run.signalled)
+        run.check_signal()  # a partial image (None) never leaves
         patterns, steps = {}, {"n_steps": 1, "n_geometry_updates": 0, "effective_spp": spec.spp}
     else:
-        run = _Run(partial_dir, progress, save_every_s, stop_after_steps)
         image, patterns, steps = _render_moving(scene, sensor, desc, design, cam, spec, run)
     seconds = time.perf_counter() - t_start
     return Capture(
@@ -399,73 +460,106 @@ def render_capture(
     )
 
 
+def _note(message: str) -> None:
+    warnings.warn(message, PacamWarning, stacklevel=3)
+
+
+def _note_ignored_options(spec: CaptureSpec) -> None:
+    """Options the mode does not use: say so rather than drop them silently."""
+    if spec.cover_px_per_ms is not None and mode(spec.mode).refocus:
+        _note(
+            f"--cover has no effect in {spec.mode} mode: it focuses on the object, so the "
+            "solved defocus is not used (it applies to coded, coded_continuous and levin)"
+        )
+
+
 def _render_moving(scene, sensor, desc, design, cam, spec, run: _Run):
     """Integrate a moving scene over the time steps of :func:`plan_steps`."""
     from ..scenes import fastest_image_speed_px_per_ms
+    from .checkpoint import Checkpoint, resume_parts
 
     exposure = cam.exposure_ms
     speed = fastest_image_speed_px_per_ms(desc, design, (-0.5 * exposure, 0.5 * exposure))
-    steps = plan_steps(sensor.plan.pattern_edges, sensor.plan.is_open, speed, spec)
-    shape = (spec.height, spec.width, 3)
-    image, patterns, meta = _integrate(scene, sensor, desc, steps, spec, shape, exposure, run)
+    plan = sensor.plan
+    steps = plan_steps(plan.pattern_edges, plan.is_open, speed, spec, run.max_steps)
+    effective = sum(s.spp for s in steps)
+    if effective > spec.spp:
+        _note(
+            f"{len(steps)} time steps need at least 1 sample each: the capture takes "
+            f"{effective} spp instead of --spp {spec.spp}; raise --max-step-px for fewer steps"
+        )
+    parts = resume_parts(spec, scene, desc, steps, _versions(), _variant())
+    store = Checkpoint(None if run.partial_dir is None else Path(run.partial_dir), parts)
+    image, patterns, meta = _integrate(scene, sensor, desc, steps, spec, exposure, run, store)
     return image, patterns, {**meta, "fastest_image_speed_px_per_ms": speed}
 
 
 class CaptureInterrupted(RuntimeError):
-    """Raised by ``stop_after_steps``: the finished steps are on disk."""
+    """The capture stopped early (``stop_after_steps``, SIGINT or SIGTERM); the finished steps
+    are on disk when a ``partial_dir`` was given."""
+
+    def __init__(self, message: str, done: int = 0, total: int = 0, signum: int | None = None):
+        super().__init__(message)
+        self.done, self.total, self.signum = done, total, signum
 
 
 @dataclass(frozen=True)
 class _Run:
-    """How to run the steps: where to keep finished ones, progress, deliberate interruption."""
+    """How to run the steps: where to keep finished ones, progress, deliberate interruption,
+    and the flag that SIGINT and SIGTERM set (:func:`~.checkpoint.deferred_signals`)."""
 
     partial_dir: Path | None
     progress: bool
     save_every_s: float
     stop_after_steps: int | None
+    max_steps: int = DEFAULT_MAX_STEPS
+    flag: dict = field(default_factory=lambda: {"signal": None})
+
+    def signalled(self) -> bool:
+        return self.flag["signal"] is not None
+
+    def check_signal(self) -> None:
+        """Stop a capture that has no finished steps to save."""
+        if self.signalled():
+            raise _interrupted(0, 0, self.flag["signal"], None)
 
 
-def _integrate(scene, sensor, desc, steps, spec, shape, exposure, run: _Run):
-    import mitsuba as mi
+def _integrate(scene, sensor, desc, steps, spec, exposure, run: _Run, store):
     from tqdm import tqdm
 
-    partial_dir, progress = run.partial_dir, run.progress
-    save_every_s, stop_after_steps = run.save_every_s, run.stop_after_steps
+    from ..render.passes import render_passes
 
     anim = desc.animator(scene)
-    store = _Partial(partial_dir, spec.key())
+    shape = (spec.height, spec.width, 3)
     resumed = store.load(shape)
     done, acc, pats = resumed if resumed else (0, np.zeros(shape), {})
     mid = 0.5 * exposure  # paper time t = shutter time - mid
     last_save = time.perf_counter()
-    bar = tqdm(
-        total=len(steps),
-        initial=done,
-        disable=not progress,
-        unit="step",
-        desc=f"{spec.mode} {spec.scene}",
-        leave=False,
-    )
-    for i in range(done, len(steps)):
-        st = steps[i]
-        anim.set_time(st.t_mid_paper_ms - mid)
-        sensor.configure(time_window=(st.t0, st.t1))
-        img = np.array(
-            mi.render(scene, spp=st.spp, seed=_step_seed(spec.seed, i)), dtype=np.float64
-        )
-        acc += img
-        if spec.per_pattern:
-            pats[st.pattern] = pats.get(st.pattern, 0.0) + img
-        bar.update(1)
-        finished = i + 1
-        if stop_after_steps is not None and finished >= stop_after_steps:
-            store.save(finished, acc, pats)
-            bar.close()
-            raise CaptureInterrupted(f"stopped after {finished} of {len(steps)} steps")
-        if time.perf_counter() - last_save > save_every_s and finished < len(steps):
-            store.save(finished, acc, pats)
-            last_save = time.perf_counter()
-    bar.close()
+    bar = tqdm(total=len(steps), initial=done, disable=not run.progress, unit="step",
+               desc=f"{spec.mode} {spec.scene}", leave=False)  # fmt: skip
+    with bar:
+        for i in range(done, len(steps)):
+            st = steps[i]
+            anim.set_time(st.t_mid_paper_ms - mid)
+            sensor.configure(time_window=(st.t0, st.t1))
+            img = render_passes(scene, st.spp, _step_seed(spec.seed, i), run.signalled)
+            if img is None:  # a signal came during the step: keep only the steps before it
+                if i == 0:
+                    run.check_signal()
+                store.save(i, acc, pats)
+                raise _interrupted(i, len(steps), run.flag["signal"], run.partial_dir)
+            acc += img
+            if spec.per_pattern:
+                pats[st.pattern] = pats.get(st.pattern, 0.0) + img
+            bar.update(1)
+            finished = i + 1
+            stop = run.stop_after_steps is not None and finished >= run.stop_after_steps
+            if (stop or run.signalled()) and finished < len(steps):
+                store.save(finished, acc, pats)
+                raise _interrupted(finished, len(steps), run.flag["signal"], run.partial_dir)
+            if time.perf_counter() - last_save > run.save_every_s and finished < len(steps):
+                store.save(finished, acc, pats)
+                last_save = time.perf_counter()
     sensor.configure(time_window=None)
     store.clear()
     meta = {
@@ -477,13 +571,40 @@ def _integrate(scene, sensor, desc, steps, spec, shape, exposure, run: _Run):
     return acc, pats, meta
 
 
-def _record(spec, design, cam, params, sensor, variant, seconds, steps: dict) -> CaptureRecord:
-    """The capture's record: the one place that builds it."""
+def _interrupted(done: int, total: int, signum, partial_dir) -> CaptureInterrupted:
+    why = "stopped" if signum is None else f"interrupted ({signal.Signals(signum).name})"
+    if total == 0:
+        return CaptureInterrupted(f"{why} before any time step finished; nothing to resume")
+    where = (
+        f"; they are saved in {partial_dir}: run the same command again to resume"
+        if partial_dir is not None
+        else "; nothing was saved (no partial_dir)"
+    )
+    return CaptureInterrupted(f"{why} after {done} of {total} steps{where}", done, total, signum)
+
+
+def _versions() -> dict:
     import drjit
     import mitsuba
 
     from .. import __version__
 
+    return {
+        "pacam_render": __version__,
+        "mitsuba": mitsuba.__version__,
+        "drjit": drjit.__version__,
+        "numpy": np.__version__,
+    }
+
+
+def _variant() -> str:
+    import mitsuba
+
+    return mitsuba.variant()
+
+
+def _record(spec, design, cam, params, sensor, variant, seconds, steps: dict) -> CaptureRecord:
+    """The capture's record: the one place that builds it."""
     weight = 1.0 if spec.mode == "reference" else float(sensor.plan.mean_weight())
     return CaptureRecord(
         spec=asdict(spec),
@@ -497,12 +618,7 @@ def _record(spec, design, cam, params, sensor, variant, seconds, steps: dict) ->
         light_factor=weight,
         render_seconds=seconds,
         variant=variant,
-        versions={
-            "pacam_render": __version__,
-            "mitsuba": mitsuba.__version__,
-            "drjit": drjit.__version__,
-            "numpy": np.__version__,
-        },
+        versions=_versions(),
         **steps,
     )
 

@@ -80,7 +80,7 @@ import numpy as np
 
 from ..errors import ParameterError, check_finite, check_positive
 from ..model import schedule as sch
-from ..model.camera import CameraDesign
+from ..model.camera import MIN_FOCUS_MM, CameraDesign
 from ..model.modes import (
     MODES,
     MODES_WITH_PSF,
@@ -108,7 +108,7 @@ INTEGRATORS = ("ptracer", "path")
 FILM_MODES = ("window", "crop")
 NEAR_CLIP_MM = 1.0
 FAR_CLIP_MM = 1.0e7
-MIN_DEPTH_MM, MAX_DEPTH_MM = 10.0, 1.0e6
+MIN_DEPTH_MM, MAX_DEPTH_MM = MIN_FOCUS_MM, 1.0e6
 
 
 # ------------------------------------------------------------------------------------------

@@ -34,6 +34,8 @@ class SensorRecord:
     photons_per_unit: float
     seed: int
     noise_sigma_white_units: float | None = None
+    saturated_fraction: float | None = None
+    """Fraction of values whose mean charge exceeds the sensor's saturation, before noise."""
 
     @classmethod
     def from_json(cls, d: dict) -> SensorRecord:
@@ -45,6 +47,7 @@ class SensorRecord:
             photons_per_unit=d.get("photons_per_unit", float("nan")),
             seed=d.get("seed", 0),
             noise_sigma_white_units=d.get("noise_sigma_white_units"),
+            saturated_fraction=d.get("saturated_fraction"),
         )
 
 
@@ -78,6 +81,8 @@ class CaptureRecord:
     pixel_unit: str = PIXEL_UNIT
     sensor: SensorRecord | None = None
     noise_sigma: float | None = None
+    notes: list[str] = field(default_factory=list)
+    """What the user was told while the capture was made (``note:`` lines of the CLI)."""
     extra: dict = field(default_factory=dict)
     """Keys this version does not know (kept, and written back)."""
 

@@ -12,13 +12,54 @@ from pathlib import Path
 from ..errors import ParameterError
 
 
-def check_writable(path: str | os.PathLike, force: bool) -> Path:
-    """The path as a Path, or an error if it exists and ``force`` is not set."""
+def check_writable(path: str | os.PathLike, force: bool, flag: str = "") -> Path:
+    """The path as a Path, or an error if it exists and ``force`` is not set, or if its folder
+    cannot be created or written (:func:`writable_dir`)."""
     p = Path(path)
+    name = f"{flag} {p}" if flag else str(p)
+    if p.is_dir():
+        raise ParameterError(f"{name} is a folder; give a file name")
     if p.exists() and not force:
-        raise ParameterError(f"{p} already exists; pass --force (force=True) to overwrite it")
-    p.parent.mkdir(parents=True, exist_ok=True)
+        raise ParameterError(f"{name} already exists; pass --force (force=True) to overwrite it")
+    writable_dir(p.parent, flag)
     return p
+
+
+def writable_dir(path: str | os.PathLike, flag: str = "--out", create: bool = True) -> Path:
+    """Prove a folder writable with a probe file, or raise; create it if ``create``.
+
+    Parameters
+    ----------
+    path : path-like
+    flag : str, optional
+        How the user named it, for the message.
+    create : bool, optional
+        Create the folder (and its parents). False: probe its nearest existing ancestor
+        instead, and create nothing.
+
+    Raises
+    ------
+    ParameterError
+        If the path is a file, lies under a file, or cannot be created or written.
+    """
+    d = Path(path)
+    probe_in = d
+    while not probe_in.exists() and probe_in.parent != probe_in:
+        probe_in = probe_in.parent  # the nearest existing ancestor
+    if probe_in.exists() and not probe_in.is_dir():
+        where = "exists" if probe_in == d else f"lies under {probe_in}, which exists"
+        raise ParameterError(f"{flag} {d} {where} and is not a folder")
+    if create:
+        probe_in = d
+    try:
+        if create:
+            d.mkdir(parents=True, exist_ok=True)
+        fd, probe = tempfile.mkstemp(prefix=".pacam-probe-", dir=probe_in)
+        os.close(fd)
+        os.unlink(probe)
+    except OSError as exc:
+        raise ParameterError(f"{flag} {d} is not a writable folder ({exc.strerror})") from None
+    return d
 
 
 def _umask() -> int:
@@ -56,11 +97,11 @@ def write_json(path, obj, force: bool = False) -> Path:
 
 
 def prepare_out_dir(path: str | os.PathLike, force: bool) -> Path:
-    """An output folder: created if missing; refused if it already holds files, unless forced."""
+    """An output folder, proven writable (:func:`writable_dir`) but not created: the first
+    result written creates it. Refused if it already holds files, unless forced."""
     d = Path(path)
     if d.exists() and not d.is_dir():
         raise ParameterError(f"--out {d} exists and is not a folder")
-    if d.is_dir() and any(d.iterdir()) and not force:
+    if d.is_dir() and any(p.name != ".pacam.lock" for p in d.iterdir()) and not force:
         raise ParameterError(f"--out {d} already holds results; pass --force to overwrite them")
-    d.mkdir(parents=True, exist_ok=True)
-    return d
+    return writable_dir(d, create=False)

@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..errors import ParameterError
 from .outputs import atomic_save
 
 
@@ -15,6 +16,8 @@ def srgb8(linear: np.ndarray, exposure: float | None = None) -> np.ndarray:
     import colour
 
     x = np.asarray(linear, dtype=float)
+    if not np.all(np.isfinite(x)):
+        raise ParameterError("the image to preview contains NaN or infinite values")
     if exposure is None:
         hi = float(np.percentile(x, 99.5)) if x.size else 1.0
         exposure = 1.0 / hi if hi > 0 else 1.0

@@ -20,6 +20,15 @@ from ..errors import ParameterError, check_positive
 from . import optics, paper
 from . import schedule as sch
 
+MIN_OPENING_LCOS_PX = 1.0
+"""Smallest displayable opening radius, LCoS pixels."""
+MIN_FOCUS_MM = 100.0
+"""Closest focus of the prototype's 25 mm primary lens (estimate), mm; also the closest object
+depth the thin-lens model is used for."""
+MIN_EXPOSURE_MS = 0.01
+"""Shortest exposure, ms: 10 us, the shortest shutter of machine-vision sensors such as the
+Grasshopper's ICX285."""
+
 
 @dataclass(frozen=True)
 class CameraDesign:
@@ -51,11 +60,38 @@ class CameraDesign:
         check_positive("pixel_pitch_mm", self.pixel_pitch_mm, "mm")
         check_positive("lcos_pitch_mm", self.lcos_pitch_mm, "mm")
         sch.check_n_patterns(self.n_patterns)
+        self._check_physical_limits()
         if self.R_mm > self.R_max_mm:
             raise ParameterError(
                 f"R_mm must be in (0, R_max_mm = {self.R_max_mm:g}] mm: the opening must fit "
                 f"inside the lens, got {self.R_mm!r}"
             )
+
+    def _check_physical_limits(self) -> None:
+        """Depths, openings and exposures a real camera of this kind can have."""
+        for k in ("object_depth_mm", "focus_distance_mm"):
+            if getattr(self, k) < MIN_FOCUS_MM:
+                raise ParameterError(
+                    f"{k} must be >= {MIN_FOCUS_MM:g} mm (the lens's closest focus; the "
+                    f"thin-lens model is not used closer), got {getattr(self, k)!r}"
+                )
+        opening_px = self.R_mm / self.lcos_pitch_mm
+        if opening_px < MIN_OPENING_LCOS_PX:
+            raise ParameterError(
+                f"R_mm must be >= {MIN_OPENING_LCOS_PX:g} LCoS px = "
+                f"{MIN_OPENING_LCOS_PX * self.lcos_pitch_mm:.4g} mm (the display cannot show a "
+                f"smaller opening), got {self.R_mm!r} mm = {opening_px:.3g} LCoS px"
+            )
+        if self.exposure_ms < MIN_EXPOSURE_MS:
+            raise ParameterError(
+                f"exposure_ms must be >= {MIN_EXPOSURE_MS:g} ms (the sensor's shortest "
+                f"shutter), got {self.exposure_ms!r}"
+            )
+
+    @property
+    def pattern_rate_fps(self) -> float:
+        """Patterns shown per second, n / 2T (the paper's prototype: 16 in 45 ms)."""
+        return 1000.0 * self.n_patterns / self.exposure_ms
 
     # --- Section 2.1: projection -------------------------------------------------------------
     @property

@@ -12,14 +12,8 @@ the object when possible (``side="auto"``), else in front of it.
 from __future__ import annotations
 
 from ..errors import ParameterError, check_positive
-from .camera import CameraDesign, prototype
+from .camera import MIN_FOCUS_MM, MIN_OPENING_LCOS_PX, CameraDesign, prototype
 from .optics import focus_for_defocus_mm
-
-MIN_OPENING_LCOS_PX = 1.0
-"""Smallest displayable opening radius, LCoS pixels."""
-
-MIN_FOCUS_MM = 100.0
-"""Closest focus of the prototype's 25 mm primary lens (estimate), mm."""
 
 
 def _focus(base: CameraDesign, depth: float, r: float, R: float, side: str) -> float:
@@ -33,8 +27,8 @@ def _focus(base: CameraDesign, depth: float, r: float, R: float, side: str) -> f
             continue
         if Zf < MIN_FOCUS_MM:
             last = ParameterError(
-                f"focus limit: r_px = {r:g} px at {depth:g} mm needs focus at {Zf:.4g} mm, closer "
-                f"than the lens's minimum focus of {MIN_FOCUS_MM:g} mm"
+                f"focus limit: a defocus radius r = {r:g} px at {depth:g} mm needs focus at "
+                f"{Zf:.4g} mm, closer than the lens's minimum focus of {MIN_FOCUS_MM:g} mm"
             )
             continue
         return Zf

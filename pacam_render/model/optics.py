@@ -99,8 +99,9 @@ def focus_for_defocus_mm(
     if inv <= 0:
         r_inf = R * focal_length_px(fov_deg, width_px) / Z
         raise ParameterError(
-            f"r_px = {r:g} px cannot be reached by focusing beyond Z = {Z:g} mm: even focus at "
-            f"infinity gives r = {r_inf:.4g} px; use side='near' or a larger aperture"
+            f"a defocus radius r = {r:g} px cannot be reached by focusing beyond the object at "
+            f"{Z:g} mm: even focus at infinity gives r = {r_inf:.4g} px; focus in front of the "
+            "object instead (side='near'), or open the aperture wider"
         )
     return 1.0 / inv
 

@@ -31,7 +31,7 @@ def _rows(d: CameraDesign) -> list[tuple[str, str, float, str, str]]:
         ("open area", "pi R^2", d.open_area_mm2, "mm^2", "light ~ area"),
         ("static PSF radius", "r", d.r_px, "px", "Eq. 12"),
         ("exposure", "2T", d.exposure_ms, "ms", "Sec. 4"),
-        ("patterns", "n", d.n_patterns, "", "365 fps"),
+        ("patterns", "n", d.n_patterns, "", f"{d.pattern_rate_fps:.4g} per s"),
         ("aperture travel", "dX_a", d.delta_X_a_mm, "mm", "Eq. 15"),
         ("aperture acceleration", "a_a", d.a_a_mm_per_ms2, "mm/ms^2", "Eq. 17"),
         ("image acceleration", "a_i", d.a_i_px_per_ms2, "px/ms^2", "Eq. 18"),

@@ -24,8 +24,10 @@ import math
 import warnings
 
 import numpy as np
+from tqdm import tqdm
 
 from ..errors import ParameterError, check_finite, check_positive
+from ..limits import check_memory
 from ..model import paper
 from ..model import schedule as sch
 from ..model.modes import MODES, MODES_WITH_PSF, mode_exposure_ms, t0_offset_px
@@ -39,8 +41,19 @@ R_DELTA_PX = 1e-3
 """Below this radius the pillbox is treated as a delta: the L1 change is < 4 r."""
 
 
+MAX_LOST_FRACTION = 0.01
+"""``pacam psf`` refuses a kernel that loses more than this fraction of its mass."""
+
+
 class PSFTruncationWarning(UserWarning):
-    """Part of the PSF's mass falls outside the kernel; the rest was renormalised."""
+    """Part of the PSF's mass falls outside the kernel; the rest was renormalised.
+
+    ``lost`` is that part, a fraction of the PSF's mass in (0, 1].
+    """
+
+    def __init__(self, message: str, lost: float = 0.0):
+        super().__init__(message)
+        self.lost = lost
 
 
 def default_du_px(r_px: float) -> float:
@@ -61,6 +74,7 @@ def _shape(size, lo: float, hi: float, r: float) -> tuple[int, int]:
     h, w = (size, size) if np.isscalar(size) else size
     if int(h) != h or int(w) != w or h < 1 or w < 1:
         raise ParameterError(f"size must be a positive int or (h, w), got {size!r}")
+    check_memory(f"a {h}x{w} kernel", 32.0 * h * w, "the kernel size (--size)")
     return int(h), int(w)
 
 
@@ -70,7 +84,9 @@ def _deposit_discs(kernel, xe, ye, r, centres, masses) -> None:
     nw = math.ceil(2 * r) + 2
     rows = [i for i in range(h) if ye[i] < r and ye[i + 1] > -r]
     chunk = max(1, 2_000_000 // (nw * max(1, len(rows))))
-    for k0 in range(0, centres.size, chunk):
+    starts = range(0, centres.size, chunk)
+    # a bar on a terminal once a kernel takes over 2 s (a few reach 10 s: r ~ 25 px, 2049 px)
+    for k0 in tqdm(starts, desc="PSF", unit="chunk", delay=2.0, disable=None, leave=False):
         cx, m = centres[k0 : k0 + chunk], masses[k0 : k0 + chunk]
         j0 = np.floor(cx - r - xe[0]).astype(np.int64)  # first column a disc can touch
         cols = j0[:, None] + np.arange(nw + 1)[None, :]
@@ -124,12 +140,11 @@ def _normalise(kernel: np.ndarray, expected: float) -> np.ndarray:
         )
     lost = 1.0 - got / expected
     if lost > 1e-9:
-        warnings.warn(
+        message = (
             f"{lost:.3%} of the PSF's mass lies outside the {kernel.shape[0]}x{kernel.shape[1]} "
-            "kernel; the rest was renormalised",
-            PSFTruncationWarning,
-            stacklevel=3,
+            "kernel; the rest was renormalised"
         )
+        warnings.warn(PSFTruncationWarning(message, lost), stacklevel=3)
     return kernel / got
 
 

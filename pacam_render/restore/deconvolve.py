@@ -30,6 +30,8 @@ from ..errors import ParameterError
 from .metrics import psnr
 
 METHODS = ("wiener", "rl", "uwiener", "bm3d")
+SIGMA_FLOOR = 1e-6
+"""Wiener's smallest noise sigma, relative to the image's peak (a noiseless render)."""
 BM3D_LICENCE = (
     "bm3d (Tampere University) is free for non-commercial use only; see the bm3d package licence"
 )
@@ -354,7 +356,8 @@ def wiener(image, psf, noise_sigma: float | None = None, nsr="prior", scale: flo
         Standard deviation of the white noise, in the image's units: the known one (capture
         metadata, or the ``paper`` sensor preset's 0.01 on a [0, 1] image). None: estimated
         with :func:`estimate_noise_sigma`. Used only with ``nsr="prior"``; there 0 (a noiseless
-        image) becomes 1e-6, a vanishing but finite regulariser that keeps H = 0 bins finite.
+        image) and anything below 1e-6 of the image's peak becomes :data:`SIGMA_FLOOR` x peak,
+        a vanishing but finite regulariser that keeps H = 0 bins finite.
     nsr : {"prior"} or float, optional
         ``"prior"`` (default): NSR(f) = sigma^2 / S(f), with S the 1/f^2 natural-image spectrum
         fitted to the observation where it stands above the noise (:func:`prior_spectrum`).
@@ -391,14 +394,14 @@ def wiener(image, psf, noise_sigma: float | None = None, nsr="prior", scale: flo
             raise ParameterError(f"nsr must be 'prior' or a constant >= 0, got {nsr!r}")
     elif nsr != "prior":
         raise ParameterError(f"nsr must be 'prior' or a constant >= 0, got {nsr!r}")
+    sigma = None if noise_sigma is None else _check_sigma(noise_sigma)
+    if not y.any():
+        return np.zeros_like(y)  # nothing to deblur (and no spectrum to fit a prior to)
     if not isinstance(nsr, str):
         sigma = 0.0  # a constant balance needs no noise level
-    elif noise_sigma is None:
-        sigma = estimate_noise_sigma(y)
-    else:
-        sigma = _check_sigma(noise_sigma)
-    if isinstance(nsr, str) and sigma == 0:
-        sigma = 1e-6  # noiseless input: a vanishing but finite regulariser keeps H = 0 bins finite
+    else:  # a noiseless (or nearly) input gets a vanishing but finite regulariser
+        sigma = estimate_noise_sigma(y) if sigma is None else sigma
+        sigma = max(sigma, SIGMA_FLOOR * float(np.abs(y).max()))  # H = 0 bins stay finite
     return _per_channel(y, k, lambda c, kk: _wiener2d(c, kk, sigma, nsr, scale))
 
 
@@ -507,6 +510,8 @@ def richardson_lucy(image, psf, iterations: int = 30):
         raise ParameterError(f"iterations must be an integer >= 1, got {iterations!r}")
     if y.min() < 0:
         raise ParameterError(f"richardson_lucy needs a non-negative image, min is {y.min():g}")
+    if not y.any():
+        return np.zeros_like(y)  # RL divides by the prediction: 0 / 0
     return _per_channel(
         y, k, _padded(lambda c, kk: rl(c, kk, num_iter=int(iterations), clip=False))
     )
@@ -548,6 +553,8 @@ def unsupervised_wiener(image, psf, seed: int = 0):
 
     y = check_image(image)
     k = check_psf(psf, y.shape)
+    if not y.any():
+        return np.zeros_like(y)
     rng = np.random.default_rng(seed)
     return _per_channel(y, k, _padded(lambda c, kk: uw(c, kk, clip=False, rng=rng)[0]))
 
@@ -596,7 +603,11 @@ def bm3d_deblur(image, psf, noise_sigma: float | None = None):
         np.trapz = np.trapezoid  # noqa: NPY201 (restoring the name bm4d needs)
     y = check_image(image)
     k = check_psf(psf, y.shape)
-    sigma = estimate_noise_sigma(y) if noise_sigma is None else _check_sigma(noise_sigma)
+    if noise_sigma is not None:
+        _check_sigma(noise_sigma)
+    if not y.any():
+        return np.zeros_like(y)  # bm3d refuses a zero noise level on a zero image
+    sigma = estimate_noise_sigma(y) if noise_sigma is None else float(noise_sigma)
 
     def one(c: np.ndarray, kk: np.ndarray) -> np.ndarray:
         with warnings.catch_warnings():

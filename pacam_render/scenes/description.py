@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import json
 import os
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -19,6 +20,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import ParameterError
+from ..limits import PacamWarning
 from . import assets as sa
 from .motion import Motion, SceneAnimator, _mi
 
@@ -140,6 +142,13 @@ def load_scene_file(
     except Exception as exc:  # Mitsuba raises RuntimeError (parse) or others (plugins)
         raise ParameterError(f"scene file {str(path)!r} does not load: {exc}") from exc
     desc = _describe_loaded(loaded, path)
+    if "<sensor" in text:
+        warnings.warn(
+            f"the <sensor> of {path.name} is not used: pacam renders through its own camera "
+            "(--mode, --preset); only the scene's shapes, emitters and integrator are kept",
+            PacamWarning,
+            stacklevel=3,
+        )
     mpath = _motion_file(path)
     if mpath.is_file():
         _apply_motion_file(desc, mpath)

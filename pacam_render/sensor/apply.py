@@ -7,11 +7,17 @@ records the sensor, the light level and the noise sigma in the capture's record,
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 
 from ..errors import check_positive
 from ..exposure.record import SensorRecord
+from ..limits import PacamWarning
 from .model import DEFAULT_LIGHT_LEVEL, SensorModel, simulate_capture
+
+SATURATION_NOTE = 1e-3
+"""A capture with more than this fraction of saturated values gets a note."""
 
 
 def apply_sensor(cap, model: SensorModel, light_level: float | None, seed: int):
@@ -34,23 +40,54 @@ def apply_sensor(cap, model: SensorModel, light_level: float | None, seed: int):
     raw_dn, noisy, photons_per_unit : numpy.ndarray, numpy.ndarray, float
     """
     rec = cap.record
-    exposure = rec.exposure_ms
+    image, back = _sensor_input(cap, light_level)
     if light_level is None:
-        lf = rec.light_factor
-        res = simulate_capture(cap.image / lf, model, exposure_ms=exposure, seed=seed)
-        return res.raw_dn, res.linear * lf, res.photons_per_unit
+        res = simulate_capture(image, model, exposure_ms=rec.exposure_ms, seed=seed)
+        return res.raw_dn, res.linear * back, res.photons_per_unit
     level = check_positive("light_level", light_level, "photons/px/ms")
-    scale = rec.reference_exposure_ms / exposure  # undo the render's exposure factor ...
     res = simulate_capture(
-        cap.image * scale,
+        image,
         model,
-        exposure_ms=exposure,
+        exposure_ms=rec.exposure_ms,
         seed=seed,
         light_level=level,
         open_area_mm2=1.0,
-        reference_area_mm2=1.0,  # ... the area factor is already in it
+        reference_area_mm2=1.0,  # the render already carries the area factor
     )
-    return res.raw_dn, res.linear / scale, res.photons_per_unit
+    return res.raw_dn, res.linear * back, res.photons_per_unit
+
+
+def _sensor_input(cap, light_level: float | None) -> tuple[np.ndarray, float]:
+    """The render in the units :func:`simulate_capture` takes, and the factor back to the
+    capture's units: divided by the light factor without a light level (white reads 1.0);
+    with one, the render's exposure factor undone (the area factor stays in it)."""
+    rec = cap.record
+    if light_level is None:
+        return cap.image / rec.light_factor, rec.light_factor
+    scale = rec.reference_exposure_ms / rec.exposure_ms
+    return cap.image * scale, 1.0 / scale
+
+
+def saturated_fraction(cap, model: SensorModel, light_level: float | None, ppu: float) -> float:
+    """The fraction of the capture's values whose mean charge exceeds the sensor's saturation
+    (full well or ADC range, :attr:`SensorModel.saturation_e`), before noise.
+
+    Parameters
+    ----------
+    cap : Capture
+    model : SensorModel
+    light_level : float or None
+        As for :func:`apply_sensor`.
+    ppu : float
+        Photons per pixel for 1.0 of the sensor's input (:func:`apply_sensor`'s third value).
+
+    Returns
+    -------
+    float
+        In [0, 1], over every pixel and colour channel.
+    """
+    image, _ = _sensor_input(cap, light_level)
+    return float(np.mean(model.qe * ppu * image > model.saturation_e))
 
 
 def sensor_sigma(cap, model: SensorModel, light_level: float | None, level: float) -> float:
@@ -80,7 +117,15 @@ def add_sensor_layers(
     if light_level is None and model.shot_noise:
         light_level = DEFAULT_LIGHT_LEVEL  # a physical sensor needs photons; paper does not
     raw, noisy, ppu = apply_sensor(cap, model, light_level, seed)
+    saturated = saturated_fraction(cap, model, light_level, ppu)
     rec = cap.record
+    if saturated > SATURATION_NOTE:
+        note = (
+            f"{100 * saturated:.3g} % of the pixel values saturate the sensor (above "
+            f"{model.saturation_e:.4g} e-); lower the light level (--light-level)"
+        )
+        warnings.warn(note, PacamWarning, stacklevel=2)
+        rec.notes.append(note)
     level = float(np.mean(noisy)) / rec.light_factor
     sigma = sensor_sigma(cap, model, light_level, level)
     cap.extra_layers.update({"raw": raw.astype(np.float32), "noisy": noisy})
@@ -91,5 +136,6 @@ def add_sensor_layers(
         photons_per_unit=ppu,
         seed=seed,
         noise_sigma_white_units=sigma,
+        saturated_fraction=saturated,
     )
     rec.noise_sigma = sigma * rec.light_factor  # in the capture's own units

@@ -1,0 +1,175 @@
+"""Checkpoints of a moving capture: the finished time steps on disk, so a stopped capture
+resumes where it stopped and gives the same image.
+
+A checkpoint is only reused by the capture that wrote it. Its key hashes everything that
+changes the image (:func:`resume_parts`): the capture's spec; the loaded scene's every
+parameter (geometry, textures and emitters, so the XML's contents and its assets count, not
+its path); the motions; the integrator; the package, Mitsuba and Dr.Jit versions and the
+variant; and the step plan. Any difference starts afresh, with a note that names what changed.
+Every file is written under a unique temporary name and renamed, and ``state.json``, written
+last, vouches for the arrays.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import hashlib
+import json
+import shutil
+import signal
+import threading
+import warnings
+from collections.abc import Iterator
+from pathlib import Path
+
+import numpy as np
+
+from ..io.outputs import atomic_save
+from ..limits import PacamWarning
+
+
+def _sha(*chunks: bytes | str) -> str:
+    h = hashlib.sha256()
+    for c in chunks:
+        h.update(c.encode() if isinstance(c, str) else c)
+    return h.hexdigest()[:16]
+
+
+def scene_fingerprint(scene) -> str:
+    """A hash of every parameter of a loaded ``mi.Scene`` (``mi.traverse``), before any motion.
+
+    Parameters
+    ----------
+    scene : mitsuba.Scene
+
+    Returns
+    -------
+    str
+        16 hex digits; about 0.1 s for the 13 MB of the train scene.
+    """
+    import mitsuba as mi
+
+    params = mi.traverse(scene)
+    h = hashlib.sha256()
+    for key in sorted(params.keys()):
+        value = params[key]
+        value = getattr(value, "matrix", value)  # a transform: its matrix
+        try:
+            a = np.asarray(value)
+        except (TypeError, ValueError, RuntimeError):
+            a = np.asarray(str(value))
+        if a.dtype == object:  # an opaque object: its description
+            a = np.asarray(str(value))
+        blob = str(a.dtype).encode() + str(a.shape).encode() + a.tobytes()
+        h.update(key.encode() + b"\0" + blob)
+    return h.hexdigest()[:16]
+
+
+def resume_parts(spec, scene, desc, steps, versions: dict, variant: str) -> dict[str, str]:
+    """The named hashes that a checkpoint must match to be resumed.
+
+    Parameters
+    ----------
+    spec : CaptureSpec
+    scene : mitsuba.Scene
+        Loaded, before any motion is applied.
+    desc : SceneDescription
+        For its motions.
+    steps : list of Step
+    versions : dict
+        Package versions, as the record holds them.
+    variant : str
+        The Mitsuba variant.
+
+    Returns
+    -------
+    dict
+        ``spec``, ``scene``, ``motion``, ``integrator``, ``versions`` and ``steps``, each a hash.
+    """
+    motions = {k: desc.motions[k].to_json() for k in sorted(desc.motions)}
+    plan = [(s.pattern, s.t0, s.t1, s.spp) for s in steps]
+    return {
+        "spec": spec.key(),
+        "scene": scene_fingerprint(scene),
+        "motion": _sha(json.dumps(motions, sort_keys=True, default=repr)),
+        "integrator": _sha(str(scene.integrator())),
+        "versions": _sha(json.dumps({**versions, "variant": variant}, sort_keys=True)),
+        "steps": _sha(json.dumps(plan)),
+    }
+
+
+class Checkpoint:
+    """Finished steps kept in ``folder`` (None keeps nothing), for the capture of ``parts``."""
+
+    def __init__(self, folder: Path | None, parts: dict[str, str]):
+        self.folder, self.parts = folder, dict(parts)
+        self.key = _sha(json.dumps(self.parts, sort_keys=True))
+
+    def load(self, shape) -> tuple[int, np.ndarray, dict[int, np.ndarray]] | None:
+        """(steps done, accumulated image, per-pattern images), or None to start afresh."""
+        if self.folder is None or not (self.folder / "state.json").is_file():
+            return None
+        try:
+            state = json.loads((self.folder / "state.json").read_text())
+            if state.get("key") != self.key:
+                return self._mismatch(state.get("parts") or {})
+            acc = np.load(self.folder / "accum.npy")
+            pats = {}
+            if (self.folder / "patterns.npz").is_file():
+                with np.load(self.folder / "patterns.npz") as z:
+                    pats = {int(k): z[k] for k in z.files}
+            done = int(state["done"])
+        except (OSError, ValueError, KeyError, TypeError) as exc:
+            return self._afresh(f"cannot be read ({exc})")
+        if acc.shape != shape:
+            return self._afresh(f"holds a {acc.shape} image, not {shape}")
+        return done, acc, pats
+
+    def _mismatch(self, old: dict) -> None:
+        changed = [k for k, v in self.parts.items() if old.get(k) != v] or ["its format"]
+        return self._afresh(f"holds steps of a different capture ({', '.join(changed)} changed)")
+
+    def _afresh(self, why: str) -> None:
+        warnings.warn(f"{self.folder} {why}: starting afresh", PacamWarning, stacklevel=3)
+        return None
+
+    def save(self, done: int, acc: np.ndarray, pats: dict[int, np.ndarray]) -> None:
+        """Write the arrays, then ``state.json``, each under a unique name and renamed."""
+        if self.folder is None:
+            return
+        self.folder.mkdir(parents=True, exist_ok=True)
+        atomic_save(self.folder / "accum.npy", lambda t: np.save(t, acc), force=True)
+        if pats:
+            arrays = {str(k): v for k, v in pats.items()}
+            atomic_save(self.folder / "patterns.npz", lambda t: np.savez(t, **arrays), force=True)
+        state = json.dumps({"key": self.key, "parts": self.parts, "done": done})
+        atomic_save(self.folder / "state.json", lambda t: Path(t).write_text(state), force=True)
+
+    def clear(self) -> None:
+        if self.folder is not None and self.folder.exists():
+            shutil.rmtree(self.folder)
+
+
+@contextlib.contextmanager
+def deferred_signals() -> Iterator[dict]:
+    """SIGINT and SIGTERM set ``flag["signal"]`` for the step loop to read after each step, so
+    the finished steps can be saved; a second signal interrupts at once (KeyboardInterrupt).
+    Outside the main thread, and where a signal is ignored (a background job), signals keep
+    their handlers."""
+    flag: dict = {"signal": None}
+    if threading.current_thread() is not threading.main_thread():
+        yield flag
+        return
+
+    def handler(signum, frame):
+        if flag["signal"] is not None:
+            raise KeyboardInterrupt
+        flag["signal"] = signum
+
+    watched = [s for s in (signal.SIGINT, signal.SIGTERM) if signal.getsignal(s) != signal.SIG_IGN]
+    old = {s: signal.signal(s, handler) for s in watched}  # an ignored signal stays ignored
+    try:
+        yield flag
+    finally:
+        for s, h in old.items():
+            signal.signal(s, h)
