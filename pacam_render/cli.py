@@ -68,7 +68,12 @@ def _cmd_demo(args: argparse.Namespace) -> int:
     check_size(args.width, args.height, args.spp)
     out = prepare_out_dir(args.out, args.force)
     print(design_report(prototype()))
-    print(f"\nrendering the train set ({args.width}x{args.height}, {args.spp} spp) ...")
+    where = (
+        "a window of the full 1280x960 sensor"
+        if args.width is None and args.height is None
+        else f"a binned {args.width or 1280}x{args.height or 960} sensor"
+    )
+    print(f"\nrendering the train set ({where}, {args.spp} spp) ...")
     with output_lock(out):
         fig = run_demo(out, args.width, args.height, args.spp, args.force)
     print((fig.parent / "demo.md").read_text())
@@ -79,7 +84,8 @@ def _cmd_demo(args: argparse.Namespace) -> int:
 def _cmd_psf(args: argparse.Namespace) -> int:
     check_positive("--depth", args.depth, "mm")
     check_finite("--velocity", args.velocity)
-    cam = preset(args.preset).with_(object_depth_mm=args.depth)
+    cam, crop = _psf_geometry(args)
+    cam = cam.with_(object_depth_mm=args.depth)
     if args.size is not None:
         _odd_size(args.size)
     seed = 0 if args.seed is None else args.seed
@@ -103,6 +109,7 @@ def _cmd_psf(args: argparse.Namespace) -> int:
         "mode": args.mode,
         "velocity_px_per_ms": args.velocity,
         "size_px": list(k.shape),
+        **({"crop": crop} if crop else {}),
         "psf_origin": "centre pixel = where the point images at mid-exposure (t = 0)"
         if args.origin == "t0"
         else "centre pixel = where a pinhole at the lens centre images the point at t = 0",
@@ -132,6 +139,33 @@ def _cmd_psf(args: argparse.Namespace) -> int:
     write_json(out / "psf.json", meta, force=args.force)
     print(f"wrote {out}/: {written}, psf.json ({k.shape[0]}x{k.shape[1]} px)")
     return 0
+
+
+def _psf_geometry(args: argparse.Namespace) -> tuple[CameraDesign, dict | None]:
+    """The preset at the capture's sensor size (``--like``, or ``--width``/``--height``), and
+    the crop to record. A kernel's px quantities (r, a_i) follow the sensor's size; a crop does
+    not change the kernel, only where it applies."""
+    base = preset(args.preset)
+    if args.like is not None:
+        if args.width or args.height or args.crop:
+            raise ParameterError("--like copies the capture's size and crop: leave out --width, "
+                                 "--height and --crop")  # fmt: skip
+        capture = Path(args.like)
+        record = _capture_record(capture, required=True)
+        if record is None:
+            raise ParameterError(f"--like needs the capture's {capture.with_suffix('.json')}")
+        cam = record.camera
+        return base.with_(width_px=cam["width_px"], height_px=cam["height_px"]), record.crop
+    width = args.width or base.width_px
+    height = args.height or base.height_px
+    base = base.with_(width_px=width, height_px=height)
+    if args.crop is None:
+        return base, None
+    from .exposure.capture import CaptureSpec, parse_crop
+
+    x, y, w, h = CaptureSpec(width=width, height=height, crop=parse_crop(args.crop)).crop
+    crop = {"x": x, "y": y, "width": w, "height": h}
+    return base, {**crop, "sensor_width_px": width, "sensor_height_px": height}
 
 
 def _checked_psf(cam: CameraDesign, args: argparse.Namespace) -> np.ndarray:
@@ -194,6 +228,7 @@ def _load_psf(spec: str, capture: Path, record: CaptureRecord | None) -> np.ndar
             f"--render --out {capture.parent} ...` at the capture's depth and mode, or use "
             "--psf analytic"
         )
+    _check_psf_scale(path, capture, record)
     if path.suffix == ".npy":
         return _load_npy_psf(path)
     layers = read_exr(path)
@@ -202,6 +237,35 @@ def _load_psf(spec: str, capture: Path, record: CaptureRecord | None) -> np.ndar
     if len(layers) == 1:
         return next(iter(layers.values()))
     raise ParameterError(f"{path} has no 'psf' layer; it has: {', '.join(sorted(layers))}")
+
+
+def _check_psf_scale(path: Path, capture: Path, record: CaptureRecord | None) -> None:
+    """Refuse a kernel made for another sensor size than the capture's (px scale differs)."""
+    sidecar = path.parent / "psf.json"
+    meta = None
+    if path.suffix != ".npy" and sidecar.is_file():
+        try:
+            meta = json.loads(sidecar.read_text())
+        except json.JSONDecodeError:
+            meta = None
+    if not isinstance(meta, dict) or "width_px" not in meta:
+        warnings.warn(
+            f"{path} records no sensor size: make sure it was made at the capture's scale "
+            f"(pacam psf --like {capture})",
+            PacamWarning,
+            stacklevel=2,
+        )
+        return
+    if record is None or "width_px" not in record.camera:
+        return
+    made = (meta["width_px"], meta.get("height_px"))
+    needed = (record.camera["width_px"], record.camera.get("height_px"))
+    if made != needed:
+        raise ParameterError(
+            f"--psf {path} was made for a {made[0]}x{made[1]} sensor ({sidecar}), the capture "
+            f"for {needed[0]}x{needed[1]}: its px are a different size; make the kernel with "
+            f"pacam psf --like {capture} ..."
+        )
 
 
 def _load_npy_psf(path: Path) -> np.ndarray:
@@ -295,13 +359,13 @@ def _cmd_render(args: argparse.Namespace) -> int:
     spec = CaptureSpec(
         scene=args.scene,
         mode=args.mode,
-        width=args.width,
-        height=args.height,
+        **_sensor_size(args),
         spp=args.spp,
         seed=args.seed,
         max_step_px=args.max_step_px,
         per_pattern=args.per_pattern,
         cover_px_per_ms=args.cover,
+        preset=args.preset,
     )
     model = _sensor_model(args.sensor) if args.sensor else None
     if args.light_level is not None and model is None:
@@ -329,12 +393,35 @@ def _cmd_render(args: argparse.Namespace) -> int:
             add_sensor_layers(cap, model, args.sensor, args.light_level, spec.seed)
         paths = write_capture(cap, out, force=args.force)
     m = cap.meta
+    w, h = spec.image_size
+    where = f"{w}x{h}" + (f" window at ({spec.crop[0]}, {spec.crop[1]})" if spec.crop else "")
     print(
-        f"{spec.mode} capture of {spec.scene}: {spec.width}x{spec.height}, "
+        f"{spec.mode} capture of {spec.scene}: {where} of a {spec.width}x{spec.height} sensor, "
         f"{m['effective_spp']} spp in {m['n_steps']} step(s), {m['render_seconds']:.1f} s -> "
         + ", ".join(p.name for p in paths)
     )
+    print(_scale_line(m["optics"], m["coded_design"]))
     return 0
+
+
+def _sensor_size(args: argparse.Namespace) -> dict:
+    """width, height and crop: ``--crop`` alone is a window of the preset's full sensor."""
+    full = preset(args.preset)
+    if args.crop is None:
+        return {"width": args.width or 320, "height": args.height or 240}
+    width, height = args.width or full.width_px, args.height or full.height_px
+    from .exposure.capture import parse_crop
+
+    return {"width": width, "height": height, "crop": parse_crop(args.crop)}
+
+
+def _scale_line(optics: dict, coded: dict) -> str:
+    """The camera's px quantities at the capture's resolution (they shrink with binning)."""
+    return (
+        f"at {optics['width_px']}x{optics['height_px']} px: r = {optics['r_px']:.3g} px, "
+        f"a_i = {optics['a_i_px_per_ms2']:.3g} px/ms^2; the coded design keeps |s| <= "
+        f"{coded['velocity_range_px_per_ms']:.3g} px/ms invariant (r = {coded['r_px']:.3g} px)"
+    )
 
 
 @contextlib.contextmanager
@@ -420,6 +507,14 @@ def _add_psf(sub) -> None:
     p.add_argument("--velocity", type=float, required=True, metavar="PX_PER_MS")
     p.add_argument("--mode", default="coded", choices=MODES_WITH_PSF)
     p.add_argument("--size", type=int, metavar="PX", help="odd kernel side (default: fits the PSF)")
+    p.add_argument("--width", type=int, metavar="W", help="sensor px (default: the preset's, 1280)")
+    p.add_argument("--height", type=int, metavar="H", help="sensor px (default: 960)")
+    p.add_argument("--crop", metavar="X,Y,W,H", help="the capture's window (recorded)")
+    p.add_argument(
+        "--like",
+        metavar="CAPTURE.exr",
+        help="copy a capture's sensor size and crop from its JSON, so the kernel fits it",
+    )
     p.add_argument(
         "--render", action="store_true", help="also ray-trace it (ptracer): psf_rendered.exr"
     )
@@ -496,8 +591,21 @@ def _add_render(sub) -> None:
         default="coded",
         help=f"{', '.join(MODES)} (see pacam_render.model.modes; default coded)",
     )
-    p.add_argument("--width", type=int, default=320, metavar="W", help="px (default 320)")
-    p.add_argument("--height", type=int, default=240, metavar="H", help="px (default 240)")
+    p.add_argument(
+        "--width",
+        type=int,
+        metavar="W",
+        help="sensor px (default 320, a binned sensor; with --crop, the preset's 1280)",
+    )
+    p.add_argument(
+        "--height", type=int, metavar="H", help="sensor px (default 240; with --crop, 960)"
+    )
+    p.add_argument(
+        "--crop",
+        metavar="X,Y,W,H",
+        help="render only this window of the sensor, in its px: the camera at its real scale",
+    )
+    p.add_argument("--preset", default="prototype", help="base camera (default: prototype)")
     p.add_argument(
         "--spp", type=int, default=64, metavar="N", help="samples per pixel (default 64)"
     )
@@ -567,11 +675,18 @@ def _add_validate_psf(sub) -> None:
 
 
 def _add_demo(sub) -> None:
+    from .experiments.demo import DEMO_SPP
+
     p = sub.add_parser("demo", help="the main job on built-in defaults")
     p.add_argument("--out", default="demo_out", metavar="DIR", help="default demo_out/")
-    p.add_argument("--width", type=int, default=480)
-    p.add_argument("--height", type=int, default=360)
-    p.add_argument("--spp", type=int, default=256)
+    p.add_argument(
+        "--width",
+        type=int,
+        help="render the whole frame of a binned sensor this wide instead of a window of the "
+        "full 1280x960 one (the default: the camera at its real pixel scale)",
+    )
+    p.add_argument("--height", type=int, help="with --width: the binned sensor's height")
+    p.add_argument("--spp", type=int, default=DEMO_SPP, help=f"default {DEMO_SPP}")
     p.add_argument("--force", action="store_true", help="overwrite a previous demo in DIR")
     p.set_defaults(func=_cmd_demo)
 

@@ -594,7 +594,7 @@ def fig_train(quick: bool, seed: int = 0) -> Figure:
     import tempfile
 
     from ..restore.metrics import aligned_psnr, psnr, ssim
-    from .demo import CROPS, Coded, _figure, run_train
+    from .demo import Coded, _figure, max_shift_px, run_train, window_crops
 
     w, h, spp, spp_psf = (320, 240, 64, 256) if quick else (640, 480, 256, 1024)
     coded = (
@@ -606,6 +606,7 @@ def fig_train(quick: bool, seed: int = 0) -> Figure:
             Path(tmp), w, h, spp, seed, coded, rendered_psf=True, spp_psf=spp_psf, name="train"
         )
     ref = caps["reference"].image
+    crops, shift = window_crops(caps["_spec"]), max_shift_px(caps["_spec"])
     rows = []
     for p in panels[1:]:
         rows.append(
@@ -616,19 +617,19 @@ def fig_train(quick: bool, seed: int = 0) -> Figure:
                 "ssim": ssim(p.image, ref),
             }
         )
-        for cname, frac in CROPS.items():
+        for cname, frac in crops.items():
             rows.append(
                 {
                     "capture": p.title,
                     "region": f"{cname} (aligned)",
-                    "psnr_db": aligned_psnr(p.image, ref, frac),
+                    "psnr_db": aligned_psnr(p.image, ref, frac, shift),
                     "ssim": float("nan"),
                 }
             )
     return Figure(
         "train",
         rows,
-        lambda path: _figure(panels, ref, path),
+        lambda path: _figure(panels, ref, path, crops, shift),
         _summary_train(rows, w, h, spp, spp_psf, caps),
     )
 

@@ -56,7 +56,14 @@ PARTIAL = ".partial"
 
 @dataclass(frozen=True)
 class CaptureSpec:
-    """What to capture. Sizes in px, ``max_step_px`` in px of motion between time steps."""
+    """What to capture. Sizes in px, ``max_step_px`` in px of motion between time steps.
+
+    ``width`` and ``height`` are the sensor's resolution: below the preset's (1280x960 for the
+    prototype) the sensor has fewer, larger pixels, and every px quantity (r, a_i, speeds)
+    shrinks with it. ``crop`` = (x, y, w, h) renders only that window of the sensor, in its
+    pixels (Mitsuba's film crop): the optics stay those of the whole sensor, so a crop of the
+    full-resolution sensor is the prototype's camera at its real pixel scale.
+    """
 
     scene: str = "train"
     mode: str = "coded"
@@ -68,9 +75,12 @@ class CaptureSpec:
     per_pattern: bool = False
     preset: str = "prototype"
     cover_px_per_ms: float | None = None
+    crop: tuple[int, int, int, int] | None = None
 
     def __post_init__(self) -> None:
         mode(self.mode)  # raises, listing the valid modes
+        if self.crop is not None:
+            object.__setattr__(self, "crop", _check_crop(self.crop, self.width, self.height))
         for k, lo in (("width", 2), ("height", 2), ("spp", 1)):
             v = getattr(self, k)
             if not isinstance(v, (int, np.integer)) or v < lo:
@@ -81,6 +91,11 @@ class CaptureSpec:
         if self.cover_px_per_ms is not None:
             check_positive("cover_px_per_ms", self.cover_px_per_ms, "px/ms")
 
+    @property
+    def image_size(self) -> tuple[int, int]:
+        """(width, height) of the rendered image, px: the crop's, or the whole sensor's."""
+        return (self.crop[2], self.crop[3]) if self.crop else (self.width, self.height)
+
     def key(self) -> str:
         """A hash of everything that changes the image (for resuming).
 
@@ -90,6 +105,32 @@ class CaptureSpec:
             The first 16 hex digits of the SHA-256 of the spec's fields as sorted JSON.
         """
         return hashlib.sha256(json.dumps(asdict(self), sort_keys=True).encode()).hexdigest()[:16]
+
+
+def _check_crop(crop, width: int, height: int) -> tuple[int, int, int, int]:
+    """(x, y, w, h) as ints inside a width x height sensor, or ParameterError."""
+    try:
+        x, y, w, h = (int(v) for v in crop)
+        ok = all(int(v) == v for v in crop)
+    except (TypeError, ValueError):
+        ok = False
+    if not ok or w < 2 or h < 2 or x < 0 or y < 0 or x + w > width or y + h > height:
+        raise ParameterError(
+            f"--crop must be X,Y,W,H: integers with W, H >= 2 and the window inside the "
+            f"{width}x{height} sensor (X + W <= {width}, Y + H <= {height}), got {crop!r}"
+        )
+    return x, y, w, h
+
+
+def parse_crop(text: str) -> tuple[int, int, int, int]:
+    """``"X,Y,W,H"`` (the ``--crop`` flag) as four ints, or ParameterError."""
+    parts = text.split(",")
+    try:
+        if len(parts) != 4:
+            raise ValueError
+        return tuple(int(p) for p in parts)  # type: ignore[return-value]
+    except ValueError:
+        raise ParameterError(f"--crop must be X,Y,W,H (four integers), got {text!r}") from None
 
 
 def capture_design(spec: CaptureSpec) -> CameraDesign:
@@ -202,6 +243,9 @@ def sensor_entry(spec: CaptureSpec, design: CameraDesign, params: dict, exposure
         "pixel_format": "rgb",
         "component_format": "float32",
     }
+    if spec.crop is not None:
+        x, y, w, h = spec.crop
+        film.update(crop_offset_x=x, crop_offset_y=y, crop_width=w, crop_height=h)
     sampler = {"type": "independent", "sample_count": spec.spp}
     if spec.mode == "reference":
         return {"type": "perspective", "fov": design.fov_deg, "film": film, "sampler": sampler}
@@ -416,16 +460,17 @@ def check_budget(spec: CaptureSpec, max_samples: int = DEFAULT_MAX_SAMPLES) -> N
     """
     from ..render.passes import MAX_WAVEFRONT
 
-    pixels = spec.width * spec.height
+    w, h = spec.image_size
+    pixels = w * h
     per_px = 160 + (24 * paper.N_PATTERNS if spec.per_pattern else 0)
-    check_memory(f"a {spec.width}x{spec.height} capture", per_px * pixels, "--width/--height")
+    check_memory(f"a {w}x{h} capture", per_px * pixels, "--width/--height or --crop")
     if pixels > MAX_WAVEFRONT:
         raise ParameterError(
-            f"a {spec.width}x{spec.height} film has more than Mitsuba's {MAX_WAVEFRONT} samples "
-            "per pass at 1 spp; reduce --width/--height"
+            f"a {w}x{h} image has more than Mitsuba's {MAX_WAVEFRONT} samples per pass at 1 "
+            "spp; reduce --width/--height or --crop"
         )
     check_count(
-        f"samples of this capture (--spp {spec.spp} x {spec.width} x {spec.height} px)",
+        f"samples of this capture (--spp {spec.spp} x {w} x {h} px)",
         spec.spp * pixels,
         max_samples,
         "--max-samples",
@@ -441,6 +486,7 @@ def _render(spec: CaptureSpec, description, run: _Run) -> Capture:
     _note_ignored_options(spec)
     design = capture_design(spec)
     cam, params = mode_camera(design, spec.mode)
+    _note_binning(spec, cam)
     desc = description if description is not None else load_scene(spec.scene)
     t_start = time.perf_counter()
     scene = desc.load(sensor=sensor_entry(spec, cam, params, cam.exposure_ms))
@@ -471,6 +517,21 @@ def _note_ignored_options(spec: CaptureSpec) -> None:
             f"--cover has no effect in {spec.mode} mode: it focuses on the object, so the "
             "solved defocus is not used (it applies to coded, coded_continuous and levin)"
         )
+
+
+def _note_binning(spec: CaptureSpec, cam: CameraDesign) -> None:
+    """A coded capture whose blur is sub-pixel is a binned camera: say so, and what to do."""
+    full = preset(spec.preset)
+    if not mode(spec.mode).needs_parallax or cam.r_px >= 1.0:
+        return
+    binned = full.width_px / spec.width
+    _note(
+        f"at {spec.width}x{spec.height} px the sensor is the preset's {full.width_px}x"
+        f"{full.height_px} binned {binned:.3g}x: the coded blur is sub-pixel (r = "
+        f"{cam.r_px:.3g} px, a_i = {cam.a_i_px_per_ms2:.3g} px/ms^2, invariant |s| <= "
+        f"{cam.velocity_range_px_per_ms:.3g} px/ms at this size); to see the camera at its real "
+        f"pixel scale, render a window of the full sensor with --crop X,Y,W,H"
+    )
 
 
 def _render_moving(scene, sensor, desc, design, cam, spec, run: _Run):
@@ -530,7 +591,7 @@ def _integrate(scene, sensor, desc, steps, spec, exposure, run: _Run, store):
     from ..render.passes import render_passes
 
     anim = desc.animator(scene)
-    shape = (spec.height, spec.width, 3)
+    shape = (spec.image_size[1], spec.image_size[0], 3)
     resumed = store.load(shape)
     done, acc, pats = resumed if resumed else (0, np.zeros(shape), {})
     mid = 0.5 * exposure  # paper time t = shutter time - mid
@@ -606,7 +667,13 @@ def _variant() -> str:
 def _record(spec, design, cam, params, sensor, variant, seconds, steps: dict) -> CaptureRecord:
     """The capture's record: the one place that builds it."""
     weight = 1.0 if spec.mode == "reference" else float(sensor.plan.mean_weight())
+    crop = None
+    if spec.crop is not None:
+        x, y, w, h = spec.crop
+        crop = {"x": x, "y": y, "width": w, "height": h}
+        crop.update(sensor_width_px=spec.width, sensor_height_px=spec.height)
     return CaptureRecord(
+        crop=crop,
         spec=asdict(spec),
         mode=spec.mode,
         camera=cam.inputs(),
@@ -648,8 +715,9 @@ def write_capture(cap: Capture, out: Path, force: bool) -> list[Path]:
     Notes
     -----
     capture.exr holds the layers ``capture`` (the image), the extra layers (``raw`` and
-    ``noisy`` after the sensor) and ``subNN`` per pattern image. The preview is exposed by
-    1 / ``light_factor`` (auto-exposed when that is 0); capture.json is the record. Each file is
+    ``noisy`` after the sensor) and ``subNN`` per pattern image. The preview shows the
+    ``noisy`` layer when there is one (else the image), exposed by 1 / ``light_factor``
+    (auto-exposed when that is 0); capture.json is the record. Each file is
     written to a temporary file and renamed.
     """
     from ..io.exr import write_exr
@@ -660,8 +728,9 @@ def write_capture(cap: Capture, out: Path, force: bool) -> list[Path]:
         layers[f"sub{k:02d}"] = img
     lf = cap.record.light_factor
     exposure = 1.0 / lf if lf > 0 else None
+    shown = cap.extra_layers.get("noisy", cap.image)  # what the camera delivers, with --sensor
     return [
         write_exr(out / "capture.exr", layers, force=force),
-        write_png(out / "capture.png", srgb8(cap.image, exposure), force=force),
+        write_png(out / "capture.png", srgb8(shown, exposure), force=force),
         write_json(out / "capture.json", cap.record.to_json(), force=force),
     ]

@@ -134,7 +134,7 @@ def crop(img: np.ndarray, frac) -> np.ndarray:
     return img[int(r0 * h) : int(r1 * h), int(c0 * w) : int(c1 * w)]
 
 
-def aligned_psnr(est: np.ndarray, ref: np.ndarray, frac) -> float:
+def aligned_psnr(est: np.ndarray, ref: np.ndarray, frac, max_shift_px: int = MAX_SHIFT_PX) -> float:
     """Best PSNR of a crop over whole-pixel horizontal shifts of the estimate.
 
     A motion-invariant PSF moves each object by -s^2 / (2 a_i) px (Eq. 2 with the square
@@ -149,23 +149,25 @@ def aligned_psnr(est: np.ndarray, ref: np.ndarray, frac) -> float:
         The reference, same shape.
     frac : tuple of float
         (r0, r1, c0, c1): the crop, as fractions of the height and width (see :func:`crop`).
-        Its columns are kept at least :data:`MAX_SHIFT_PX` px inside the image, so that every
-        shifted window exists.
+        Its columns are kept at least ``max_shift_px`` inside the image, so that every shifted
+        window exists.
+    max_shift_px : int, optional
+        The largest shift tried, px (default :data:`MAX_SHIFT_PX`; at the prototype's full
+        1280-px scale the trains move up to 25 px).
 
     Returns
     -------
     float
         max over d of PSNR(est[rows, a + d : b + d], ref[rows, a : b]), dB, peak 1, with
-        a = max(int(c0 W), MAX_SHIFT_PX) and b = min(int(c1 W), W - MAX_SHIFT_PX).
+        a = max(int(c0 W), max_shift_px) and b = min(int(c1 W), W - max_shift_px).
     """
     h, w = ref.shape[:2]
     r0, r1, c0, c1 = frac
+    m = int(max_shift_px)
     rows = slice(int(r0 * h), int(r1 * h))
-    a, b = max(int(c0 * w), MAX_SHIFT_PX), min(int(c1 * w), w - MAX_SHIFT_PX)
+    a, b = max(int(c0 * w), m), min(int(c1 * w), w - m)
     target = ref[rows, a:b]
-    return max(
-        psnr(est[rows, a + d : b + d], target, 1.0) for d in range(-MAX_SHIFT_PX, MAX_SHIFT_PX + 1)
-    )
+    return max(psnr(est[rows, a + d : b + d], target, 1.0) for d in range(-m, m + 1))
 
 
 def ssim(est: np.ndarray, ref: np.ndarray) -> float:
