@@ -635,6 +635,15 @@ def _add_render(sub) -> None:
         metavar="L",
         help="photons/px/ms of white through the full aperture (default 7000)",
     )
+    _add_limit_args(p)
+    p.add_argument("--out", required=True, metavar="DIR")
+    p.add_argument("--force", action="store_true", help="overwrite an existing capture")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.set_defaults(func=_cmd_render)
+
+
+def _add_limit_args(p: argparse.ArgumentParser) -> None:
+    """Bounds on a capture's work, and how often it saves its finished steps."""
     p.add_argument(
         "--max-steps",
         type=int,
@@ -657,10 +666,6 @@ def _add_render(sub) -> None:
         metavar="S",
         help="seconds between saves of the finished steps to DIR/.partial (default 5)",
     )
-    p.add_argument("--out", required=True, metavar="DIR")
-    p.add_argument("--force", action="store_true", help="overwrite an existing capture")
-    p.add_argument("--quiet", action="store_true", help="no progress bar")
-    p.set_defaults(func=_cmd_render)
 
 
 def _add_validate_psf(sub) -> None:
