@@ -317,7 +317,7 @@ def _cmd_deconvolve(args: argparse.Namespace) -> int:
     k = _load_psf(args.psf, capture, record)
     kw = {}
     sigma = _noise_sigma(args, layer, list(layers), record)
-    if args.method in ("wiener", "bm3d"):
+    if args.method in ("wiener", "hl", "tv", "bm3d"):
         kw["noise_sigma"] = sigma
     if args.method == "bm3d":
         print(f"note: {BM3D_LICENCE}", file=sys.stderr)

@@ -603,7 +603,16 @@ def fig_train(quick: bool, seed: int = 0) -> Figure:
     )
     with tempfile.TemporaryDirectory() as tmp:
         _, panels, caps = run_train(
-            Path(tmp), w, h, spp, seed, coded, rendered_psf=True, spp_psf=spp_psf, name="train"
+            Path(tmp),
+            w,
+            h,
+            spp,
+            seed,
+            coded,
+            rendered_psf=True,
+            spp_psf=spp_psf,
+            name="train",
+            method="wiener",
         )
     ref = caps["reference"].image
     crops, shift = window_crops(caps["_spec"]), max_shift_px(caps["_spec"])

@@ -2,7 +2,8 @@
 
 :mod:`.deconvolve` holds the deconvolvers (:data:`METHODS`: our Wiener filter with a 1/f^2
 natural-image prior fitted above the noise, Richardson-Lucy and unsupervised Wiener from
-scikit-image, and optional BM3D deblurring), all with the same tapered reflect padding;
+scikit-image, and optional BM3D deblurring); :mod:`.sparse` the hyper-Laplacian and
+total-variation priors (``hl``, ``tv``). All use the same tapered reflect padding;
 :mod:`.metrics` holds PSNR, SSIM, shift-aligned PSNR and the fits of rendered PSFs (centroid,
 the image acceleration of Eq. 18, the defocus disc of Eq. 12). Images are float (H, W) or
 (H, W, C), PSFs (h, w) or (h, w, C) in px. The dispatcher ``deconvolve`` is not re-exported
@@ -32,6 +33,7 @@ from .metrics import (
     rel_l1,
     ssim,
 )
+from .sparse import shrink, sparse_deconvolve
 
 __all__ = [
     "MAX_SHIFT_PX",
@@ -49,6 +51,8 @@ __all__ = [
     "psnr_batch",
     "rel_l1",
     "richardson_lucy",
+    "shrink",
+    "sparse_deconvolve",
     "ssim",
     "unsupervised_wiener",
     "wiener",

@@ -29,7 +29,7 @@ from scipy.optimize import minimize_scalar
 from ..errors import ParameterError
 from .metrics import psnr
 
-METHODS = ("wiener", "rl", "uwiener", "bm3d")
+METHODS = ("wiener", "hl", "tv", "rl", "uwiener", "bm3d")
 SIGMA_FLOOR = 1e-6
 """Wiener's smallest noise sigma, relative to the image's peak (a noiseless render)."""
 BM3D_LICENCE = (
@@ -627,12 +627,13 @@ def deconvolve(image, psf, method: str = "wiener", **kwargs):
         Blurred, noisy image, (H, W) or (H, W, C).
     psf : array_like
         PSF, px: (h, w) or (h, w, C), origin at the centre pixel (h//2, w//2).
-    method : {"wiener", "rl", "uwiener", "bm3d"}, optional
-        :func:`wiener` (default), :func:`richardson_lucy`, :func:`unsupervised_wiener` or
-        :func:`bm3d_deblur`.
+    method : {"wiener", "hl", "tv", "rl", "uwiener", "bm3d"}, optional
+        :func:`wiener` (default); ``hl`` (hyper-Laplacian) or ``tv`` (total variation),
+        :func:`~.sparse.sparse_deconvolve`; :func:`richardson_lucy`,
+        :func:`unsupervised_wiener` or :func:`bm3d_deblur`.
     **kwargs
-        Passed on to the method: e.g. ``noise_sigma`` (wiener, bm3d), ``nsr`` and ``scale``
-        (wiener), ``iterations`` (rl), ``seed`` (uwiener).
+        Passed on to the method: e.g. ``noise_sigma`` (wiener, hl, tv, bm3d), ``nsr`` and
+        ``scale`` (wiener), ``alpha`` (hl), ``iterations`` (rl), ``seed`` (uwiener).
 
     Returns
     -------
@@ -644,8 +645,12 @@ def deconvolve(image, psf, method: str = "wiener", **kwargs):
     ParameterError
         If ``method`` is not one of :data:`METHODS`, or as the method raises it.
     """
+    from .sparse import sparse_deconvolve  # it builds on this module
+
     funcs = {
         "wiener": wiener,
+        "hl": lambda y, k, **kw: sparse_deconvolve(y, k, "hl", **kw),
+        "tv": lambda y, k, **kw: sparse_deconvolve(y, k, "tv", **kw),
         "rl": richardson_lucy,
         "uwiener": unsupervised_wiener,
         "bm3d": bm3d_deblur,
