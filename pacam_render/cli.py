@@ -161,9 +161,9 @@ def _psf_geometry(args: argparse.Namespace) -> tuple[CameraDesign, dict | None]:
     base = base.with_(width_px=width, height_px=height)
     if args.crop is None:
         return base, None
-    from .exposure.capture import CaptureSpec, parse_crop
+    from .exposure.capture import check_crop, parse_crop
 
-    x, y, w, h = CaptureSpec(width=width, height=height, crop=parse_crop(args.crop)).crop
+    x, y, w, h = check_crop(parse_crop(args.crop), width, height)
     crop = {"x": x, "y": y, "width": w, "height": h}
     return base, {**crop, "sensor_width_px": width, "sensor_height_px": height}
 
@@ -184,8 +184,8 @@ def _checked_psf(cam: CameraDesign, args: argparse.Namespace) -> np.ndarray:
             f"the {MAX_LOST_FRACTION:.0%} allowed; give a larger --size (the automatic size "
             "stops at 2049 px) or a lower --velocity"
         )
-    for w in caught:
-        warnings.showwarning(w.message, PacamWarning, w.filename, w.lineno)
+    for w in caught:  # a small loss: one note
+        warnings.warn(str(w.message), PacamWarning, stacklevel=2)
     return k
 
 
@@ -374,7 +374,7 @@ def _cmd_render(args: argparse.Namespace) -> int:
         check_positive("--light-level", args.light_level, "photons/px/ms")
     for flag in ("max_steps", "max_samples", "checkpoint_every"):
         check_positive("--" + flag.replace("_", "-"), getattr(args, flag) or 1)
-    check_budget(spec, args.max_samples)
+    check_budget(spec, args.max_samples)  # render_capture checks again; this is before any file
     out = Path(args.out)
     if (out / "capture.exr").exists() and not args.force:
         raise ParameterError(f"--out {out} already holds a capture; pass --force to overwrite it")

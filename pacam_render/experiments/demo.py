@@ -192,11 +192,8 @@ def run_demo(
     camera at its real pixel scale. ``width`` and ``height`` render the whole frame of a binned
     sensor instead (fewer, larger pixels: r and the blur shrink with them).
     """
-    full = width is None and height is None
-    if full:
-        width, height = paper.WIDTH_PX, paper.HEIGHT_PX
+    crop = DEMO_WINDOW if width is None and height is None else None
     width, height = width or paper.WIDTH_PX, height or paper.HEIGHT_PX
-    crop = DEMO_WINDOW if full else None
     fig, panels, caps = run_train(out, width, height, spp, seed, force=force, crop=crop)
     text = _table(panels, caps["reference"].image, caps, spp, caps["_seconds"])
     write_text(out / "demo.md", text, force=True)

@@ -80,7 +80,7 @@ class CaptureSpec:
     def __post_init__(self) -> None:
         mode(self.mode)  # raises, listing the valid modes
         if self.crop is not None:
-            object.__setattr__(self, "crop", _check_crop(self.crop, self.width, self.height))
+            object.__setattr__(self, "crop", check_crop(self.crop, self.width, self.height))
         for k, lo in (("width", 2), ("height", 2), ("spp", 1)):
             v = getattr(self, k)
             if not isinstance(v, (int, np.integer)) or v < lo:
@@ -107,7 +107,7 @@ class CaptureSpec:
         return hashlib.sha256(json.dumps(asdict(self), sort_keys=True).encode()).hexdigest()[:16]
 
 
-def _check_crop(crop, width: int, height: int) -> tuple[int, int, int, int]:
+def check_crop(crop, width: int, height: int) -> tuple[int, int, int, int]:
     """(x, y, w, h) as ints inside a width x height sensor, or ParameterError."""
     try:
         x, y, w, h = (int(v) for v in crop)
@@ -440,13 +440,15 @@ def render_capture(
         warnings.simplefilter("always", PacamWarning)
         run = _Run(partial_dir, progress, save_every_s, stop_after_steps, max_steps, flag)
         cap = _render(spec, description, run)
-    notes = []
-    for w in caught:  # shown to the caller as they would have been, and kept in the record
-        warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
-        if issubclass(w.category, PacamWarning):
-            notes.append(str(w.message))
-    cap.record.notes = notes
+    cap.record.notes = _replay(caught)
     return cap
+
+
+def _replay(caught) -> list[str]:
+    """Show caught warnings to the caller as they would have been; return the notes among them."""
+    for w in caught:
+        warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+    return [str(w.message) for w in caught if issubclass(w.category, PacamWarning)]
 
 
 def check_budget(spec: CaptureSpec, max_samples: int = DEFAULT_MAX_SAMPLES) -> None:
