@@ -372,8 +372,10 @@ def _cmd_render(args: argparse.Namespace) -> int:
         raise ParameterError("--light-level needs --sensor")
     if args.light_level is not None:  # refuse before rendering, not after
         check_positive("--light-level", args.light_level, "photons/px/ms")
-    for flag in ("max_steps", "max_samples", "checkpoint_every"):
-        check_positive("--" + flag.replace("_", "-"), getattr(args, flag) or 1)
+    for flag in ("max_steps", "max_samples"):
+        check_positive("--" + flag.replace("_", "-"), getattr(args, flag))
+    if not args.checkpoint_every >= 0:  # 0: after every step
+        raise ParameterError(f"--checkpoint-every must be >= 0 s, got {args.checkpoint_every!r}")
     check_budget(spec, args.max_samples)  # render_capture checks again; this is before any file
     out = Path(args.out)
     if (out / "capture.exr").exists() and not args.force:

@@ -248,6 +248,14 @@ def test_work_beyond_the_limits_is_refused_naming_the_flag(argv, match, tmp_path
     assert time.perf_counter() - t0 < 30
 
 
+@pytest.mark.parametrize(
+    "flag, value", [("--max-steps", "0"), ("--max-samples", "-5"), ("--checkpoint-every", "-1")]
+)
+def test_limit_flags_reject_impossible_values(flag, value, tmp_path, capsys):
+    assert main(["render", "train", flag, value, "--out", str(tmp_path / "o")]) == 2
+    assert f"{flag} must be" in capsys.readouterr().err and not (tmp_path / "o").exists()
+
+
 def test_budget_counts_samples_and_memory():
     check_budget(CaptureSpec(width=1280, height=960, spp=1024))
     with pytest.raises(ParameterError, match="--max-samples"):
