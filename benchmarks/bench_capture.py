@@ -37,14 +37,22 @@ def cost_rows(width: int, height: int, spp: int, repeat: int) -> list[dict]:
     spec = CaptureSpec(scene="train", mode="coded", width=width, height=height, spp=spp)
     moving_desc = load_scene("train")
     static_desc = dataclasses.replace(moving_desc, motions={})
-    render_capture(dataclasses.replace(spec, spp=1), progress=False)  # compile kernels once
-    render_capture(dataclasses.replace(spec, spp=1), progress=False, description=static_desc)
+    render_capture(
+        dataclasses.replace(spec, spp=1), progress=False, truth=False
+    )  # compile kernels once
+    render_capture(
+        dataclasses.replace(spec, spp=1), progress=False, truth=False, description=static_desc
+    )
     moving, static, meta = [], [], None
     for _ in range(repeat):  # interleaved, so load changes hit both alike
-        cap, t = timed(lambda: render_capture(spec, progress=False, description=moving_desc))
+        cap, t = timed(
+            lambda: render_capture(spec, progress=False, truth=False, description=moving_desc)
+        )
         moving.append(t)
         meta = cap.meta
-        _, t = timed(lambda: render_capture(spec, progress=False, description=static_desc))
+        _, t = timed(
+            lambda: render_capture(spec, progress=False, truth=False, description=static_desc)
+        )
         static.append(t)
     m, ms = median_spread(moving)
     s, ss = median_spread(static)
@@ -69,7 +77,7 @@ def step_rows(spp: int) -> tuple[list[dict], float]:
 
     def run(step: float, seed: int = 0):
         spec = dataclasses.replace(base, max_step_px=step, seed=seed)
-        return timed(lambda: render_capture(spec, progress=False, description=desc))
+        return timed(lambda: render_capture(spec, progress=False, truth=False, description=desc))
 
     (ref, _), (twin, _) = run(1 / 32), run(1 / 32, seed=1)
     norm = np.abs(ref.image).sum()

@@ -366,6 +366,7 @@ def _cmd_render(args: argparse.Namespace) -> int:
         per_pattern=args.per_pattern,
         cover_px_per_ms=args.cover,
         preset=args.preset,
+        object_depth_mm=args.depth,
     )
     model = _sensor_model(args.sensor) if args.sensor else None
     if args.light_level is not None and model is None:
@@ -376,7 +377,9 @@ def _cmd_render(args: argparse.Namespace) -> int:
         check_positive("--" + flag.replace("_", "-"), getattr(args, flag))
     if not args.checkpoint_every >= 0:  # 0: after every step
         raise ParameterError(f"--checkpoint-every must be >= 0 s, got {args.checkpoint_every!r}")
-    check_budget(spec, args.max_samples)  # render_capture checks again; this is before any file
+    check_budget(
+        spec, args.max_samples, not args.no_truth
+    )  # render_capture checks again; this is before any file
     out = Path(args.out)
     if (out / "capture.exr").exists() and not args.force:
         raise ParameterError(f"--out {out} already holds a capture; pass --force to overwrite it")
@@ -388,6 +391,7 @@ def _cmd_render(args: argparse.Namespace) -> int:
             save_every_s=args.checkpoint_every,
             max_steps=args.max_steps,
             max_samples=args.max_samples,
+            truth=not args.no_truth,
         )
         if model is not None:
             from .sensor.apply import add_sensor_layers
@@ -403,6 +407,7 @@ def _cmd_render(args: argparse.Namespace) -> int:
         + ", ".join(p.name for p in paths)
     )
     print(_scale_line(m["optics"], m["coded_design"]))
+    print("layers: " + ", ".join(["capture", *cap.extra_layers]))
     return 0
 
 
@@ -455,6 +460,33 @@ def _cmd_validate_psf(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_study(args: argparse.Namespace) -> int:
+    from .study import load_study, run_study
+    from .study.engine import check_workers
+
+    workers = check_workers(args.workers)
+    spec = load_study(args.spec, quick=args.quick)  # every key checked before any work
+    where = args.scheduler or (f"{workers} local workers" if workers else "serially, in-process")
+    groups = len(spec.groups())
+    print(f"study {spec.name}: {len(spec.points)} points in {groups} renders, {where}")
+    try:
+        s = run_study(
+            spec, args.out, workers, args.scheduler, args.keep_images, args.force, not args.quiet
+        )
+    except KeyboardInterrupt:
+        print(
+            f"pacam study: interrupted; every finished point is in {Path(args.out) / 'results.csv'}"
+            ": run the same command again to resume",
+            file=sys.stderr,
+        )
+        return 130
+    print(
+        f"study {s.name}: {s.ran} points run, {s.skipped} already done, {s.failed} failed, "
+        f"{s.seconds:.1f} s -> {Path(args.out)}/{{{','.join(s.files)}}}"
+    )
+    return 1 if s.failed else 0
+
+
 def _add_design_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--preset", default="prototype", help="base camera (default: prototype)")
     p.add_argument("--depth", type=float, metavar="MM", help="object depth Z, mm (default 500)")
@@ -492,6 +524,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_reproduce(sub)
     _add_render(sub)
     _add_validate_psf(sub)
+    _add_study(sub)
     _add_demo(sub)
     return parser
 
@@ -621,10 +654,21 @@ def _add_render(sub) -> None:
     )
     p.add_argument("--per-pattern", action="store_true", help="also keep per-pattern images")
     p.add_argument(
+        "--no-truth",
+        action="store_true",
+        help="leave out the ground-truth layers sharp, depth, object_id and velocity",
+    )
+    p.add_argument(
         "--cover",
         type=float,
         metavar="PX_PER_MS",
         help="coded/levin: solve the design so this speed (preset px) is motion-invariant",
+    )
+    p.add_argument(
+        "--depth",
+        type=float,
+        metavar="MM",
+        help="the object depth the design is made for (default: the preset's, 500 mm)",
     )
     p.add_argument(
         "--sensor",
@@ -679,6 +723,28 @@ def _add_validate_psf(sub) -> None:
     p.add_argument("--force", action="store_true", help="overwrite results in DIR")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=_cmd_validate_psf)
+
+
+def _add_study(sub) -> None:
+    p = sub.add_parser(
+        "study", help="a rendered sweep (capture, sensor, deconvolution, scores) on Dask"
+    )
+    p.add_argument("spec", metavar="SPEC", help="a study TOML file, or crossover or speed")
+    p.add_argument("--out", required=True, metavar="DIR", help="results.csv, report.md, plots")
+    p.add_argument("--quick", action="store_true", help="the study's small version")
+    p.add_argument(
+        "--workers",
+        type=int,
+        metavar="N",
+        help="LocalCluster worker processes (default: one per core; 0: serial, in-process)",
+    )
+    p.add_argument(
+        "--scheduler", metavar="ADDRESS", help="run on an existing Dask cluster (tcp://host:8786)"
+    )
+    p.add_argument("--keep-images", action="store_true", help="keep each point's EXR layers")
+    p.add_argument("--force", action="store_true", help="start afresh over other results")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.set_defaults(func=_cmd_study)
 
 
 def _add_demo(sub) -> None:

@@ -138,7 +138,7 @@ def test_cli_render_with_sensor_layers(tmp_path):
     ]
     assert main(argv) == 0
     layers = read_exr(out / "capture.exr")
-    assert set(layers) == {"capture", "raw", "noisy"}
+    assert set(layers) == {"capture", "raw", "noisy", "sharp", "depth", "object_id", "velocity"}
     assert layers["raw"].shape == (30, 40)  # the Bayer mosaic
     assert np.all(layers["raw"] == np.round(layers["raw"]))
     noise = layers["noisy"] - layers["capture"]

@@ -79,7 +79,7 @@ def _capture(spec: CaptureSpec, out: Path, seed: int):
     """Render one capture; pass all but the reference through the sensor model."""
     from ..sensor.model import SensorModel
 
-    cap = render_capture(spec, partial_dir=out / ".partial")
+    cap = render_capture(spec, partial_dir=out / ".partial", truth=False)  # own reference
     if spec.mode != "reference":
         model = SensorModel.from_preset(SENSOR_PRESET)
         add_sensor_layers(cap, model, SENSOR_PRESET, LIGHT_LEVEL, seed)

@@ -50,7 +50,7 @@ def render_case(name: str, seed: int) -> np.ndarray:
         from ..scenes import psf_scene
 
         desc = psf_scene(500.0, 0.3, camera=capture_design(spec), radius_mm=0.2)
-    return render_capture(spec, progress=False, description=desc).image
+    return render_capture(spec, progress=False, description=desc, truth=False).image
 
 
 @dataclass

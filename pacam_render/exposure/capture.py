@@ -46,6 +46,7 @@ from ..model.modes import MODES as MODE_TABLE
 from ..model.modes import capture_camera, mode, sensor_params
 from .checkpoint import deferred_signals
 from .record import CaptureRecord
+from .truth import TRUTH_LAYERS
 
 MODES = tuple(MODE_TABLE)
 REFERENCE_EXPOSURE_MS = paper.EXPOSURE_MS
@@ -76,6 +77,9 @@ class CaptureSpec:
     preset: str = "prototype"
     cover_px_per_ms: float | None = None
     crop: tuple[int, int, int, int] | None = None
+    f_number: float | None = None
+    r_px: float | None = None
+    object_depth_mm: float | None = None
 
     def __post_init__(self) -> None:
         mode(self.mode)  # raises, listing the valid modes
@@ -90,6 +94,10 @@ class CaptureSpec:
         check_positive("max_step_px", self.max_step_px, "px")
         if self.cover_px_per_ms is not None:
             check_positive("cover_px_per_ms", self.cover_px_per_ms, "px/ms")
+        if self.object_depth_mm is not None:
+            check_positive("object_depth_mm", self.object_depth_mm, "mm")
+        if (self.f_number is not None or self.r_px is not None) and self.cover_px_per_ms is None:
+            raise ParameterError("f_number and r_px size a covering design: they need --cover")
 
     @property
     def image_size(self) -> tuple[int, int]:
@@ -137,7 +145,9 @@ def capture_design(spec: CaptureSpec) -> CameraDesign:
     """The preset's optics at the capture's resolution (pixel quantities scale with width).
 
     With ``cover_px_per_ms`` (a speed in the preset's own pixels), the design solver first
-    picks the defocus that makes that speed motion-invariant at the preset's F-number.
+    picks the defocus that makes that speed motion-invariant at the preset's F-number, or at
+    ``f_number``, or with the defocus radius ``r_px`` (preset px). ``object_depth_mm`` is the
+    depth the design is made for (default the preset's: 500 mm for the prototype).
 
     Parameters
     ----------
@@ -160,11 +170,12 @@ def capture_design(spec: CaptureSpec) -> CameraDesign:
     |s| <= |a_i| T cover the speed, with a_i = beta a_a (Eq. 18) and the defocus radius
     r = |beta| R (Eq. 12), so |a_i| = 4 r (R_max / R - 1) / T^2; the exposure is 2T.
     """
-    base = preset(spec.preset)
+    depth = {} if spec.object_depth_mm is None else {"object_depth_mm": spec.object_depth_mm}
+    base = preset(spec.preset, **depth)
     if spec.cover_px_per_ms is not None:
         from ..model.design import solve
 
-        base = solve(spec.cover_px_per_ms, base=base)
+        base = solve(spec.cover_px_per_ms, f_number=spec.f_number, r_px=spec.r_px, base=base)
     return base.with_(width_px=spec.width, height_px=spec.height)
 
 
@@ -374,8 +385,9 @@ def render_capture(
     description=None,
     max_steps: int = DEFAULT_MAX_STEPS,
     max_samples: int = DEFAULT_MAX_SAMPLES,
+    truth: bool = True,
 ) -> Capture:
-    """Render one capture.
+    """Render one capture, and its ground-truth layers.
 
     A static scene, or the reference, is one render; a moving scene is integrated over the
     time steps of :func:`plan_steps` (see the module docstring).
@@ -401,13 +413,17 @@ def render_capture(
         The most time steps a moving capture may take (``--max-steps``).
     max_samples : int, optional
         The most camera samples, spp x width x height (``--max-samples``).
+    truth : bool, optional
+        Also render the ground-truth layers ``sharp``, ``depth``, ``object_id`` and
+        ``velocity`` (:mod:`pacam_render.exposure.truth`; ``--no-truth`` leaves them out).
 
     Returns
     -------
     Capture
         The image, (height, width, 3) float64 in radiance x (open area / full aperture) x
         (exposure / 45 ms); the per-pattern images of a moving scene when ``spec.per_pattern``
-        is set; and the :class:`~pacam_render.exposure.record.CaptureRecord`.
+        is set; the ground-truth layers in ``extra_layers``, with their legend in
+        ``record.objects``; and the :class:`~pacam_render.exposure.record.CaptureRecord`.
 
     Raises
     ------
@@ -430,7 +446,7 @@ def render_capture(
     t in [-T, T] (the exposure is 2T), and each step renders the geometry at its mid-time.
     Same-seed captures are bit-identical (:mod:`pacam_render.render.passes`).
     """
-    check_budget(spec, max_samples)
+    check_budget(spec, max_samples, truth)
     lock = contextlib.nullcontext()
     if partial_dir is not None:
         from ..io.lock import output_lock
@@ -439,7 +455,7 @@ def render_capture(
     with lock, warnings.catch_warnings(record=True) as caught, deferred_signals() as flag:
         warnings.simplefilter("always", PacamWarning)
         run = _Run(partial_dir, progress, save_every_s, stop_after_steps, max_steps, flag)
-        cap = _render(spec, description, run)
+        cap = _render(spec, description, run, truth)
     cap.record.notes = _replay(caught)
     return cap
 
@@ -451,20 +467,22 @@ def _replay(caught) -> list[str]:
     return [str(w.message) for w in caught if issubclass(w.category, PacamWarning)]
 
 
-def check_budget(spec: CaptureSpec, max_samples: int = DEFAULT_MAX_SAMPLES) -> None:
+def check_budget(
+    spec: CaptureSpec, max_samples: int = DEFAULT_MAX_SAMPLES, truth: bool = False
+) -> None:
     """Refuse a capture whose samples or memory are beyond bounds, before any work.
 
     Raises
     ------
     ParameterError
         Naming ``--max-samples``, or ``--width`` and ``--height`` for memory (about 160 bytes
-        per pixel, plus 24 per pixel and pattern with ``per_pattern``).
+        per pixel, plus 24 per pixel and pattern with ``per_pattern`` and 96 with ``truth``).
     """
     from ..render.passes import MAX_WAVEFRONT
 
     w, h = spec.image_size
     pixels = w * h
-    per_px = 160 + (24 * paper.N_PATTERNS if spec.per_pattern else 0)
+    per_px = 160 + (24 * paper.N_PATTERNS if spec.per_pattern else 0) + (96 if truth else 0)
     check_memory(f"a {w}x{h} capture", per_px * pixels, "--width/--height or --crop")
     if pixels > MAX_WAVEFRONT:
         raise ParameterError(
@@ -479,7 +497,7 @@ def check_budget(spec: CaptureSpec, max_samples: int = DEFAULT_MAX_SAMPLES) -> N
     )
 
 
-def _render(spec: CaptureSpec, description, run: _Run) -> Capture:
+def _render(spec: CaptureSpec, description, run: _Run, truth: bool) -> Capture:
     from ..render.backend import select_variant
     from ..render.passes import render_passes
     from ..scenes import load_scene
@@ -494,6 +512,7 @@ def _render(spec: CaptureSpec, description, run: _Run) -> Capture:
     scene = desc.load(sensor=sensor_entry(spec, cam, params, cam.exposure_ms))
     sensor = scene.sensors()[0]
     run.check_signal()
+    layers, objects = _truth(scene, desc, spec, design, run) if truth else ({}, None)
     if desc.is_static or spec.mode == "reference":  # one pass, no geometry update
         if spec.per_pattern:
             _note("--per-pattern keeps nothing here: a static scene or the reference is one pass")
@@ -502,10 +521,26 @@ def _render(spec: CaptureSpec, description, run: _Run) -> Capture:
         patterns, steps = {}, {"n_steps": 1, "n_geometry_updates": 0, "effective_spp": spec.spp}
     else:
         image, patterns, steps = _render_moving(scene, sensor, desc, design, cam, spec, run)
+    if spec.mode == "reference" and truth:
+        layers["sharp"] = image
     seconds = time.perf_counter() - t_start
-    return Capture(
-        image, patterns, _record(spec, design, cam, params, sensor, variant, seconds, steps)
+    record = _record(spec, design, cam, params, sensor, variant, seconds, steps)
+    record.objects = objects
+    return Capture(image, patterns, record, {k: layers[k] for k in TRUTH_LAYERS if k in layers})
+
+
+def _truth(scene, desc, spec, design, run: _Run) -> tuple[dict, dict]:
+    """The ground-truth layers, rendered before the steps move anything (scene at t = 0).
+
+    The reference's own image is its ``sharp`` layer, so it is not rendered twice."""
+    from .truth import render_truth
+
+    layers, objects = render_truth(
+        scene, desc, spec, design, spec.mode != "reference", run.signalled
     )
+    if layers is None:
+        run.check_signal()
+    return layers, objects
 
 
 def _note(message: str) -> None:
@@ -716,8 +751,9 @@ def write_capture(cap: Capture, out: Path, force: bool) -> list[Path]:
 
     Notes
     -----
-    capture.exr holds the layers ``capture`` (the image), the extra layers (``raw`` and
-    ``noisy`` after the sensor) and ``subNN`` per pattern image. The preview shows the
+    capture.exr holds the layers ``capture`` (the image), the extra layers (the ground truth
+    of :mod:`~pacam_render.exposure.truth`, and ``raw`` and ``noisy`` after the sensor) and
+    ``subNN`` per pattern image. The preview shows the
     ``noisy`` layer when there is one (else the image), exposed by 1 / ``light_factor``
     (auto-exposed when that is 0); capture.json is the record. Each file is
     written to a temporary file and renamed.

@@ -82,16 +82,19 @@ class CaptureRecord:
     sensor: SensorRecord | None = None
     noise_sigma: float | None = None
     notes: list[str] = field(default_factory=list)
+    """What the user was told while the capture was made (``note:`` lines of the CLI)."""
     crop: dict | None = None
     """The window of the sensor rendered: x, y, width, height and the sensor's size, px."""
-    """What the user was told while the capture was made (``note:`` lines of the CLI)."""
+    objects: dict | None = None
+    """The ``object_id`` layer's legend: id (a string) to shape id; 0 is no surface."""
     extra: dict = field(default_factory=dict)
     """Keys this version does not know (kept, and written back)."""
 
     def to_json(self) -> dict:
         """The JSON-ready dict; optional fields that are unset are left out."""
         out = {k: v for k, v in asdict(self).items() if k not in ("extra", "sensor")}
-        for key in ("resumed_from_step", "fastest_image_speed_px_per_ms", "noise_sigma", "crop"):
+        optional = ("resumed_from_step", "fastest_image_speed_px_per_ms", "noise_sigma")
+        for key in (*optional, "crop", "objects"):
             if out[key] is None:
                 del out[key]
         if self.sensor is not None:

@@ -1,5 +1,6 @@
-"""Multi-layer float32 OpenEXR files: layer "name" holds channels name.R/G/B, or name.Y for a
-single-channel layer. Reading a missing or corrupt file, or a missing layer, is a clear error."""
+"""Multi-layer float32 OpenEXR files: layer "name" holds channels name.R/G/B, name.Y for a
+single-channel layer, or name.U/V for a two-channel one (a velocity).
+Reading a missing or corrupt file, or a missing layer, is a clear error."""
 
 from __future__ import annotations
 
@@ -12,6 +13,7 @@ from ..errors import ParameterError
 from .outputs import atomic_save
 
 RGB = ("R", "G", "B")
+UV = ("U", "V")
 
 
 def _channels(layers: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
@@ -28,9 +30,12 @@ def _channels(layers: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
                 out[f"{name}.{ch}"] = np.ascontiguousarray(a[..., c])
         elif a.ndim == 3 and a.shape[2] == 1:
             out[f"{name}.Y"] = np.ascontiguousarray(a[..., 0])
+        elif a.ndim == 3 and a.shape[2] == 2:
+            for c, ch in enumerate(UV):
+                out[f"{name}.{ch}"] = np.ascontiguousarray(a[..., c])
         else:
             raise ParameterError(
-                f"layer {name!r} must be (H, W), (H, W, 1) or (H, W, 3), got {a.shape}"
+                f"layer {name!r} must be (H, W), (H, W, 1), (H, W, 2) or (H, W, 3), got {a.shape}"
             )
     return out
 
@@ -50,7 +55,7 @@ def write_exr(path: str | os.PathLike, layers: dict[str, np.ndarray], force: boo
 
 
 def read_exr(path: str | os.PathLike) -> dict[str, np.ndarray]:
-    """All layers of an EXR, as float32 (H, W) or (H, W, 3) arrays."""
+    """All layers of an EXR, as float32 (H, W), (H, W, 2) or (H, W, 3) arrays."""
     import OpenEXR
 
     p = Path(path)
@@ -69,6 +74,8 @@ def read_exr(path: str | os.PathLike) -> dict[str, np.ndarray]:
     for layer, chans in groups.items():
         if set(RGB) <= set(chans):
             out[layer] = np.stack([chans[c] for c in RGB], axis=-1)
+        elif set(chans) == set(UV):
+            out[layer] = np.stack([chans[c] for c in UV], axis=-1)
         elif len(chans) == 1:
             out[layer] = next(iter(chans.values()))
         else:

@@ -52,7 +52,9 @@ def pass_seed(seed: int, index: int) -> int:
     return int(np.random.SeedSequence([seed, 1 << 20, index]).generate_state(1)[0] >> 1)
 
 
-def render_passes(scene, spp: int, seed: int, stop=None) -> np.ndarray | None:
+def render_passes(
+    scene, spp: int, seed: int, stop=None, sensor=None, integrator=None
+) -> np.ndarray | None:
     """``mi.render(scene, spp, seed)``, deterministically: the mean of :func:`split_spp` passes.
 
     Parameters
@@ -65,6 +67,8 @@ def render_passes(scene, spp: int, seed: int, stop=None) -> np.ndarray | None:
     stop : callable, optional
         Asked after each pass: True abandons the render. (On SIGINT Mitsuba cancels the
         render under way and returns what it has, so a pass that saw the signal is partial.)
+    sensor, integrator : mitsuba objects, optional
+        Render through these instead of the scene's own (``mi.render``'s arguments).
 
     Returns
     -------
@@ -74,13 +78,16 @@ def render_passes(scene, spp: int, seed: int, stop=None) -> np.ndarray | None:
     """
     import mitsuba as mi
 
-    film = scene.sensors()[0].film()
+    sensor = scene.sensors()[0] if sensor is None else sensor
+    film = sensor.film()
     w, h = (int(v) for v in film.crop_size())
     passes = split_spp(spp, w * h)
     acc = 0.0
     for i, n in enumerate(passes):
         s = seed if i == 0 else pass_seed(seed, i)
-        image = np.array(mi.render(scene, spp=n, seed=s), dtype=np.float64)
+        image = np.array(
+            mi.render(scene, sensor=sensor, integrator=integrator, spp=n, seed=s), dtype=np.float64
+        )
         if stop is not None and stop():
             return None
         acc = image if len(passes) == 1 else acc + n * image

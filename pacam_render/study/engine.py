@@ -1,0 +1,132 @@
+"""The engine that runs independent tasks: Dask distributed, or serially in-process.
+
+* Default: a ``LocalCluster`` started here with ``workers`` processes (spawned, since Mitsuba's
+  JIT is not fork-safe), one task at a time each, and Dr.Jit's thread count on each worker set
+  to cores / workers by the task itself.
+* ``scheduler``: an existing Dask cluster by address (``dask scheduler`` / ``dask worker``, or
+  dask-jobqueue on SLURM); its workers need pacam_render installed.
+* ``workers=0``: in this process, one task after another (for debugging).
+
+A task whose worker dies is retried once by the scheduler (``allowed-failures = 1`` on the
+embedded cluster; a cluster of your own keeps its own setting); if it dies again its result is
+the exception (``KilledWorker``), handed to ``on_done`` like any result, and the rest go on.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import os
+import uuid
+from collections.abc import Callable, Iterator, Sequence
+
+from ..errors import ParameterError
+
+CONNECT_TIMEOUT_S = 10.0
+"""How long to wait for a ``--scheduler`` to answer, s."""
+ALLOWED_FAILURES = 1
+"""Worker deaths a task may cause before it is given up (1: one retry)."""
+
+
+def default_workers() -> int:
+    """One worker per core."""
+    return max(1, os.cpu_count() or 1)
+
+
+def threads_per_worker(workers: int) -> int:
+    """Dr.Jit threads for each of ``workers`` processes on this machine: cores / workers."""
+    return max(1, (os.cpu_count() or 1) // max(1, workers))
+
+
+def check_workers(workers: int | None) -> int:
+    """``--workers``: an integer >= 0 (0: serial), default the number of cores."""
+    if workers is None:
+        return default_workers()
+    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 0:
+        raise ParameterError(f"--workers must be an integer >= 0 (0: serial), got {workers!r}")
+    return workers
+
+
+def run_tasks(
+    fn: Callable,
+    tasks: Sequence,
+    on_done: Callable,
+    workers: int = 0,
+    scheduler: str | None = None,
+) -> None:
+    """Run ``fn(task)`` for every task; call ``on_done(task, result)`` here as each finishes.
+
+    Parameters
+    ----------
+    fn : callable
+        A module-level function (workers import it by name).
+    tasks : sequence
+        Picklable arguments, one per task.
+    on_done : callable
+        Called in this process with the task and its result, or the exception it raised.
+    workers : int, optional
+        Processes of the embedded LocalCluster; 0 runs serially here.
+    scheduler : str, optional
+        The address of an existing Dask scheduler (``tcp://host:8786``); ``workers`` is
+        then ignored.
+
+    Raises
+    ------
+    ParameterError
+        If the scheduler does not answer within :data:`CONNECT_TIMEOUT_S`.
+    KeyboardInterrupt
+        On Ctrl-C; the tasks under way are cancelled, and finished ones were handed on.
+    """
+    if scheduler is None and workers == 0:
+        for task in tasks:
+            on_done(task, fn(task))
+        return
+    from distributed import as_completed
+
+    with _client(workers, scheduler) as client:
+        tag = uuid.uuid4().hex[:8]
+        futures = {
+            client.submit(fn, t, pure=False, key=f"pacam-{tag}-{i}"): t for i, t in enumerate(tasks)
+        }
+        try:
+            for fut in as_completed(futures):
+                try:
+                    result = fut.result()
+                except Exception as exc:  # KilledWorker, or an error outside fn's own handling
+                    result = exc
+                on_done(futures[fut], result)
+        except BaseException:
+            client.cancel(list(futures))
+            raise
+
+
+@contextlib.contextmanager
+def _client(workers: int, scheduler: str | None) -> Iterator:
+    import dask
+    from distributed import Client, LocalCluster
+
+    if scheduler is not None:
+        try:
+            client = Client(scheduler, timeout=CONNECT_TIMEOUT_S)
+        except (OSError, TimeoutError, ValueError) as exc:
+            raise ParameterError(
+                f"--scheduler {scheduler}: no Dask scheduler answered within "
+                f"{CONNECT_TIMEOUT_S:g} s ({type(exc).__name__}: {exc})"
+            ) from None
+        with client:
+            yield client
+        return
+    config = {
+        "distributed.worker.multiprocessing-method": "spawn",  # Mitsuba's JIT is not fork-safe
+        "distributed.scheduler.allowed-failures": ALLOWED_FAILURES,
+    }
+    with dask.config.set(config):
+        cluster = LocalCluster(
+            n_workers=workers,
+            threads_per_worker=1,
+            processes=True,
+            dashboard_address=None,
+            silence_logs=logging.ERROR,
+        )
+        with cluster, Client(cluster) as client:
+            yield client

@@ -1,0 +1,230 @@
+"""One task of a study: render a capture with its ground truth once, then for each of its points
+apply the sensor, deconvolve and score. Runs the same in-process or on a Dask worker.
+
+A point's result depends only on its own values and seed: the render is bit-identical for a
+seed (:mod:`pacam_render.render.passes`), and the sensor's noise is drawn from the point's seed.
+"""
+
+from __future__ import annotations
+
+import time
+import traceback
+import warnings
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from .spec import Point, parse_design
+
+STILL_KERNEL_MODES = ("normal", "short")
+"""Modes restored with a delta kernel: denoised, not deblurred (see :func:`kernel`)."""
+
+COLUMNS = (
+    "point", "scene", "mode", "design", "speed_px_per_ms", "depth_mm",
+    "light_level_photons_per_px_per_ms", "sensor", "method", "seed",
+    "psnr_db", "ssim", "psnr_moving_db", "psnr_static_db", "psnr_by_object",
+    "r_px", "a_i_px_per_ms2", "velocity_range_px_per_ms", "exposure_ms", "light_factor",
+    "noise_sigma", "render_noise_sigma", "render_s", "total_s", "status",
+)  # fmt: skip
+"""The columns of ``results.csv``, in order. Speeds are in the preset's own pixels (px/ms of
+the full sensor); r, a_i and the invariant range are the capture camera's at the study's
+resolution; ``noise_sigma`` is the sensor's and ``render_noise_sigma`` the render's Monte
+Carlo noise, white = 1 (the deconvolver is given their root sum of squares); ``render_s`` is
+the shared render of the point's group."""
+
+
+@dataclass(frozen=True)
+class Task:
+    """A render and the points scored on it."""
+
+    render: dict
+    points: tuple[Point, ...]
+    keep_dir: str | None = None
+    threads: int | None = None
+
+
+def run_task(task: Task) -> list[dict]:
+    """Render ``task``'s capture, then score each point; errors become the points' status.
+
+    Returns
+    -------
+    list of dict
+        One row per point, keyed by :data:`COLUMNS`; ``status`` is ``ok`` or ``error: ...``.
+    """
+    from ..exposure.capture import CaptureInterrupted
+    from ..limits import PacamWarning
+
+    _set_threads(task.threads)
+    t0 = time.perf_counter()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", PacamWarning)  # notes stay in the capture's record
+        try:
+            cap, desc, info = _render(task.render, task.points[0])
+        except CaptureInterrupted:  # Ctrl-C in a serial run stops the study, not the point
+            raise
+        except Exception as exc:  # a point that cannot render is reported, the study goes on
+            return [
+                point_row(p, {}, _status(exc), 0.0, time.perf_counter() - t0) for p in task.points
+            ]
+        render_s = time.perf_counter() - t0
+        rows = []
+        for p in task.points:
+            t1 = time.perf_counter()
+            try:
+                values, status = {**info, **_evaluate(cap, desc, p, task)}, "ok"
+            except Exception as exc:
+                values, status = info, _status(exc)
+            rows.append(point_row(p, values, status, render_s, render_s + time.perf_counter() - t1))
+    return rows
+
+
+def _status(exc: Exception) -> str:
+    where = traceback.extract_tb(exc.__traceback__)[-1]
+    return f"error: {type(exc).__name__}: {exc} ({Path(where.filename).name}:{where.lineno})"
+
+
+def _set_threads(n: int | None) -> None:
+    """Dr.Jit's thread count on this worker (cores / workers), set before the first render."""
+    if n:
+        import drjit as dr
+
+        dr.set_thread_count(int(n))
+
+
+def capture_inputs(render: dict, p: Point):
+    """The CaptureSpec and scene description of a point (its speed and depth applied)."""
+    from ..exposure.capture import CaptureSpec
+    from ..model.camera import preset
+    from ..scenes import load_scene
+    from ..scenes.edit import at_depth, moving_depth_mm, scene_speed_px_per_ms, with_speed
+
+    spec = CaptureSpec(
+        scene=p.scene,
+        mode=p.mode,
+        width=render["width"],
+        height=render["height"],
+        crop=tuple(render["crop"]) if render["crop"] else None,
+        spp=render["spp"],
+        seed=p.seed,
+        max_step_px=render["max_step_px"],
+        preset=render["preset"],
+        object_depth_mm=render["object_depth_mm"],
+        **parse_design(p.design),
+    )
+    full = preset(render["preset"])  # speeds are in the preset's own pixels
+    desc = load_scene(p.scene)
+    if p.depth_mm is not None:
+        desc = at_depth(desc, p.depth_mm, full)
+    if p.speed_px_per_ms is not None:
+        desc = with_speed(desc, p.speed_px_per_ms, full)
+    info = {"speed_px_per_ms": scene_speed_px_per_ms(desc, full)}
+    return spec, desc, {**info, "depth_mm": moving_depth_mm(desc, full)}
+
+
+def _render(render: dict, p: Point):
+    from ..exposure.capture import render_capture
+
+    spec, desc, info = capture_inputs(render, p)
+    cap = render_capture(spec, progress=False, description=desc, truth=True)
+    optics = cap.record.optics
+    info.update({k: optics[k] for k in ("r_px", "a_i_px_per_ms2", "velocity_range_px_per_ms")})
+    info.update(exposure_ms=cap.record.exposure_ms, light_factor=cap.record.light_factor)
+    return cap, desc, info
+
+
+def _evaluate(cap, desc, p: Point, task: Task) -> dict:
+    """Sensor, deconvolution and scores of one point on the rendered capture."""
+    from ..sensor.apply import add_sensor_layers
+    from ..sensor.model import SensorModel
+    from .score import score
+
+    add_sensor_layers(cap, SensorModel.from_preset(p.sensor), p.sensor, p.light_level, p.seed)
+    noisy = cap.extra_layers["noisy"] / cap.record.light_factor  # white reads ~ its reflectance
+    sigma = cap.record.sensor.noise_sigma_white_units
+    # The render's own Monte Carlo noise adds to the sensor's: tell the deconvolver both.
+    total = float(np.hypot(sigma, _render_sigma(cap)))
+    est = noisy if p.method == "none" else _deconvolve(cap, noisy, total, p.method)
+    if task.keep_dir is not None:
+        _keep(cap, est, p, Path(task.keep_dir))
+    shift = max(4, round(32 * cap.record.spec["width"] / 1280))  # -s^2/(2 a_i) reaches 25 px
+    out = score(est, cap.extra_layers, cap.record.objects, set(desc.moving_ids), shift)
+    return {**out, "noise_sigma": sigma, "render_noise_sigma": _render_sigma(cap)}
+
+
+def _render_sigma(cap) -> float:
+    """The Monte Carlo noise of the render (before the sensor), white = 1, by wavelet MAD."""
+    from ..restore.deconvolve import estimate_noise_sigma
+
+    if "_render_sigma" not in cap.record.extra:  # once per render
+        cap.record.extra["_render_sigma"] = estimate_noise_sigma(
+            cap.image / cap.record.light_factor
+        )
+    return cap.record.extra["_render_sigma"]
+
+
+def _deconvolve(cap, noisy, sigma: float, method: str) -> np.ndarray:
+    """Restore with the mode's kernel (:func:`kernel`) and ``method``'s prior."""
+    from ..restore.deconvolve import deconvolve
+
+    return deconvolve(noisy, kernel(cap), method, noise_sigma=sigma)
+
+
+def kernel(cap) -> np.ndarray:
+    """The kernel a study restores a capture with.
+
+    The motion-invariant modes (``coded``, ``coded_continuous``, ``levin``) use their analytic
+    PSF at s = 0; ``flutter`` the PSF at the fastest object's own velocity (Raskar et al.
+    assume the motion known); ``normal`` and ``short``, whose blur depends on each object's
+    unknown speed, a delta, so that the method only denoises them with the same prior, and
+    every mode is restored alike.
+    """
+    from ..exposure.record import analytic_psf
+
+    mode = cap.record.mode
+    if mode in STILL_KERNEL_MODES:
+        return np.ones((1, 1))
+    return analytic_psf(cap.record, _fastest_u(cap) if mode == "flutter" else 0.0)
+
+
+def _fastest_u(cap) -> float:
+    """The horizontal image velocity of the fastest-moving visible object, px/ms (median)."""
+    u = cap.extra_layers["velocity"][..., 0]
+    ids = cap.extra_layers["object_id"]
+    fastest = ids[np.unravel_index(np.argmax(np.abs(u)), u.shape)]
+    return float(np.median(u[ids == fastest]))
+
+
+def _keep(cap, est, p: Point, folder: Path) -> None:
+    from ..io.exr import write_exr
+    from ..io.outputs import write_json
+
+    folder.mkdir(parents=True, exist_ok=True)
+    layers = {"estimate": est, "noisy": cap.extra_layers["noisy"], "capture": cap.image}
+    layers.update({k: cap.extra_layers[k] for k in ("sharp", "depth", "object_id", "velocity")})
+    write_exr(folder / f"point_{p.index:05d}.exr", layers, force=True)
+    write_json(folder / f"point_{p.index:05d}.json", cap.meta, force=True)
+
+
+def point_row(p: Point, values: dict, status: str, render_s: float, total_s: float) -> dict:
+    row = {c: "" for c in COLUMNS}
+    row.update(
+        point=p.index,
+        scene=p.scene,
+        mode=p.mode,
+        design=p.design,
+        speed_px_per_ms=p.speed_px_per_ms,
+        depth_mm=p.depth_mm,
+        light_level_photons_per_px_per_ms=p.light_level,
+        sensor=p.sensor,
+        method=p.method,
+        seed=p.seed,
+    )
+    row.update({k: _short(v) for k, v in values.items() if k in row and v is not None})
+    row.update(render_s=round(render_s, 3), total_s=round(total_s, 3), status=status)
+    return row
+
+
+def _short(v):
+    """Floats to 7 significant digits: the CSV stays readable, and far finer than any score."""
+    return float(f"{v:.7g}") if isinstance(v, float) else v

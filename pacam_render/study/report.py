@@ -1,0 +1,213 @@
+"""A study's ``report.md`` and plots, written from ``results.csv`` (so a resumed or partly failed
+study reports everything finished so far).
+
+* ``crossover`` (Fig. 8 rendered): PSNR of the moving objects against light level, one line per
+  capture, one panel per speed; and the light levels at which each coded capture overtakes the
+  short and the normal exposure.
+* ``speed`` (Fig. 6 rendered): PSNR of the moving objects against their speed, one line per
+  capture.
+* every report: a table of all points.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+from collections import defaultdict
+from pathlib import Path
+
+import numpy as np
+
+from ..io.outputs import atomic_save, write_text
+from .results import RESULTS
+from .spec import StudySpec
+
+NUMERIC = (
+    "speed_px_per_ms", "depth_mm", "light_level_photons_per_px_per_ms", "psnr_db", "ssim",
+    "psnr_moving_db", "psnr_static_db", "r_px", "a_i_px_per_ms2", "velocity_range_px_per_ms",
+    "exposure_ms", "noise_sigma", "render_s", "total_s",
+)  # fmt: skip
+LIGHT = "light_level_photons_per_px_per_ms"
+
+
+def load_rows(out: Path) -> list[dict]:
+    """The rows of ``out/results.csv``, numbers as floats (nan where empty)."""
+    with open(out / RESULTS, newline="", encoding="utf-8") as f:
+        rows = list(csv.DictReader(f))
+    for r in rows:
+        for k in NUMERIC:
+            r[k] = float(r[k]) if r.get(k) not in (None, "") else math.nan
+    return rows
+
+
+def label(row: dict, designs: int) -> str:
+    """A capture's name in plots: its mode, its design when the study has several, its method."""
+    text = row["mode"] + (f" {row['design']}" if designs > 1 else "")
+    return text + ("" if row["method"] == "none" else f" + {row['method']}")
+
+
+def curves(rows: list[dict], x: str, y: str, panel: str | None = None) -> dict:
+    """{panel value: {label: (xs, mean ys over seeds)}} of the rows with status ok."""
+    designs = len({r["design"] for r in rows})
+    acc: dict = defaultdict(lambda: defaultdict(lambda: defaultdict(list)))
+    for r in rows:
+        if r["status"] == "ok":
+            acc[r[panel] if panel else ""][label(r, designs)][r[x]].append(r[y])
+    return {
+        p: {
+            lab: (np.array(sorted(d)), np.array([np.mean(d[k]) for k in sorted(d)]))
+            for lab, d in c.items()
+        }
+        for p, c in acc.items()
+    }
+
+
+def crossings(xs: np.ndarray, a: np.ndarray, b: np.ndarray) -> list[float]:
+    """Where curve a crosses curve b (both at ``xs``), interpolated on log x."""
+    d = a - b
+    out = []
+    for i in range(len(xs) - 1):
+        if d[i] == 0:
+            out.append(float(xs[i]))
+        elif d[i] * d[i + 1] < 0:
+            lx = np.log(xs[i]) + (np.log(xs[i + 1]) - np.log(xs[i])) * d[i] / (d[i] - d[i + 1])
+            out.append(float(np.exp(lx)))
+    return out
+
+
+def write_report(spec: StudySpec, out: Path) -> list[str]:
+    """``report.md`` and the study's plots in ``out``; returns the file names written."""
+    rows = load_rows(out)
+    files, text = [], [f"# Study `{spec.name}`", "", spec.description.strip(), ""]
+    ok = [r for r in rows if r["status"] == "ok"]
+    text += [_setup(spec, rows, ok), ""]
+    if spec.report == "crossover" and ok:
+        files.append(
+            _plot(
+                out,
+                "crossover.png",
+                curves(ok, LIGHT, "psnr_moving_db", "speed_px_per_ms"),
+                "light level (photons/px/ms, white, F2.8)",
+                "speed",
+                log=True,
+            )
+        )
+        text += _crossover_text(ok)
+    if spec.report == "speed" and ok:
+        files.append(
+            _plot(
+                out,
+                "speed.png",
+                curves(ok, "speed_px_per_ms", "psnr_moving_db", LIGHT),
+                "speed of the moving object (px/ms, preset pixels)",
+                "light",
+                log=False,
+            )
+        )
+        text += _speed_text(ok)
+    text += ["## Every point", "", *_table(rows)]
+    write_text(out / "report.md", "\n".join(text) + "\n", force=True)
+    return ["results.csv", "report.md", *files]
+
+
+def _setup(spec: StudySpec, rows: list[dict], ok: list[dict]) -> str:
+    r = spec.render
+    where = (
+        f"a {r['crop'][2]}x{r['crop'][3]} px window at ({r['crop'][0]}, {r['crop'][1]}) of"
+        if r["crop"]
+        else "the whole frame of"
+    )
+    failed = len(rows) - len(ok)
+    return (
+        f"{where} a {r['width']}x{r['height']} px `{r['preset']}` sensor, {r['spp']} spp, "
+        f"sensor model `{r['sensor']}` unless a point says otherwise; {len(rows)} of "
+        f"{len(spec.points)} points done, {failed} failed. Scores are against each capture's "
+        "own `sharp` layer; the moving objects' PSNR takes each object at its best horizontal "
+        "shift (a motion-invariant PSF moves it by -s^2 / (2 a_i)). Speeds are in the preset's "
+        "own pixels (px/ms of the full sensor)."
+    )
+
+
+def _plot(out: Path, name: str, data: dict, xlabel: str, panel_name: str, log: bool) -> str:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    keys = sorted(data, key=lambda v: float(v) if v != "" else 0)
+    fig, axes = plt.subplots(1, len(keys), figsize=(5.2 * len(keys), 4), squeeze=False)
+    for ax, key in zip(axes[0], keys):
+        for lab, (xs, ys) in sorted(data[key].items()):
+            ax.plot(xs, ys, "o-" if "coded" in lab else "s--", label=lab, ms=4)
+        ax.set_xscale("log" if log else "linear")
+        ax.set_xlabel(xlabel)
+        ax.set_ylabel("PSNR of the moving objects (dB)")
+        ax.set_title(f"{panel_name} {float(key):.4g}" if key != "" else "")
+        ax.grid(alpha=0.3)
+    axes[0][-1].legend(fontsize=7)
+    fig.tight_layout()
+    atomic_save(out / name, lambda tmp: fig.savefig(tmp, dpi=90, format="png"), force=True)
+    plt.close(fig)
+    return name
+
+
+def _crossover_text(ok: list[dict]) -> list[str]:
+    lines = ["## Where the coded camera wins", ""]
+    for speed, cs in sorted(curves(ok, LIGHT, "psnr_moving_db", "speed_px_per_ms").items()):
+        sigma = curves([r for r in ok if r["speed_px_per_ms"] == speed], LIGHT, "noise_sigma")[""]
+        for lab, (xs, ys) in sorted(cs.items()):
+            if not lab.startswith("coded"):
+                continue
+            for other in ("short", "normal"):
+                match = [k for k in cs if k.startswith(other)]
+                if not match:
+                    continue
+                ox, oy = cs[match[0]]
+                common = np.intersect1d(xs, ox)
+                a, b = ys[np.isin(xs, common)], oy[np.isin(ox, common)]
+                lines.append(_crossing_line(speed, lab, match[0], common, a, b, sigma.get(lab)))
+    return lines + [""]
+
+
+def _crossing_line(speed, lab, other, xs, a, b, sigma) -> str:
+    head = f"- speed {float(speed):.3g} px/ms, {lab} vs {other}: "
+    cross = crossings(xs, a, b)
+    if not cross:
+        better = "better" if np.all(a > b) else "worse"
+        return (
+            head
+            + f"{better} at every light level ({np.min(a - b):+.2f} to {np.max(a - b):+.2f} dB)"
+        )
+    parts = []
+    for c in cross:
+        s = ""
+        if sigma is not None:  # the coded capture's noise there, interpolated on log-log
+            at = np.exp(np.interp(np.log(c), np.log(sigma[0]), np.log(sigma[1])))
+            s = f" (coded noise sigma {at:.4f})"
+        parts.append(f"{c:.3g} photons/px/ms{s}")
+    wins = "below" if a[0] > b[0] else "above"
+    return head + f"crosses at {', '.join(parts)}; coded wins {wins} the first crossing"
+
+
+def _speed_text(ok: list[dict]) -> list[str]:
+    lines = ["## Flatness over speed", ""]
+    for light, cs in sorted(curves(ok, "speed_px_per_ms", "psnr_moving_db", LIGHT).items()):
+        for lab, (xs, ys) in sorted(cs.items()):
+            lines.append(
+                f"- light {float(light):.4g}, {lab}: {ys.min():.2f} to {ys.max():.2f} dB over "
+                f"{xs.min():.3g} to {xs.max():.3g} px/ms (spread {ys.max() - ys.min():.2f} dB)"
+            )
+    return lines + [""]
+
+
+def _table(rows: list[dict]) -> list[str]:
+    cols = "point mode design speed light method r_px PSNR SSIM moving static s status".split()
+    out = ["| " + " | ".join(cols) + " |", "|" + "---|" * len(cols)]
+    for r in rows:
+        out.append(
+            f"| {r['point']} | {r['mode']} | {r['design']} | {r['speed_px_per_ms']:.3g} | "
+            f"{r[LIGHT]:.4g} | {r['method']} | {r['r_px']:.3g} | {r['psnr_db']:.2f} | "
+            f"{r['ssim']:.3f} | {r['psnr_moving_db']:.2f} | {r['psnr_static_db']:.2f} | "
+            f"{r['total_s']:.1f} | {r['status'][:60]} |"
+        )
+    return out

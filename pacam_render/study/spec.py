@@ -1,0 +1,324 @@
+"""Study specifications: a TOML file (or a built-in name) parsed once into typed points.
+
+A study renders captures, passes them through the image sensor, deconvolves and scores them
+(:mod:`.point`). Its TOML has four tables::
+
+    [study]   name, report ("crossover", "speed" or "table"), description
+    [render]  what every point shares: scene, preset, object_depth_mm (the depth the designs
+              are made for), width, height, crop, spp, max_step_px, sensor
+    [grid]    axes, each a list: every combination is a point (or several [[grid]] tables:
+              the union of their points)
+    [quick]   overrides for --quick: a [quick.render] and a [quick.grid] table
+
+and, instead of or beside ``[grid]``, an array ``[[points]]`` of single points. The axes are
+:data:`AXES`. Points that differ only in light level, sensor or method share one render
+(:meth:`Point.render_key`). Method ``none`` scores the capture as it is; any other restores it
+with the mode's kernel (:func:`~pacam_render.study.point.kernel`). Every key is checked
+before any work, and an error names it.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import itertools
+import json
+from dataclasses import asdict, dataclass, field
+from importlib import resources
+from pathlib import Path
+
+from ..errors import ParameterError
+
+AXES = {
+    "scene": "train",
+    "mode": "coded",
+    "design": "prototype",
+    "speed_px_per_ms": None,
+    "depth_mm": None,
+    "light_level": 300.0,
+    "sensor": None,
+    "method": "hl",
+    "seed": 0,
+}
+"""Sweepable axes and their defaults (None: the scene's own speed and depth, the render's
+sensor). ``speed_px_per_ms``: image speed of the scene's fastest moving shape at t = 0 in the
+preset's own pixels (the motions are scaled); ``depth_mm``: the moving shapes' depth (they are
+moved along z, their image speed kept); ``light_level``: photons/px/ms of white through F2.8;
+``design``: ``prototype`` (the preset), or ``cover=S`` with optional ``,F=N`` or ``,r=PX``
+(:func:`~pacam_render.model.design.solve`)."""
+RENDER = {
+    "scene": "train",
+    "preset": "prototype",
+    "object_depth_mm": None,
+    "width": 320,
+    "height": 240,
+    "crop": None,
+    "spp": 64,
+    "max_step_px": 0.5,
+    "sensor": "grasshopper-icx285",
+}
+"""Settings every point shares, and their defaults."""
+QUICK_RENDER = {"width": 160, "height": 120, "crop": None, "spp": 16}
+"""--quick for a study without a [quick] table: a small binned frame at 16 spp."""
+REPORTS = ("crossover", "speed", "table")
+
+
+@dataclass(frozen=True)
+class Point:
+    """One point of a study: a capture, a sensor, a deconvolution and a seed."""
+
+    index: int
+    scene: str
+    mode: str
+    design: str
+    speed_px_per_ms: float | None
+    depth_mm: float | None
+    light_level: float
+    sensor: str
+    method: str
+    seed: int
+
+    def render_key(self) -> tuple:
+        """What the render depends on: points with the same key share one capture."""
+        return (self.scene, self.mode, self.design, self.speed_px_per_ms, self.depth_mm, self.seed)
+
+
+@dataclass(frozen=True)
+class StudySpec:
+    """A parsed study: its name, report kind, shared render settings and points."""
+
+    name: str
+    report: str
+    description: str
+    render: dict
+    points: tuple[Point, ...]
+    source: str = ""
+    axes: tuple[str, ...] = field(default=())
+
+    def key(self) -> str:
+        """A hash of everything that changes results: a results folder belongs to one key."""
+        blob = {"render": self.render, "points": [asdict(p) for p in self.points]}
+        return hashlib.sha256(json.dumps(blob, sort_keys=True).encode()).hexdigest()[:16]
+
+    def groups(self) -> list[tuple[Point, ...]]:
+        """The points grouped by render, in order of their first point."""
+        out: dict[tuple, list[Point]] = {}
+        for p in self.points:
+            out.setdefault(p.render_key(), []).append(p)
+        return [tuple(g) for g in out.values()]
+
+
+def builtin_studies() -> list[str]:
+    """Names of the studies shipped with the package."""
+    folder = resources.files("pacam_render.study") / "builtin"
+    return sorted(p.name[:-5] for p in folder.iterdir() if p.name.endswith(".toml"))
+
+
+def load_study(name_or_path: str, quick: bool = False) -> StudySpec:
+    """A study by built-in name or TOML path, parsed and checked.
+
+    Raises
+    ------
+    ParameterError
+        If the file is missing or not TOML, or any key or value is invalid; the message names
+        the table and key.
+    """
+    path = Path(name_or_path)
+    if name_or_path in builtin_studies():
+        text = resources.files("pacam_render.study") / "builtin" / f"{name_or_path}.toml"
+        text = text.read_text()
+    elif path.suffix == ".toml" or path.exists():
+        try:
+            text = path.read_text()
+        except OSError as exc:
+            raise ParameterError(f"cannot read study file {str(path)!r}: {exc}") from None
+    else:
+        raise ParameterError(
+            f"unknown study {name_or_path!r}; built-in: {', '.join(builtin_studies())}, or a "
+            "path to a .toml file"
+        )
+    return parse_study(_toml(text, name_or_path), quick, source=str(name_or_path))
+
+
+def _toml(text: str, where: str) -> dict:
+    try:
+        import tomllib
+    except ModuleNotFoundError:  # Python 3.10
+        import tomli as tomllib
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise ParameterError(f"study {where!r} is not valid TOML: {exc}") from None
+
+
+def parse_study(doc: dict, quick: bool = False, source: str = "") -> StudySpec:
+    """:class:`StudySpec` from a TOML document (see the module docstring)."""
+    _keys(doc, "the study file", {"study", "render", "grid", "points", "quick"})
+    head = _table(doc, "study")
+    _keys(head, "[study]", {"name", "report", "description"})
+    report = head.get("report", "table")
+    if report not in REPORTS:
+        raise ParameterError(f"[study] report must be one of {', '.join(REPORTS)}, got {report!r}")
+    render = {**RENDER, **_table(doc, "render")}
+    grid, points = doc.get("grid", {}), doc.get("points", [])
+    if quick:
+        q = _table(doc, "quick")
+        _keys(q, "[quick]", {"render", "grid"})
+        render.update(_table(q, "render", "[quick] render") if q else QUICK_RENDER)
+        small = q.get("grid", {})
+        both = isinstance(grid, dict) and isinstance(small, dict)
+        grid = {**grid, **small} if both else small
+    _keys(render, "[render]", set(RENDER))
+    render = _check_render(render)
+    pts = _expand(grid, points, render)
+    return StudySpec(
+        name=str(head.get("name", Path(source).stem or "study")),
+        report=report,
+        description=str(head.get("description", "")),
+        render=render,
+        points=pts,
+        source=source,
+        axes=tuple(k for k in AXES if len({getattr(p, k) for p in pts}) > 1),
+    )
+
+
+def _table(doc: dict, key: str, where: str | None = None) -> dict:
+    value = doc.get(key, {})
+    if not isinstance(value, dict):
+        raise ParameterError(f"{where or key!r} must be a table, got {type(value).__name__}")
+    return value
+
+
+def _keys(table: dict, where: str, valid: set) -> None:
+    unknown = sorted(set(table) - valid)
+    if unknown:
+        raise ParameterError(
+            f"{where}: unknown key {unknown[0]!r}; valid keys: {', '.join(sorted(valid))}"
+        )
+
+
+def _check_render(r: dict) -> dict:
+    from ..exposure.capture import CaptureSpec
+
+    if r["crop"] in (False, None):
+        r["crop"] = None
+    elif not isinstance(r["crop"], list):
+        raise ParameterError("[render] crop must be [x, y, w, h] (px) or false")
+    try:
+        CaptureSpec(
+            scene="train",
+            width=r["width"],
+            height=r["height"],
+            spp=r["spp"],
+            max_step_px=r["max_step_px"],
+            preset=r["preset"],
+            crop=tuple(r["crop"]) if r["crop"] else None,
+            object_depth_mm=r["object_depth_mm"],
+        )
+    except ParameterError as exc:
+        raise ParameterError(f"[render] {exc}") from None
+    return {**r, "crop": list(r["crop"]) if r["crop"] else None}
+
+
+def _combinations(grid: dict, where: str) -> list[dict]:
+    if not isinstance(grid, dict):
+        raise ParameterError(f"{where} must be a table of axes, got {type(grid).__name__}")
+    _keys(grid, where, set(AXES))
+    for key, values in grid.items():
+        if not isinstance(values, list) or not values:
+            raise ParameterError(f"{where} {key} must be a non-empty list, got {values!r}")
+    return [dict(zip(grid, vals)) for vals in itertools.product(*grid.values())]
+
+
+def _expand(grid, points: list, render: dict) -> tuple[Point, ...]:
+    grids = grid if isinstance(grid, list) else [grid] if grid or not points else []
+    combos = []
+    for k, g in enumerate(grids):
+        combos += _combinations(g, "[grid]" if len(grids) == 1 else f"[[grid]] #{k + 1}")
+    if not isinstance(points, list) or not all(isinstance(p, dict) for p in points):
+        raise ParameterError("[[points]] must be an array of tables")
+    for k, p in enumerate(points):
+        _keys(p, f"[[points]] #{k + 1}", set(AXES))
+    out, seen = [], set()
+    for combo in combos + points:
+        values = {**AXES, "sensor": render["sensor"], "scene": render["scene"], **combo}
+        values = _check_point(values)
+        frozen = tuple(sorted(values.items()))
+        if frozen not in seen:
+            seen.add(frozen)
+            out.append(Point(index=len(out), **values))
+    _check_designs(out, render)
+    return tuple(out)
+
+
+def parse_design(text: str) -> dict:
+    """``prototype`` or ``cover=S[,F=N | ,r=PX]`` as CaptureSpec fields.
+
+    Returns
+    -------
+    dict
+        ``cover_px_per_ms`` (preset px/ms), ``f_number`` and ``r_px``, each None if not given.
+    """
+    out = {"cover_px_per_ms": None, "f_number": None, "r_px": None}
+    if text == "prototype":
+        return out
+    names = {"cover": "cover_px_per_ms", "F": "f_number", "r": "r_px"}
+    try:
+        for part in str(text).split(","):
+            k, v = part.split("=")
+            out[names[k.strip()]] = float(v)
+    except (ValueError, KeyError):
+        raise ParameterError(
+            f"design must be 'prototype' or 'cover=S' with optional ',F=N' or ',r=PX' (e.g. "
+            f"'cover=1.4,F=5.6'), got {text!r}"
+        ) from None
+    if out["cover_px_per_ms"] is None:
+        raise ParameterError(f"design {text!r} needs cover=S: F and r size a covering design")
+    return out
+
+
+def _check_point(v: dict) -> dict:
+    from ..exposure.capture import MODES
+    from ..restore.deconvolve import METHODS
+    from ..scenes.builtin import BUILTIN_SCENES
+
+    where = f"point {json.dumps(v, default=str)}"
+    if v["scene"] not in BUILTIN_SCENES and not Path(v["scene"]).is_file():
+        raise ParameterError(
+            f"{where}: unknown scene {v['scene']!r}; valid: {', '.join(BUILTIN_SCENES)} or an "
+            "existing .xml file"
+        )
+    modes = [m for m in MODES if m != "reference"]
+    if v["mode"] not in modes:
+        raise ParameterError(f"{where}: unknown mode {v['mode']!r}; valid: {', '.join(modes)}")
+    if v["method"] not in (*METHODS, "none"):
+        raise ParameterError(
+            f"{where}: unknown method {v['method']!r}; valid: {', '.join(METHODS)}, none"
+        )
+    parse_design(v["design"])
+    for key, lo in (("speed_px_per_ms", 0.0), ("depth_mm", 1.0), ("light_level", 0.0)):
+        x = v[key]
+        if x is None and key != "light_level":
+            continue
+        if isinstance(x, bool) or not isinstance(x, (int, float)) or not x > lo or x > 1e9:
+            raise ParameterError(f"{where}: {key} must be a number in ({lo:g}, 1e9], got {x!r}")
+        v[key] = float(x)
+    if isinstance(v["seed"], bool) or not isinstance(v["seed"], int) or not 0 <= v["seed"] < 2**31:
+        raise ParameterError(f"{where}: seed must be an integer in [0, 2^31), got {v['seed']!r}")
+    from ..sensor.model import SensorModel
+
+    SensorModel.from_preset(v["sensor"])  # raises, naming the presets
+    return v
+
+
+def _check_designs(points: list[Point], render: dict) -> None:
+    """Every design can be built (the solver names the limit it hits), before any render."""
+    from ..exposure.capture import CaptureSpec, capture_design
+
+    for text in sorted({p.design for p in points}):
+        try:
+            depth = render["object_depth_mm"]
+            capture_design(
+                CaptureSpec(preset=render["preset"], object_depth_mm=depth, **parse_design(text))
+            )
+        except ParameterError as exc:
+            raise ParameterError(f"design {text!r}: {exc}") from None
