@@ -340,8 +340,13 @@ def _cmd_reproduce(args: argparse.Namespace) -> int:
     names = list(reproduce.FIGURES) if args.figure == "all" else [args.figure]
     if not 0 <= args.seed < 2**31:
         raise ParameterError(f"--seed must be an integer in [0, 2^31), got {args.seed}")
+    from .study.engine import check_workers
+
+    workers = check_workers(args.workers, len(names))
     out = writable_dir(args.out)
-    for fig in reproduce.run(names, out, args.quick, args.force, args.seed):
+    for fig in reproduce.run(
+        names, out, args.quick, args.force, args.seed, workers, args.scheduler
+    ):
         print(f"{fig.name}: {out / fig.name}.csv .png .md ({fig.seconds:.1f} s)")
     return 0
 
@@ -446,9 +451,13 @@ def _new_folder(out: Path):
 
 def _cmd_validate_psf(args: argparse.Namespace) -> int:
     from .experiments import validate_psf as validate
+    from .study.engine import check_workers
 
     grid = validate.QUICK if args.quick else validate.FULL
-    s = validate.run(grid, args.out, args.force, progress=not args.quiet)
+    workers = check_workers(args.workers, len(grid.depths_mm) * len(grid.f_numbers))
+    s = validate.run(
+        grid, args.out, args.force, not args.quiet, workers=workers, scheduler=args.scheduler
+    )
     print(
         f"validate-psf ({grid.name}): {s['points']} points in {s['seconds']:.1f} s; r within "
         f"1 %: {s['r_pass']}/{s['r_points']} (max {s['r_max_err_pct']:.3f} %); a_i within 1 %: "
@@ -464,8 +473,8 @@ def _cmd_study(args: argparse.Namespace) -> int:
     from .study import load_study, run_study
     from .study.engine import check_workers
 
-    workers = check_workers(args.workers)
     spec = load_study(args.spec, quick=args.quick)  # every key checked before any work
+    workers = check_workers(args.workers, len(spec.groups()))
     where = args.scheduler or (f"{workers} local workers" if workers else "serially, in-process")
     groups = len(spec.groups())
     print(f"study {spec.name}: {len(spec.points)} points in {groups} renders, {where}")
@@ -614,6 +623,7 @@ def _add_reproduce(sub) -> None:
     p.add_argument("--quick", action="store_true", help="fewer images and points (< 1 min each)")
     p.add_argument("--out", required=True, metavar="DIR")
     p.add_argument("--seed", type=int, default=0, help="noise seed (default 0)")
+    _add_engine_args(p)
     p.add_argument("--force", action="store_true", help="overwrite existing figure files")
     p.set_defaults(func=_cmd_reproduce)
 
@@ -719,6 +729,7 @@ def _add_validate_psf(sub) -> None:
         "validate-psf", help="rendered PSFs against Eqs. 12, 14, 18 on a grid: CSV, PNG, Markdown"
     )
     p.add_argument("--quick", action="store_true", help="small grid, modest budget (~30 s)")
+    _add_engine_args(p)
     p.add_argument("--out", required=True, metavar="DIR")
     p.add_argument("--force", action="store_true", help="overwrite results in DIR")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
@@ -732,19 +743,25 @@ def _add_study(sub) -> None:
     p.add_argument("spec", metavar="SPEC", help="a study TOML file, or crossover or speed")
     p.add_argument("--out", required=True, metavar="DIR", help="results.csv, report.md, plots")
     p.add_argument("--quick", action="store_true", help="the study's small version")
-    p.add_argument(
-        "--workers",
-        type=int,
-        metavar="N",
-        help="LocalCluster worker processes (default: one per core; 0: serial, in-process)",
-    )
-    p.add_argument(
-        "--scheduler", metavar="ADDRESS", help="run on an existing Dask cluster (tcp://host:8786)"
-    )
+    _add_engine_args(p)
     p.add_argument("--keep-images", action="store_true", help="keep each point's EXR layers")
     p.add_argument("--force", action="store_true", help="start afresh over other results")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=_cmd_study)
+
+
+def _add_engine_args(p: argparse.ArgumentParser) -> None:
+    """Where the command's independent tasks run (:mod:`pacam_render.study.engine`)."""
+    p.add_argument(
+        "--workers",
+        type=int,
+        metavar="N",
+        help="worker processes of a local Dask cluster (default: one per core, at most one per "
+        "task; 0: serially, in this process)",
+    )
+    p.add_argument(
+        "--scheduler", metavar="ADDRESS", help="run on an existing Dask cluster (tcp://host:8786)"
+    )
 
 
 def _add_demo(sub) -> None:

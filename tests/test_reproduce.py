@@ -33,6 +33,13 @@ def test_files_written(quick_dir):
     )
 
 
+def test_the_engine_gives_the_serial_figures(quick_dir, tmp_path):
+    """``reproduce all`` ran its figures on a 2-worker LocalCluster; serially, fig9 is the same."""
+    out = tmp_path / "serial"
+    assert main(["reproduce", "fig9", "--quick", "--workers", "0", "--out", str(out)]) == 0
+    assert rows(out / "fig9.csv") == rows(quick_dir / "fig9.csv")
+
+
 def test_refuses_to_overwrite(quick_dir, capsys):
     assert main(["reproduce", "fig9", "--quick", "--out", str(quick_dir)]) == 2
     assert "--force" in capsys.readouterr().err

@@ -136,6 +136,10 @@ def test_score_per_object_against_brute_force():
     mse = np.mean((est[:, 4:36] - truth[:, 4:36])[still] ** 2)
     assert s["psnr_static_db"] == pytest.approx(-10 * np.log10(mse), abs=1e-9)
     assert '"ball": [Infinity, 2]' in s["psnr_by_object"]
+    # the interior leaves out a band at the outline: spoil only that band, and only it is lost
+    est[r, c + 2] = np.where((c < 15)[:, None], truth[r, c] + 0.5, truth[r, c])
+    near = score(est, {"sharp": truth, "object_id": ids}, {"1": "w", "2": "ball"}, {"ball"}, 4, 3)
+    assert near["psnr_moving_interior_db"] == np.inf and near["psnr_moving_db"] < 20
 
 
 # --- scene edits for sweeps ----------------------------------------------------------------------
@@ -188,7 +192,7 @@ def test_an_interrupted_study_resumes_to_the_same_results(tmp_path, monkeypatch)
     run_study(spec, tmp_path / "whole", workers=0, progress=False)
     real = S.run_tasks
 
-    def one_then_ctrl_c(fn, tasks, on_done, workers, scheduler):
+    def one_then_ctrl_c(fn, tasks, on_done, *engine):
         on_done(tasks[0], fn(tasks[0]))
         raise KeyboardInterrupt
 
@@ -258,3 +262,29 @@ def test_workers_flag_is_checked():
     with pytest.raises(ParameterError, match="--workers must be an integer >= 0"):
         E.check_workers(-1)
     assert E.check_workers(None) == os.cpu_count()
+
+
+def test_cli_refuses_a_bad_spec_before_any_work(tmp_path, capsys):
+    from pacam_render.cli import main
+
+    bad = tmp_path / "bad.toml"
+    bad.write_text('[grid]\nmode = ["coded"]\nlight = [1.0]\n')
+    assert main(["study", str(bad), "--out", str(tmp_path / "o"), "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert "[grid]: unknown key 'light'" in err and not (tmp_path / "o").exists()
+
+
+@pytest.mark.render
+def test_cli_runs_a_study_and_resumes(tmp_path, capsys):
+    from pacam_render.cli import main
+
+    path = tmp_path / "tiny.toml"
+    path.write_text(TINY)
+    argv = ["study", str(path), "--out", str(tmp_path / "o"), "--workers", "0", "--quiet"]
+    assert main(argv) == 0
+    assert "4 points run, 0 already done, 0 failed" in capsys.readouterr().out
+    assert main(argv) == 0
+    assert "0 points run, 4 already done" in capsys.readouterr().out
+    assert {"results.csv", "report.md", "crossover.png", "study.json"} <= {
+        p.name for p in (tmp_path / "o").iterdir()
+    }

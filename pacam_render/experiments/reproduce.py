@@ -735,9 +735,24 @@ FIGURES: dict[str, Callable[[bool, int], Figure]] = {
 }
 
 
-def run(names: list[str], out: Path, quick: bool, force: bool, seed: int = 0) -> list[Figure]:
-    """Compute and write each figure: NAME.csv, NAME.png, NAME.md in ``out``."""
+def run(
+    names: list[str],
+    out: Path,
+    quick: bool,
+    force: bool,
+    seed: int = 0,
+    workers: int = 0,
+    scheduler: str | None = None,
+) -> list[Figure]:
+    """Compute and write each figure: NAME.csv, NAME.png, NAME.md in ``out``.
+
+    Each figure is one task of :func:`compute_figure` on the study engine
+    (:func:`~pacam_render.study.engine.run_tasks`: ``workers`` processes of a LocalCluster,
+    0 for serial, or an existing Dask ``scheduler``); files are written here as each ends.
+    """
     import matplotlib
+
+    from ..study.engine import run_tasks
 
     matplotlib.use("Agg")
     unknown = [n for n in names if n not in FIGURES]
@@ -747,14 +762,28 @@ def run(names: list[str], out: Path, quick: bool, force: bool, seed: int = 0) ->
         for ext in ("csv", "png", "md"):
             if (out / f"{n}.{ext}").exists() and not force:
                 raise ParameterError(f"{out / f'{n}.{ext}'} exists; pass --force to overwrite it")
-    done = []
-    for n in names:
-        t0 = time.perf_counter()
-        fig = FIGURES[n](quick, seed)
-        fig.seconds = time.perf_counter() - t0
-        write_text(out / f"{n}.csv", _csv(fig.rows), force=True)
-        fig.plot(out / f"{n}.png")
+    done: dict[str, Figure] = {}
+
+    def write(task, fig) -> None:
+        if isinstance(fig, BaseException):
+            raise fig
+        write_text(out / f"{fig.name}.csv", _csv(fig.rows), force=True)
+        fig.plot(out / f"{fig.name}.png")
         stamp = f"\n\nComputed in {fig.seconds:.1f} s ({'--quick' if quick else 'full'} run).\n"
-        write_text(out / f"{n}.md", fig.summary + stamp, force=True)
-        done.append(fig)
-    return done
+        write_text(out / f"{fig.name}.md", fig.summary + stamp, force=True)
+        done[fig.name] = fig
+
+    run_tasks(compute_figure, [(n, quick, seed) for n in names], write, workers, scheduler)
+    return [done[n] for n in names]
+
+
+def compute_figure(task) -> Figure:
+    """Figure ``name`` computed (a task: (name, quick, seed)), with its time in ``seconds``."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    name, quick, seed = task
+    t0 = time.perf_counter()
+    fig = FIGURES[name](quick, seed)
+    fig.seconds = time.perf_counter() - t0
+    return fig

@@ -237,48 +237,39 @@ def run(
     force: bool = False,
     progress: bool = True,
     plots: bool = True,
+    workers: int = 0,
+    scheduler: str | None = None,
 ) -> dict:
-    """Run the grid; write validate_psf.csv, validate_psf.md and PNG plots into ``out``."""
+    """Run the grid; write validate_psf.csv, validate_psf.md and PNG plots into ``out``.
+
+    Each (depth, F-number) pair is one task of :func:`pair_task` on the study engine
+    (:func:`~pacam_render.study.engine.run_tasks`: ``workers`` processes of a LocalCluster,
+    0 for serial, or an existing Dask ``scheduler``); the rows are the same either way.
+    """
+    from tqdm import tqdm
+
+    from ..study.engine import run_tasks
+
     out_dir = prepare_out_dir(out, force)
     t_start = time.perf_counter()
-    renderer = prd.PSFRenderer()
-    points = [
-        (Z, N, f) for Z in grid.depths_mm for N in grid.f_numbers for f in grid.velocity_fractions
-    ]
-    bar = None
-    if progress:
-        from tqdm import tqdm
+    pairs = [(Z, N) for Z in grid.depths_mm for N in grid.f_numbers]
+    n = len(pairs) * len(grid.velocity_fractions)
+    results: dict = {}
+    bar = tqdm(total=n, desc=f"validate-psf ({grid.name})", unit="point", disable=not progress)
 
-        bar = tqdm(total=len(points), desc=f"validate-psf ({grid.name})", unit="point")
-    rows, examples, r_cache = [], {}, {}
-    try:
-        for Z, N, frac in points:
-            design = design_for(Z, N)
-            if (Z, N) not in r_cache:
-                r_cache[(Z, N)] = _static_r(renderer, design, grid)
-            rng = design.velocity_range_px_per_ms
-            if rng == 0.0:  # F_min: the prototype opening's range at this depth
-                rng = design_for(Z, prototype().F_number).velocity_range_px_per_ms
-            speed = frac * rng
-            row, kernels = run_point(renderer, design, frac, speed, grid)
-            full = {
-                "depth_mm": Z,
-                "f_number": N,
-                "R_mm": design.R_mm,
-                "side": "near" if Z < design.focus_distance_mm else "far",
-                "beta_px_per_mm": design.beta_px_per_mm,
-                "schedule": "static (full opening)" if design.a_i_px_per_ms2 == 0 else "coded",
-                **r_cache[(Z, N)],
-                **row,
-            }
-            rows.append(_judge(full))
+    def done(task, res) -> None:
+        if isinstance(res, BaseException):
+            raise res
+        results[task[:2]] = res
+        bar.update(len(res))
+
+    with bar:
+        run_tasks(pair_task, [(Z, N, grid) for Z, N in pairs], done, workers, scheduler)
+    rows, examples = [], {}
+    for Z, N in pairs:
+        for frac, (row, kernels) in zip(grid.velocity_fractions, results[(Z, N)]):
+            rows.append(row)
             examples[(Z, N, frac)] = kernels
-            if bar is not None:
-                bar.set_postfix(Z=Z, F=N, s=f"{speed:.2f}", L1r=f"{full['l1_ratio']:.2f}")
-                bar.update()
-    finally:
-        if bar is not None:
-            bar.close()
     seconds = time.perf_counter() - t_start
     summary = summarise(rows, grid, seconds)
     _write_csv(out_dir / "validate_psf.csv", rows, force=True)
@@ -288,6 +279,37 @@ def run(
     write_text(out_dir / "validate_psf.md", report(rows, grid, summary, files), force=True)
     summary["files"] = files
     return summary
+
+
+_RENDERERS: dict = {}
+
+
+def pair_task(task) -> list[tuple[dict, dict]]:
+    """The grid's points at one (depth, F-number): (row, kernels) per velocity fraction."""
+    Z, N, grid = task
+    if "psf" not in _RENDERERS:  # one per process: it holds the loaded scene
+        _RENDERERS["psf"] = prd.PSFRenderer()
+    renderer = _RENDERERS["psf"]
+    design = design_for(Z, N)
+    static = _static_r(renderer, design, grid)
+    rng = design.velocity_range_px_per_ms
+    if rng == 0.0:  # F_min: the prototype opening's range at this depth
+        rng = design_for(Z, prototype().F_number).velocity_range_px_per_ms
+    out = []
+    for frac in grid.velocity_fractions:
+        row, kernels = run_point(renderer, design, frac, frac * rng, grid)
+        full = {
+            "depth_mm": Z,
+            "f_number": N,
+            "R_mm": design.R_mm,
+            "side": "near" if Z < design.focus_distance_mm else "far",
+            "beta_px_per_mm": design.beta_px_per_mm,
+            "schedule": "static (full opening)" if design.a_i_px_per_ms2 == 0 else "coded",
+            **static,
+            **row,
+        }
+        out.append((_judge(full), kernels))
+    return out
 
 
 def _write_csv(path: Path, rows: list[dict], force: bool) -> None:

@@ -12,7 +12,7 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from .engine import check_workers, run_tasks, threads_per_worker
+from .engine import check_workers, run_tasks
 from .point import Task, point_row, run_task
 from .results import Results
 from .spec import StudySpec, builtin_studies, load_study
@@ -41,6 +41,7 @@ def run_study(
     keep_images: bool = False,
     force: bool = False,
     progress: bool = True,
+    threads: int | None = None,
 ) -> StudySummary:
     """Run the points of ``spec`` not yet finished in ``out``, then write the report.
 
@@ -58,6 +59,8 @@ def run_study(
     keep_images, force, progress : bool, optional
         Keep each point's layers as EXR; start afresh over other results in ``out``; show a
         progress bar with an ETA.
+    threads : int, optional
+        Dr.Jit threads per LocalCluster worker (default cores / workers).
 
     Returns
     -------
@@ -81,7 +84,7 @@ def run_study(
     t0 = time.perf_counter()
     with output_lock(out):
         results = Results(out, spec, force)
-        tasks = _tasks(spec, results.done(), out if keep_images else None, workers, scheduler)
+        tasks = _tasks(spec, results.done(), out if keep_images else None)
         summary = StudySummary(spec.name, len(spec.points), skipped=len(results.done()))
         todo = sum(len(t.points) for t in tasks)
         bar = tqdm(total=todo, unit="point", desc=spec.name, disable=not progress, smoothing=0)
@@ -95,20 +98,19 @@ def run_study(
             bar.update(len(rows))
 
         with bar:
-            run_tasks(run_task, tasks, done, workers, scheduler)
+            run_tasks(run_task, tasks, done, workers, scheduler, threads)
         summary.files = write_report(spec, out)
     summary.seconds = time.perf_counter() - t0
     return summary
 
 
-def _tasks(spec: StudySpec, done: set[int], keep: Path | None, workers: int, scheduler) -> list:
-    threads = None if scheduler is not None else threads_per_worker(workers or 1)
+def _tasks(spec: StudySpec, done: set[int], keep: Path | None) -> list:
     tasks = []
     for k, group in enumerate(spec.groups()):
         todo = tuple(p for p in group if p.index not in done)
         if todo:
             where = None if keep is None else str(keep / "images" / f"render_{k:04d}")
-            tasks.append(Task(spec.render, todo, where, threads))
+            tasks.append(Task(spec.render, todo, where))
     return tasks
 
 

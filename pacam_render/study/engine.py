@@ -2,7 +2,7 @@
 
 * Default: a ``LocalCluster`` started here with ``workers`` processes (spawned, since Mitsuba's
   JIT is not fork-safe), one task at a time each, and Dr.Jit's thread count on each worker set
-  to cores / workers by the task itself.
+  to cores / workers before each task.
 * ``scheduler``: an existing Dask cluster by address (``dask scheduler`` / ``dask worker``, or
   dask-jobqueue on SLURM); its workers need pacam_render installed.
 * ``workers=0``: in this process, one task after another (for debugging).
@@ -38,10 +38,13 @@ def threads_per_worker(workers: int) -> int:
     return max(1, (os.cpu_count() or 1) // max(1, workers))
 
 
-def check_workers(workers: int | None) -> int:
-    """``--workers``: an integer >= 0 (0: serial), default the number of cores."""
+def check_workers(workers: int | None, n_tasks: int | None = None) -> int:
+    """``--workers``: an integer >= 0 (0: serial). By default one per core, no more than there
+    are tasks, and 0 (no cluster to start) for a single task."""
     if workers is None:
-        return default_workers()
+        if n_tasks is not None and n_tasks <= 1:
+            return 0
+        return min(default_workers(), n_tasks or default_workers())
     if isinstance(workers, bool) or not isinstance(workers, int) or workers < 0:
         raise ParameterError(f"--workers must be an integer >= 0 (0: serial), got {workers!r}")
     return workers
@@ -53,6 +56,7 @@ def run_tasks(
     on_done: Callable,
     workers: int = 0,
     scheduler: str | None = None,
+    threads: int | None = None,
 ) -> None:
     """Run ``fn(task)`` for every task; call ``on_done(task, result)`` here as each finishes.
 
@@ -69,6 +73,8 @@ def run_tasks(
     scheduler : str, optional
         The address of an existing Dask scheduler (``tcp://host:8786``); ``workers`` is
         then ignored.
+    threads : int, optional
+        Dr.Jit threads per worker of the LocalCluster (default cores / workers).
 
     Raises
     ------
@@ -83,10 +89,15 @@ def run_tasks(
         return
     from distributed import as_completed
 
+    if scheduler is not None:
+        threads = None  # a cluster of your own keeps its workers' settings
+    elif threads is None:
+        threads = threads_per_worker(workers)
     with _client(workers, scheduler) as client:
         tag = uuid.uuid4().hex[:8]
         futures = {
-            client.submit(fn, t, pure=False, key=f"pacam-{tag}-{i}"): t for i, t in enumerate(tasks)
+            client.submit(_call, fn, t, threads, pure=False, key=f"pacam-{tag}-{i}"): t
+            for i, t in enumerate(tasks)
         }
         try:
             for fut in as_completed(futures):
@@ -98,6 +109,15 @@ def run_tasks(
         except BaseException:
             client.cancel(list(futures))
             raise
+
+
+def _call(fn: Callable, task, threads: int | None):
+    """``fn(task)`` on a worker, with Dr.Jit's thread count set first (cores / workers)."""
+    if threads:
+        import drjit as dr
+
+        dr.set_thread_count(int(threads))
+    return fn(task)
 
 
 @contextlib.contextmanager

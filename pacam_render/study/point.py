@@ -17,20 +17,29 @@ import numpy as np
 
 from .spec import Point, parse_design
 
+MODEL_SIGMA = 0.02
+"""A floor on the noise a study's deconvolver is told, white = 1: how far a whole scene departs
+from one convolution (depths, speeds, occlusions; issue 15 measures it). Without it, at high
+light, the deconvolver trusts the model to the sensor's tiny sigma and rings: on the crossover's
+prototype capture at 10^4 photons/px/ms (sensor + render sigma 0.006) hl gives 22.2 dB over
+the window, and 24.2, 25.3 and 25.4 dB with 0.01, 0.02 and 0.04; at 300 photons/px/ms (sigma
+0.022) the floor changes nothing. Measured once, on that capture: a tuned constant, stated."""
 STILL_KERNEL_MODES = ("normal", "short")
 """Modes restored with a delta kernel: denoised, not deblurred (see :func:`kernel`)."""
 
 COLUMNS = (
     "point", "scene", "mode", "design", "speed_px_per_ms", "depth_mm",
     "light_level_photons_per_px_per_ms", "sensor", "method", "seed",
-    "psnr_db", "ssim", "psnr_moving_db", "psnr_static_db", "psnr_by_object",
+    "psnr_db", "ssim", "psnr_moving_db", "psnr_static_db", "psnr_moving_interior_db",
+    "psnr_by_object",
     "r_px", "a_i_px_per_ms2", "velocity_range_px_per_ms", "exposure_ms", "light_factor",
     "noise_sigma", "render_noise_sigma", "render_s", "total_s", "status",
 )  # fmt: skip
 """The columns of ``results.csv``, in order. Speeds are in the preset's own pixels (px/ms of
 the full sensor); r, a_i and the invariant range are the capture camera's at the study's
 resolution; ``noise_sigma`` is the sensor's and ``render_noise_sigma`` the render's Monte
-Carlo noise, white = 1 (the deconvolver is given their root sum of squares); ``render_s`` is
+Carlo noise, white = 1 (the deconvolver is given their root sum of squares with
+:data:`MODEL_SIGMA`); ``render_s`` is
 the shared render of the point's group."""
 
 
@@ -41,7 +50,6 @@ class Task:
     render: dict
     points: tuple[Point, ...]
     keep_dir: str | None = None
-    threads: int | None = None
 
 
 def run_task(task: Task) -> list[dict]:
@@ -55,7 +63,6 @@ def run_task(task: Task) -> list[dict]:
     from ..exposure.capture import CaptureInterrupted
     from ..limits import PacamWarning
 
-    _set_threads(task.threads)
     t0 = time.perf_counter()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", PacamWarning)  # notes stay in the capture's record
@@ -82,14 +89,6 @@ def run_task(task: Task) -> list[dict]:
 def _status(exc: Exception) -> str:
     where = traceback.extract_tb(exc.__traceback__)[-1]
     return f"error: {type(exc).__name__}: {exc} ({Path(where.filename).name}:{where.lineno})"
-
-
-def _set_threads(n: int | None) -> None:
-    """Dr.Jit's thread count on this worker (cores / workers), set before the first render."""
-    if n:
-        import drjit as dr
-
-        dr.set_thread_count(int(n))
 
 
 def capture_inputs(render: dict, p: Point):
@@ -142,14 +141,23 @@ def _evaluate(cap, desc, p: Point, task: Task) -> dict:
     add_sensor_layers(cap, SensorModel.from_preset(p.sensor), p.sensor, p.light_level, p.seed)
     noisy = cap.extra_layers["noisy"] / cap.record.light_factor  # white reads ~ its reflectance
     sigma = cap.record.sensor.noise_sigma_white_units
-    # The render's own Monte Carlo noise adds to the sensor's: tell the deconvolver both.
-    total = float(np.hypot(sigma, _render_sigma(cap)))
+    # The render's own Monte Carlo noise adds to the sensor's, and the model's error to both.
+    total = float(np.sqrt(sigma**2 + _render_sigma(cap) ** 2 + MODEL_SIGMA**2))
     est = noisy if p.method == "none" else _deconvolve(cap, noisy, total, p.method)
     if task.keep_dir is not None:
         _keep(cap, est, p, Path(task.keep_dir))
     shift = max(4, round(32 * cap.record.spec["width"] / 1280))  # -s^2/(2 a_i) reaches 25 px
-    out = score(est, cap.extra_layers, cap.record.objects, set(desc.moving_ids), shift)
+    out = score(
+        est, cap.extra_layers, cap.record.objects, set(desc.moving_ids), shift, _edge_px(cap)
+    )
     return {**out, "noise_sigma": sigma, "render_noise_sigma": _render_sigma(cap)}
+
+
+def _edge_px(cap) -> int:
+    """How far a moving object's blur reaches past its t = 0 outline, px: its whole travel
+    over the exposure (the fastest pixel's speed x 2T) and the defocus disc's diameter."""
+    u = float(np.abs(cap.extra_layers["velocity"][..., 0]).max())
+    return int(np.ceil(u * cap.record.exposure_ms + 2 * cap.record.optics["r_px"]))
 
 
 def _render_sigma(cap) -> float:

@@ -19,13 +19,14 @@ from pathlib import Path
 import numpy as np
 
 from ..io.outputs import atomic_save, write_text
+from .point import MODEL_SIGMA
 from .results import RESULTS
 from .spec import StudySpec
 
 NUMERIC = (
     "speed_px_per_ms", "depth_mm", "light_level_photons_per_px_per_ms", "psnr_db", "ssim",
-    "psnr_moving_db", "psnr_static_db", "r_px", "a_i_px_per_ms2", "velocity_range_px_per_ms",
-    "exposure_ms", "noise_sigma", "render_s", "total_s",
+    "psnr_moving_db", "psnr_static_db", "psnr_moving_interior_db", "r_px", "a_i_px_per_ms2",
+    "velocity_range_px_per_ms", "exposure_ms", "noise_sigma", "render_s", "total_s",
 )  # fmt: skip
 LIGHT = "light_level_photons_per_px_per_ms"
 
@@ -94,17 +95,11 @@ def write_report(spec: StudySpec, out: Path) -> list[str]:
         )
         text += _crossover_text(ok)
     if spec.report == "speed" and ok:
-        files.append(
-            _plot(
-                out,
-                "speed.png",
-                curves(ok, "speed_px_per_ms", "psnr_moving_db", LIGHT),
-                "speed of the moving object (px/ms, preset pixels)",
-                "light",
-                log=False,
-            )
-        )
-        text += _speed_text(ok)
+        for y, name in (("psnr_moving_db", "speed"), ("psnr_moving_interior_db", "speed_interior")):
+            data = curves(ok, "speed_px_per_ms", y, LIGHT)
+            xlabel = "speed of the moving object (px/ms, preset pixels)"
+            files.append(_plot(out, f"{name}.png", data, xlabel, "light", False, _YLABEL[y]))
+            text += _speed_text(ok, y)
     text += ["## Every point", "", *_table(rows)]
     write_text(out / "report.md", "\n".join(text) + "\n", force=True)
     return ["results.csv", "report.md", *files]
@@ -124,11 +119,21 @@ def _setup(spec: StudySpec, rows: list[dict], ok: list[dict]) -> str:
         f"{len(spec.points)} points done, {failed} failed. Scores are against each capture's "
         "own `sharp` layer; the moving objects' PSNR takes each object at its best horizontal "
         "shift (a motion-invariant PSF moves it by -s^2 / (2 a_i)). Speeds are in the preset's "
-        "own pixels (px/ms of the full sensor)."
+        "own pixels (px/ms of the full sensor). The deconvolver is told the root sum of squares "
+        f"of the sensor's noise, the render's Monte Carlo noise and a model floor of {MODEL_SIGMA} "
+        "(`pacam_render.study.point.MODEL_SIGMA`)."
     )
 
 
-def _plot(out: Path, name: str, data: dict, xlabel: str, panel_name: str, log: bool) -> str:
+_YLABEL = {
+    "psnr_moving_db": "PSNR of the moving objects (dB)",
+    "psnr_moving_interior_db": "PSNR of their interiors, no occlusion (dB)",
+}
+
+
+def _plot(
+    out: Path, name: str, data: dict, xlabel: str, panel: str, log: bool, ylabel: str = ""
+) -> str:
     import matplotlib
 
     matplotlib.use("Agg")
@@ -141,8 +146,8 @@ def _plot(out: Path, name: str, data: dict, xlabel: str, panel_name: str, log: b
             ax.plot(xs, ys, "o-" if "coded" in lab else "s--", label=lab, ms=4)
         ax.set_xscale("log" if log else "linear")
         ax.set_xlabel(xlabel)
-        ax.set_ylabel("PSNR of the moving objects (dB)")
-        ax.set_title(f"{panel_name} {float(key):.4g}" if key != "" else "")
+        ax.set_ylabel(ylabel or _YLABEL["psnr_moving_db"])
+        ax.set_title(f"{panel} {float(key):.4g}" if key != "" else "")
         ax.grid(alpha=0.3)
     axes[0][-1].legend(fontsize=7)
     fig.tight_layout()
@@ -189,9 +194,9 @@ def _crossing_line(speed, lab, other, xs, a, b, sigma) -> str:
     return head + f"crosses at {', '.join(parts)}; coded wins {wins} the first crossing"
 
 
-def _speed_text(ok: list[dict]) -> list[str]:
-    lines = ["## Flatness over speed", ""]
-    for light, cs in sorted(curves(ok, "speed_px_per_ms", "psnr_moving_db", LIGHT).items()):
+def _speed_text(ok: list[dict], y: str) -> list[str]:
+    lines = [f"## Flatness over speed: {_YLABEL[y]}", ""]
+    for light, cs in sorted(curves(ok, "speed_px_per_ms", y, LIGHT).items()):
         for lab, (xs, ys) in sorted(cs.items()):
             lines.append(
                 f"- light {float(light):.4g}, {lab}: {ys.min():.2f} to {ys.max():.2f} dB over "
