@@ -79,7 +79,7 @@ def run_task(task: Task) -> list[dict]:
         for p in task.points:
             t1 = time.perf_counter()
             try:
-                values, status = {**info, **_evaluate(cap, desc, p, task)}, "ok"
+                values, status = {**info, **_evaluate(cap, desc, p, task, info)}, "ok"
             except Exception as exc:
                 values, status = info, _status(exc)
             rows.append(point_row(p, values, status, render_s, render_s + time.perf_counter() - t1))
@@ -123,16 +123,19 @@ def capture_inputs(render: dict, p: Point):
 
 def _render(render: dict, p: Point):
     from ..exposure.capture import render_capture
+    from ..restore.deconvolve import estimate_noise_sigma
 
     spec, desc, info = capture_inputs(render, p)
     cap = render_capture(spec, progress=False, description=desc, truth=True)
     optics = cap.record.optics
     info.update({k: optics[k] for k in ("r_px", "a_i_px_per_ms2", "velocity_range_px_per_ms")})
     info.update(exposure_ms=cap.record.exposure_ms, light_factor=cap.record.light_factor)
+    # The render's own Monte Carlo noise, white = 1 (wavelet MAD of the noiseless capture)
+    info["render_noise_sigma"] = estimate_noise_sigma(cap.image / cap.record.light_factor)
     return cap, desc, info
 
 
-def _evaluate(cap, desc, p: Point, task: Task) -> dict:
+def _evaluate(cap, desc, p: Point, task: Task, info: dict) -> dict:
     """Sensor, deconvolution and scores of one point on the rendered capture."""
     from ..sensor.apply import add_sensor_layers
     from ..sensor.model import SensorModel
@@ -142,7 +145,7 @@ def _evaluate(cap, desc, p: Point, task: Task) -> dict:
     noisy = cap.extra_layers["noisy"] / cap.record.light_factor  # white reads ~ its reflectance
     sigma = cap.record.sensor.noise_sigma_white_units
     # The render's own Monte Carlo noise adds to the sensor's, and the model's error to both.
-    total = float(np.sqrt(sigma**2 + _render_sigma(cap) ** 2 + MODEL_SIGMA**2))
+    total = float(np.sqrt(sigma**2 + info["render_noise_sigma"] ** 2 + MODEL_SIGMA**2))
     est = noisy if p.method == "none" else _deconvolve(cap, noisy, total, p.method)
     if task.keep_dir is not None:
         _keep(cap, est, p, Path(task.keep_dir))
@@ -150,7 +153,7 @@ def _evaluate(cap, desc, p: Point, task: Task) -> dict:
     out = score(
         est, cap.extra_layers, cap.record.objects, set(desc.moving_ids), shift, _edge_px(cap)
     )
-    return {**out, "noise_sigma": sigma, "render_noise_sigma": _render_sigma(cap)}
+    return {**out, "noise_sigma": sigma}
 
 
 def _edge_px(cap) -> int:
@@ -158,17 +161,6 @@ def _edge_px(cap) -> int:
     over the exposure (the fastest pixel's speed x 2T) and the defocus disc's diameter."""
     u = float(np.abs(cap.extra_layers["velocity"][..., 0]).max())
     return int(np.ceil(u * cap.record.exposure_ms + 2 * cap.record.optics["r_px"]))
-
-
-def _render_sigma(cap) -> float:
-    """The Monte Carlo noise of the render (before the sensor), white = 1, by wavelet MAD."""
-    from ..restore.deconvolve import estimate_noise_sigma
-
-    if "_render_sigma" not in cap.record.extra:  # once per render
-        cap.record.extra["_render_sigma"] = estimate_noise_sigma(
-            cap.image / cap.record.light_factor
-        )
-    return cap.record.extra["_render_sigma"]
 
 
 def _deconvolve(cap, noisy, sigma: float, method: str) -> np.ndarray:
