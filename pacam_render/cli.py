@@ -471,8 +471,9 @@ def _cmd_validate_psf(args: argparse.Namespace) -> int:
 
 def _cmd_study(args: argparse.Namespace) -> int:
     from .study import load_study, run_study
-    from .study.engine import check_workers
+    from .study.engine import check_scheduler, check_workers
 
+    check_scheduler(args.scheduler)
     spec = load_study(args.spec, quick=args.quick)  # every key checked before any work
     workers = check_workers(args.workers, len(spec.groups()))
     where = args.scheduler or (f"{workers} local workers" if workers else "serially, in-process")

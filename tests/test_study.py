@@ -241,6 +241,12 @@ def test_unreachable_scheduler_is_a_clear_error_within_the_timeout(monkeypatch):
     assert time.perf_counter() - t0 < 15
 
 
+@pytest.mark.parametrize("address", ["foo", "tcp://", "nonsense:::"])
+def test_a_malformed_scheduler_address_is_refused_at_once(address):
+    with pytest.raises(ParameterError, match="--scheduler must be a Dask scheduler's address"):
+        E.check_scheduler(address)
+
+
 def _die_or_square(x):
     if x < 0:
         os._exit(3)  # the worker process dies mid-task

@@ -29,7 +29,7 @@ from ..exposure.record import analytic_psf
 from ..io.outputs import prepare_out_dir, write_text
 from ..model import paper
 from ..restore.deconvolve import deconvolve
-from ..restore.metrics import aligned_psnr, crop, psnr, ssim
+from ..restore.metrics import aligned_psnr, crop, psnr, shift_search_px, ssim
 from ..sensor.apply import add_sensor_layers
 
 SENSOR_PRESET = "grasshopper-icx285"
@@ -64,8 +64,8 @@ def window_crops(spec: CaptureSpec) -> dict[str, tuple[float, float, float, floa
 
 
 def max_shift_px(spec: CaptureSpec) -> int:
-    """The alignment search: the near train's -s^2 / (2 a_i) is 25 px at the full 1280 px."""
-    return max(4, round(32 * spec.width / 1280))
+    """The alignment search for the capture's sensor (``restore.metrics.shift_search_px``)."""
+    return shift_search_px(spec.width)
 
 
 @dataclass

@@ -447,17 +447,22 @@ def render_capture(
     Same-seed captures are bit-identical (:mod:`pacam_render.render.passes`).
     """
     check_budget(spec, max_samples, truth)
-    lock = contextlib.nullcontext()
-    if partial_dir is not None:
-        from ..io.lock import output_lock
-
-        lock = output_lock(Path(partial_dir).parent)
+    lock = _partial_lock(partial_dir)
     with lock, warnings.catch_warnings(record=True) as caught, deferred_signals() as flag:
         warnings.simplefilter("always", PacamWarning)
         run = _Run(partial_dir, progress, save_every_s, stop_after_steps, max_steps, flag)
         cap = _render(spec, description, run, truth)
     cap.record.notes = _replay(caught)
     return cap
+
+
+def _partial_lock(partial_dir):
+    """The lock of the folder that holds ``partial_dir`` (none without one)."""
+    if partial_dir is None:
+        return contextlib.nullcontext()
+    from ..io.lock import output_lock
+
+    return output_lock(Path(partial_dir).parent)
 
 
 def _replay(caught) -> list[str]:

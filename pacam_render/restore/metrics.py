@@ -19,6 +19,13 @@ MAX_SHIFT_PX = 12
 PSF moves each object by -s^2 / (2 a_i) (Eq. 2 with the square completed)."""
 
 
+def shift_search_px(width_px: int) -> int:
+    """The alignment search for a sensor ``width_px`` wide, px: the train set's near train moves
+    by -s^2 / (2 a_i) = 25 px at the prototype's full 1280 px, so +-32 px there, in proportion
+    below, and at least 4."""
+    return max(4, round(32 * width_px / 1280))
+
+
 def psnr(estimate, truth, data_range: float = 1.0) -> float:
     """Peak signal-to-noise ratio in dB.
 

@@ -50,6 +50,24 @@ def check_workers(workers: int | None, n_tasks: int | None = None) -> int:
     return workers
 
 
+def check_scheduler(address: str | None) -> str | None:
+    """``--scheduler``: None, or a Dask address with a port (``tcp://host:8786``)."""
+    if address is None:
+        return None
+    from distributed.comm.addressing import parse_address, parse_host_port
+
+    try:
+        scheme, loc = parse_address(str(address))
+        if scheme in ("tcp", "tls"):
+            parse_host_port(loc)  # raises without a port
+    except ValueError as exc:
+        raise ParameterError(
+            f"--scheduler must be a Dask scheduler's address, e.g. tcp://host:8786, got "
+            f"{address!r} ({exc})"
+        ) from None
+    return address
+
+
 def run_tasks(
     fn: Callable,
     tasks: Sequence,
@@ -126,6 +144,7 @@ def _client(workers: int, scheduler: str | None) -> Iterator:
     from distributed import Client, LocalCluster
 
     if scheduler is not None:
+        check_scheduler(scheduler)  # a malformed address is not a timeout
         try:
             client = Client(scheduler, timeout=CONNECT_TIMEOUT_S)
         except (OSError, TimeoutError, ValueError) as exc:

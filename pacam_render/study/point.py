@@ -137,6 +137,7 @@ def _render(render: dict, p: Point):
 
 def _evaluate(cap, desc, p: Point, task: Task, info: dict) -> dict:
     """Sensor, deconvolution and scores of one point on the rendered capture."""
+    from ..restore.metrics import shift_search_px
     from ..sensor.apply import add_sensor_layers
     from ..sensor.model import SensorModel
     from .score import score
@@ -149,7 +150,7 @@ def _evaluate(cap, desc, p: Point, task: Task, info: dict) -> dict:
     est = noisy if p.method == "none" else _deconvolve(cap, noisy, total, p.method)
     if task.keep_dir is not None:
         _keep(cap, est, p, Path(task.keep_dir))
-    shift = max(4, round(32 * cap.record.spec["width"] / 1280))  # -s^2/(2 a_i) reaches 25 px
+    shift = shift_search_px(cap.record.spec["width"])
     out = score(
         est, cap.extra_layers, cap.record.objects, set(desc.moving_ids), shift, _edge_px(cap)
     )

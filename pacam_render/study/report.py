@@ -11,7 +11,6 @@ study reports everything finished so far).
 
 from __future__ import annotations
 
-import csv
 import math
 from collections import defaultdict
 from pathlib import Path
@@ -20,7 +19,7 @@ import numpy as np
 
 from ..io.outputs import atomic_save, write_text
 from .point import MODEL_SIGMA
-from .results import RESULTS
+from .results import RESULTS, read_csv
 from .spec import StudySpec
 
 NUMERIC = (
@@ -33,8 +32,7 @@ LIGHT = "light_level_photons_per_px_per_ms"
 
 def load_rows(out: Path) -> list[dict]:
     """The rows of ``out/results.csv``, numbers as floats (nan where empty)."""
-    with open(out / RESULTS, newline="", encoding="utf-8") as f:
-        rows = list(csv.DictReader(f))
+    rows = read_csv(out / RESULTS)
     for r in rows:
         for k in NUMERIC:
             r[k] = float(r[k]) if r.get(k) not in (None, "") else math.nan

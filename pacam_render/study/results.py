@@ -44,7 +44,7 @@ class Results:
                     "same study with other settings); pass --force to start afresh there, or "
                     "choose another --out"
                 )
-            self.rows = {int(r["point"]): r for r in _read_csv(self.path)}
+            self.rows = {int(r["point"]): r for r in read_csv(self.path)}
             self.resumed = len(self.done())
         elif self.path.exists() and not force:
             raise ParameterError(f"--out {out} holds a {RESULTS} of unknown origin; pass --force")
@@ -80,7 +80,8 @@ def _read_json(path: Path) -> dict:
         raise ParameterError(f"{path} is not readable JSON ({exc}); pass --force") from None
 
 
-def _read_csv(path: Path) -> list[dict]:
+def read_csv(path: Path) -> list[dict]:
+    """The rows of a results CSV as strings; none if the file does not exist."""
     if not path.exists():
         return []
     with open(path, newline="", encoding="utf-8") as f:
