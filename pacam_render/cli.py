@@ -469,6 +469,36 @@ def _cmd_validate_psf(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_validate_scene(args: argparse.Namespace) -> int:
+    from .experiments import scene_report
+    from .experiments import validate_scene as vs
+    from .exposure.capture import parse_crop
+
+    check = vs.SceneCheck(
+        scene=args.scene,
+        mode=args.mode,
+        width=args.width,
+        height=args.height,
+        crop=parse_crop(args.crop) if args.crop else None,
+        spp=args.spp,
+        seed=args.seed,
+        max_step_px=args.max_step_px,
+        preset=args.preset,
+        cover_px_per_ms=args.cover,
+        f_number=args.f_number,
+        r_px=args.r_px,
+        object_depth_mm=args.depth,
+        speed_px_per_ms=args.speed,
+        quantum_px=args.quantum,
+        quick=args.quick,
+    )
+    s = vs.run(check, args.out, args.force, not args.quiet)
+    print(f"validate-scene {args.scene}: {s['seconds']:.1f} s -> {Path(args.out)}/")
+    for line in scene_report.findings(s["rows"], s["profile_width_px"]):
+        print(line)
+    return 0
+
+
 def _cmd_study(args: argparse.Namespace) -> int:
     from .study import load_study, run_study
     from .study.engine import check_scheduler, check_workers
@@ -534,6 +564,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_reproduce(sub)
     _add_render(sub)
     _add_validate_psf(sub)
+    _add_validate_scene(sub)
     _add_study(sub)
     _add_demo(sub)
     return parser
@@ -737,6 +768,52 @@ def _add_validate_psf(sub) -> None:
     p.set_defaults(func=_cmd_validate_psf)
 
 
+def _add_validate_scene(sub) -> None:
+    from .psf.scene import MODEL_MODES, QUANTUM_PX
+
+    p = sub.add_parser(
+        "validate-scene",
+        help="a rendered scene against the per-surface convolution model, by region",
+    )
+    p.add_argument("scene", help="train, soccer, walker, or a path to a Mitsuba .xml scene")
+    p.add_argument("--mode", default="coded", choices=MODEL_MODES)
+    p.add_argument("--width", type=int, metavar="W", help="sensor px (default the preset's)")
+    p.add_argument("--height", type=int, metavar="H", help="sensor px (default the preset's)")
+    p.add_argument(
+        "--crop",
+        metavar="X,Y,W,H",
+        help="the window (default: around the moving objects, padded by the PSF's reach)",
+    )
+    p.add_argument("--preset", default="prototype", help="base camera (default: prototype)")
+    p.add_argument("--spp", type=int, default=64, metavar="N", help="samples per pixel (64)")
+    p.add_argument("--seed", type=int, default=0, metavar="S", help="seeds S and S+1 (0)")
+    p.add_argument(
+        "--max-step-px", type=float, default=0.5, metavar="PX", help="motion per step (0.5)"
+    )
+    p.add_argument("--cover", type=float, metavar="PX_PER_MS", help="solve the design for it")
+    p.add_argument("--f-number", type=float, metavar="N", help="with --cover: the opening")
+    p.add_argument("--r-px", type=float, metavar="PX", help="with --cover: the defocus radius")
+    p.add_argument("--depth", type=float, metavar="MM", help="the design's object depth")
+    p.add_argument(
+        "--speed",
+        type=float,
+        metavar="PX_PER_MS",
+        help="scale the scene's motions so its fastest object moves this fast (preset px)",
+    )
+    p.add_argument(
+        "--quantum",
+        type=float,
+        default=QUANTUM_PX,
+        metavar="PX",
+        help=f"the model's PSF quantum (default {QUANTUM_PX} px)",
+    )
+    p.add_argument("--quick", action="store_true", help="a small window at 16 spp (< 1 min)")
+    p.add_argument("--out", required=True, metavar="DIR")
+    p.add_argument("--force", action="store_true", help="overwrite results in DIR")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.set_defaults(func=_cmd_validate_scene)
+
+
 def _add_study(sub) -> None:
     p = sub.add_parser(
         "study", help="a rendered sweep (capture, sensor, deconvolution, scores) on Dask"
@@ -818,6 +895,7 @@ _FLAGS = {
     "r_px": "--r-px",
     "light_level": "--light-level",
     "noise_sigma": "--noise-sigma",
+    "quantum_px": "--quantum",
 }
 """Python parameter names in library messages, and the flags a CLI user typed instead."""
 _FLAG_RE = re.compile(r"(?<![\w-])(" + "|".join(_FLAGS) + r")(?![\w-])(?! \(--)")

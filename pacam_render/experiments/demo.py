@@ -206,7 +206,7 @@ def _figure(panels: list[Panel], ref: np.ndarray, path: Path, crops: dict, shift
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from ..io.outputs import atomic_save
+    from ..io.outputs import save_figure
 
     n = len(panels)
     fig, axes = plt.subplots(1 + len(crops), n, figsize=(2.6 * n, 2.2 * (1 + len(crops))))
@@ -226,8 +226,7 @@ def _figure(panels: list[Panel], ref: np.ndarray, path: Path, crops: dict, shift
         ax.set_xticks([])
         ax.set_yticks([])
     fig.tight_layout()
-    atomic_save(path, lambda tmp: fig.savefig(tmp, dpi=80, format="png"), force=True)
-    plt.close(fig)
+    save_figure(fig, path, 80)
 
 
 def _table(panels, ref, caps, spp, seconds) -> str:

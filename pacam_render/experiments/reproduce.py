@@ -10,8 +10,6 @@ with the 16 held patterns the camera really shows.
 
 from __future__ import annotations
 
-import csv
-import io
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -20,7 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import ParameterError
-from ..io.outputs import atomic_save, write_text
+from ..io.outputs import csv_text, save_figure, write_text
 from ..model import paper
 from ..model.camera import prototype
 from ..psf import analytic as P
@@ -711,19 +709,9 @@ def _summary_train(rows, w, h, spp, spp_psf, caps) -> str:
 
 # --- writing ------------------------------------------------------------------------------------
 def _save_fig(fig, path: Path) -> None:
-    import matplotlib.pyplot as plt
 
     fig.tight_layout()
-    atomic_save(path, lambda tmp: fig.savefig(tmp, dpi=110, format="png"), force=True)
-    plt.close(fig)
-
-
-def _csv(rows: list[dict]) -> str:
-    buf = io.StringIO()
-    w = csv.DictWriter(buf, fieldnames=list(rows[0]))
-    w.writeheader()
-    w.writerows(rows)
-    return buf.getvalue()
+    save_figure(fig, path, 110)
 
 
 FIGURES: dict[str, Callable[[bool, int], Figure]] = {
@@ -767,7 +755,7 @@ def run(
     def write(task, fig) -> None:
         if isinstance(fig, BaseException):
             raise fig
-        write_text(out / f"{fig.name}.csv", _csv(fig.rows), force=True)
+        write_text(out / f"{fig.name}.csv", csv_text(fig.rows), force=True)
         fig.plot(out / f"{fig.name}.png")
         stamp = f"\n\nComputed in {fig.seconds:.1f} s ({'--quick' if quick else 'full'} run).\n"
         write_text(out / f"{fig.name}.md", fig.summary + stamp, force=True)

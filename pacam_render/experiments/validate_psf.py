@@ -26,8 +26,6 @@ at that depth. Every other opening has its own invariant range |a_i| T.
 
 from __future__ import annotations
 
-import csv
-import io
 import math
 import os
 import platform
@@ -39,7 +37,7 @@ import numpy as np
 
 from ..errors import ParameterError
 from ..exposure import psf_render as prd
-from ..io.outputs import atomic_save, prepare_out_dir, write_text
+from ..io.outputs import csv_text, prepare_out_dir, save_figure, write_text
 from ..model.camera import CameraDesign, prototype
 from ..psf.analytic import design_psf
 from ..restore import metrics
@@ -313,12 +311,7 @@ def pair_task(task) -> list[tuple[dict, dict]]:
 
 
 def _write_csv(path: Path, rows: list[dict], force: bool) -> None:
-    buf = io.StringIO()
-    w = csv.DictWriter(buf, fieldnames=list(rows[0]))
-    w.writeheader()
-    for r in rows:
-        w.writerow({k: (f"{v:.6g}" if isinstance(v, float) else v) for k, v in r.items()})
-    write_text(path, buf.getvalue(), force=force)
+    write_text(path, csv_text(rows, "{:.6g}"), force=force)
 
 
 def summarise(rows: list[dict], grid: Grid, seconds: float) -> dict:
@@ -521,8 +514,7 @@ def _plots(out_dir: Path, rows: list[dict], examples: dict, grid: Grid) -> list[
 
 def _save_figure(plt, fig, out_dir: Path, name: str, dpi: int) -> str:
     """Save ``fig`` as ``out_dir / name`` (PNG), close it and return ``name``."""
-    atomic_save(out_dir / name, lambda p: fig.savefig(p, dpi=dpi, format="png"), force=True)
-    plt.close(fig)
+    save_figure(fig, out_dir / name, dpi)
     return name
 
 

@@ -105,3 +105,30 @@ def prepare_out_dir(path: str | os.PathLike, force: bool) -> Path:
     if d.is_dir() and any(p.name != ".pacam.lock" for p in d.iterdir()) and not force:
         raise ParameterError(f"--out {d} already holds results; pass --force to overwrite them")
     return writable_dir(d, create=False)
+
+
+def csv_text(rows: list[dict], float_format: str | None = None) -> str:
+    """Rows (dicts with the same keys, in order) as CSV text; floats through ``float_format``
+    (e.g. ``"{:.6g}"``) if given."""
+    import csv
+    import io
+
+    buf = io.StringIO()
+    w = csv.DictWriter(buf, fieldnames=list(rows[0]))
+    w.writeheader()
+    for r in rows:
+        if float_format is not None:
+            r = {k: (float_format.format(v) if isinstance(v, float) else v) for k, v in r.items()}
+        w.writerow(r)
+    return buf.getvalue()
+
+
+def save_figure(fig, path, dpi: int) -> Path:
+    """Save a matplotlib figure as PNG through a temporary file (replacing ``path``), and
+    close it."""
+    import matplotlib.pyplot as plt
+
+    try:
+        return atomic_save(path, lambda tmp: fig.savefig(tmp, dpi=dpi, format="png"), force=True)
+    finally:
+        plt.close(fig)

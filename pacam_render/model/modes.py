@@ -53,7 +53,8 @@ class Mode:
     exposure_ms : float or None
         The mode's own exposure; None: the design's 2T.
     psf : str or None
-        The analytic kernel (a key of :data:`pacam_render.psf.analytic.MODE_KERNELS`).
+        The analytic kernel: a key of
+        :data:`pacam_render.psf.analytic.MODE_TRAJECTORIES`, the point's image path.
     continuous : bool
         The parabola is evaluated at each ray's time instead of per pattern.
     moves_image : bool

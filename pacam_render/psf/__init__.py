@@ -12,10 +12,11 @@ supply the pieces. Units: s in px/ms, a_i in px/ms^2, T and exposures in ms (the
 """
 
 from .analytic import (
-    MODE_KERNELS,
+    MODE_TRAJECTORIES,
     PSFTruncationWarning,
     coded_psf,
     design_psf,
+    design_trajectory,
     discrete_coded_psf,
     flutter_psf,
     levin_psf,
@@ -25,10 +26,11 @@ from .analytic import (
 )
 
 __all__ = [
-    "MODE_KERNELS",
+    "MODE_TRAJECTORIES",
     "PSFTruncationWarning",
     "coded_psf",
     "design_psf",
+    "design_trajectory",
     "discrete_coded_psf",
     "flutter_psf",
     "levin_psf",

@@ -239,11 +239,7 @@ def flutter_psf(
     s: float, T_ms: float, code: str = sch.RASKAR_2006_CODE, r_px: float = 0.0, size=None
 ) -> np.ndarray:
     """Raskar et al. 2006: the shutter opens and closes per chop of ``code`` over [-T, T]."""
-    s, _, T = _check_motion(s, 0.0, T_ms)
-    bits = sch.flutter_code(code)
-    edges = np.linspace(-T, T, bits.size + 1)
-    segs = [Segment(e0, e1, 0.0, s, 0.0, b) for e0, e1, b in zip(edges[:-1], edges[1:], bits)]
-    return kernel_from_trajectory(segs, r_px, size)
+    return kernel_from_trajectory(flutter_segments(s, T_ms, code), r_px, size)
 
 
 def invariance_tail_l1(s: float, a_i: float, T_ms: float) -> float:
@@ -267,45 +263,57 @@ def vertex_shift_px(s: float, a_i: float) -> float:
     return -s * s / (2.0 * a_i)
 
 
-def _kernel_discrete_coded(cam, s, size, x0):
-    return discrete_coded_psf(
-        s, cam.a_i_px_per_ms2, cam.r_px, cam.T_ms, cam.n_patterns, size, x0_px=x0
-    )
+def flutter_segments(s: float, T_ms: float, code: str = sch.RASKAR_2006_CODE) -> list[Segment]:
+    """Raskar et al.'s shutter: the point moves at s, seen only during the open chops."""
+    s, _, T = _check_motion(s, 0.0, T_ms)
+    bits = sch.flutter_code(code)
+    edges = np.linspace(-T, T, bits.size + 1)
+    return [Segment(e0, e1, 0.0, s, 0.0, b) for e0, e1, b in zip(edges[:-1], edges[1:], bits)]
 
 
-def _kernel_coded(cam, s, size, x0):
-    return coded_psf(s, cam.a_i_px_per_ms2, cam.r_px, cam.T_ms, size, x0_px=x0)
-
-
-def _kernel_levin(cam, s, size, x0):
-    return levin_psf(s, cam.a_i_px_per_ms2, cam.T_ms, size, x0_px=x0)
-
-
-def _kernel_static(cam, s, size, x0):
-    return static_psf(s, cam.T_ms, cam.r_px, size)
-
-
-def _kernel_short(cam, s, size, x0):
-    return short_exposure_psf(s, mode_exposure_ms(cam, "short"), cam.r_px, size)
-
-
-def _kernel_flutter(cam, s, size, x0):
-    return flutter_psf(s, cam.T_ms, r_px=cam.r_px, size=size)
-
-
-MODE_KERNELS = {
-    "discrete_coded": _kernel_discrete_coded,
-    "coded": _kernel_coded,
-    "levin": _kernel_levin,
-    "static": _kernel_static,
-    "short": _kernel_short,
-    "flutter": _kernel_flutter,
+MODE_TRAJECTORIES = {
+    "discrete_coded": lambda cam, s, x0: (
+        discrete_segments(s, cam.a_i_px_per_ms2, cam.T_ms, cam.n_patterns, x0),
+        cam.r_px,
+    ),
+    "coded": lambda cam, s, x0: (parabola_segments(s, cam.a_i_px_per_ms2, cam.T_ms, x0), cam.r_px),
+    "levin": lambda cam, s, x0: (parabola_segments(s, cam.a_i_px_per_ms2, cam.T_ms, x0), 0.0),
+    "static": lambda cam, s, x0: (parabola_segments(s, 0.0, cam.T_ms), cam.r_px),
+    "short": lambda cam, s, x0: (
+        parabola_segments(s, 0.0, 0.5 * mode_exposure_ms(cam, "short")),
+        cam.r_px,
+    ),
+    "flutter": lambda cam, s, x0: (flutter_segments(s, cam.T_ms), cam.r_px),
 }
-"""The analytic kernels that :data:`pacam_render.model.modes.MODES` names, by their ``psf`` key:
-``f(camera, s_px_per_ms, size, x0_px)``."""
+"""The trajectory of each analytic kernel that :data:`pacam_render.model.modes.MODES` names,
+by its ``psf`` key: ``f(camera, s_px_per_ms, x0_px) -> (segments, r_px)``, the image of a
+point's x over the exposure and the defocus disc that it carries."""
 
 
-def design_psf(design, mode: str = "coded", s: float = 0.0, size=None, origin: str = "t0"):
+def design_trajectory(design, mode: str = "coded", s: float = 0.0, origin: str = "t0"):
+    """The trajectory of a point's image in a ``mode`` capture (see :func:`design_psf`).
+
+    Returns
+    -------
+    segments : list of Segment
+        x(t) over the exposure, px (Eq. 2, or the mode's own motion).
+    r_px : float
+        The defocus radius r = |beta| R (Eq. 12) of the disc the point images to, px.
+    """
+    if origin not in ("t0", "pinhole"):
+        raise ParameterError(f"origin must be 't0' or 'pinhole', got {origin!r}")
+    if mode not in MODES_WITH_PSF:
+        raise ParameterError(f"unknown mode {mode!r}; valid: {', '.join(MODES_WITH_PSF)}")
+    m = MODES[mode]
+    if m.needs_parallax:
+        design.require_parallax()
+    x0 = t0_offset_px(design, mode) if origin == "pinhole" else 0.0
+    return MODE_TRAJECTORIES[m.psf](design, s, x0)
+
+
+def design_psf(
+    design, mode: str = "coded", s: float = 0.0, size=None, origin: str = "t0", v_px_per_ms=0.0
+):
     """The analytic PSF of a capture in ``mode`` by camera ``design``, at speed s.
 
     Parameters
@@ -329,18 +337,19 @@ def design_psf(design, mode: str = "coded", s: float = 0.0, size=None, origin: s
         Levin's moving body) start from an edge, which shifts the image by -a_i T^2 / 4
         (:func:`~pacam_render.model.modes.t0_offset_px`). Deconvolve with ``"pinhole"`` to
         register with the scene.
+    v_px_per_ms : float, optional
+        Vertical image speed, px/ms (rows, downwards). 0 gives the exact kernel of the
+        one-dimensional motion; otherwise the point's path is two-dimensional, and the kernel
+        is its quadrature (:func:`~pacam_render.psf.planar.planar_kernel`).
 
     Returns
     -------
     numpy.ndarray
         The pixel-integrated kernel, odd-sized, summing to 1.
     """
-    if origin not in ("t0", "pinhole"):
-        raise ParameterError(f"origin must be 't0' or 'pinhole', got {origin!r}")
-    if mode not in MODES_WITH_PSF:
-        raise ParameterError(f"unknown mode {mode!r}; valid: {', '.join(MODES_WITH_PSF)}")
-    m = MODES[mode]
-    if m.needs_parallax:
-        design.require_parallax()
-    x0 = t0_offset_px(design, mode) if origin == "pinhole" else 0.0
-    return MODE_KERNELS[m.psf](design, s, size, x0)
+    segments, r = design_trajectory(design, mode, s, origin)
+    if v_px_per_ms == 0.0:
+        return kernel_from_trajectory(segments, r, size)
+    from .planar import planar_kernel
+
+    return planar_kernel(segments, r, v_px_per_ms, size)

@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..io.outputs import atomic_save, write_text
+from ..io.outputs import save_figure, write_text
 from .point import MODEL_SIGMA
 from .results import RESULTS, read_csv
 from .spec import StudySpec
@@ -149,8 +149,7 @@ def _plot(
         ax.grid(alpha=0.3)
     axes[0][-1].legend(fontsize=7)
     fig.tight_layout()
-    atomic_save(out / name, lambda tmp: fig.savefig(tmp, dpi=90, format="png"), force=True)
-    plt.close(fig)
+    save_figure(fig, out / name, 90)
     return name
 
 
