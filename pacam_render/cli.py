@@ -474,6 +474,8 @@ def _cmd_validate_scene(args: argparse.Namespace) -> int:
     from .experiments import validate_scene as vs
     from .exposure.capture import parse_crop
 
+    if args.speed is not None:
+        check_positive("--speed", args.speed, "px/ms")
     check = vs.SceneCheck(
         scene=args.scene,
         mode=args.mode,

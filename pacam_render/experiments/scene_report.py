@@ -17,7 +17,7 @@ import numpy as np
 from ..errors import ParameterError
 from ..io.outputs import csv_text, save_figure, write_json, write_text
 from .scene_regions import REGIONS
-from .validate_scene import PROFILE_RATIO
+from .validate_scene import PROFILE_RATIO, residuals
 
 Z_SPAN = 5.0
 """The error maps show -5 to 5 noise sigmas."""
@@ -53,8 +53,7 @@ def z_map(captures, predicted) -> np.ndarray:
     """The error of the mean, in local noise sigmas (grey: the mean over channels)."""
     from scipy.ndimage import uniform_filter
 
-    e = (0.5 * (captures[0] + captures[1]) - 0.5 * (predicted[0] + predicted[1])).mean(-1)
-    d = ((captures[0] - captures[1]) - (predicted[0] - predicted[1])).mean(-1)
+    e, d = (x.mean(-1) for x in residuals(captures, predicted))
     local = uniform_filter(d * d / 4.0, NOISE_WINDOW_PX, mode="reflect")
     noise = np.sqrt(np.maximum(local, 0.0))  # the running sums round to -1e-20 in flat areas
     return e / np.maximum(noise, 1e-12)

@@ -241,12 +241,16 @@ def regions(p: Plan, r: Renders, built: list) -> tuple[np.ndarray, np.ndarray]:
     return _inner(reg, p), _inner(dist, p)
 
 
+def residuals(captures, predicted) -> tuple[np.ndarray, np.ndarray]:
+    """e, the error of the two seeds' mean, and d, their difference that holds only noise
+    (see the module docstring)."""
+    (c1, c2), (m1, m2) = captures, predicted
+    return 0.5 * (c1 + c2) - 0.5 * (m1 + m2), (c1 - c2) - (m1 - m2)
+
+
 def region_rows(captures, predicted, reg: np.ndarray, model: str) -> list[dict]:
     """The error of one model in every region, in noise units (see the module docstring)."""
-    c1, c2 = captures
-    m1, m2 = predicted
-    e = 0.5 * (c1 + c2) - 0.5 * (m1 + m2)
-    d = (c1 - c2) - (m1 - m2)
+    e, d = residuals(captures, predicted)
     rows = []
     names = [n for n in REGIONS if n != "frame"] + ["all"]
     for name in names:
@@ -267,10 +271,7 @@ the floor)."""
 
 def edge_profile(captures, predicted, reg, dist, model: str, reach_px: float) -> list[dict]:
     """The error against signed distance to a moving edge (negative: inside the object)."""
-    c1, c2 = captures
-    m1, m2 = predicted
-    e = 0.5 * (c1 + c2) - 0.5 * (m1 + m2)
-    d = (c1 - c2) - (m1 - m2)
+    e, d = residuals(captures, predicted)
     n = math.ceil(reach_px / PROFILE_STEP_PX) + 1
     rows = []
     for k in range(-n, n):
@@ -303,7 +304,10 @@ def profile_width(profile: list[dict]) -> tuple[float, float]:
 
 def _stats(e: np.ndarray, d: np.ndarray, n: int) -> dict:
     e2, n2 = float(np.mean(e**2)), float(np.mean(d**2)) / 4.0
-    ratio = math.sqrt(e2 / n2) if n2 > 0 else math.inf
+    if n2 > 0:
+        ratio = math.sqrt(e2 / n2)
+    else:  # no noise (a black region): exact agreement is the floor, anything else is not
+        ratio = 1.0 if e2 == 0 else math.inf
     excess = e2 - n2
     return {
         "noise_rms": math.sqrt(n2),

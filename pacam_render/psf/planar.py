@@ -6,7 +6,8 @@ path that is no longer on one row, and the exact one-dimensional integration of
 :func:`~pacam_render.psf.analytic.kernel_from_trajectory` does not apply. Here the path is
 sampled at the midpoints of steps of at most ``step_px`` along it, and each sample deposits an
 exactly pixel-integrated pillbox of the defocus radius (:mod:`.pillbox`): midpoint quadrature,
-second order in the step. With no vertical speed it agrees with the exact kernel to the
+second order in the step (an in-focus point, r = 0, is binned, first order, on a 25 times finer
+step). With no vertical speed it agrees with the exact kernel to the
 quadrature's error (tested); a vertical path is the exact kernel's transpose.
 """
 
@@ -23,6 +24,9 @@ from .trajectory import Segment, extent, total_weight
 
 STEP_PX = 0.05
 """Default largest path length between quadrature samples, px."""
+POINT_REFINE = 25
+"""With r = 0 the step is this much finer: binning points into pixels is first order (L1 5.5e-3
+against the exact in-focus kernel at 0.05 px, 2.7e-4 at 0.002 px)."""
 _CHUNK = 2_000_000
 """Values evaluated at once when depositing discs (bounds the memory to ~100 MB)."""
 
@@ -62,7 +66,8 @@ def planar_kernel(
     r = 0.0 if r < R_DELTA_PX else r
     v = check_finite("v_px_per_ms", v_px_per_ms)
     step = check_positive("step_px", step_px, "px")
-    x, y, mass = _samples(segments, v, step)
+    # a point (r = 0) is binned, which is first order in the step: sample it finer (cheap)
+    x, y, mass = _samples(segments, v, step if r > 0.0 else step / POINT_REFINE)
     if size is None:
         lo, hi = extent(segments)
         w = _shape(None, lo, hi, r)[1]
