@@ -1,10 +1,16 @@
-"""Deconvolution benchmark (issue 6): our Wiener vs skimage.restoration.wiener speed ratio, and
-PSNR / SSIM against run time for every method on the same synthetic coded capture.
+"""Deconvolution benchmark (issues 6 and 16): speed against scikit-image's Wiener, and PSNR, SSIM
+and run time of every method on 13 photographs through the prototype's coded PSF.
 
-The capture: a scikit-image photograph, blurred with the prototype's discrete coded PSF (s = 0)
-by linear convolution of the reflect-extended scene, plus Gaussian noise sigma = 0.01.
+Captures: the scikit-image photographs that ship offline, 256 x 256, blurred by linear
+convolution of the reflect-extended scene with the prototype's discrete coded PSF (s = 0);
+(a) grey with Gaussian noise sigma = 0.01, (b) colour through the ICX285 sensor model (Bayer,
+Poisson-Gaussian, 14 bits) at 300 photons/px/ms, the coded opening and 45 ms, demosaicked.
+Every method gets the noise it should assume: sigma, or for hl/tv on (b) the sensor's
+Poisson-Gaussian model. Also: hl/tv's options on (b) (colour joint or per channel, white or
+Poisson-Gaussian noise); PSNR against iterations and seconds; the speed-robust kernel on
+objects at 0, 0.5 and 1.0 times the invariant range.
 
-    python benchmarks/bench_deconvolve.py [--full]
+    python benchmarks/bench_deconvolve.py [--no-bm3d]
 """
 
 from __future__ import annotations
@@ -21,68 +27,188 @@ from skimage.restoration import wiener as sk_wiener
 
 from pacam_render import prototype
 from pacam_render.psf.analytic import design_psf
+from pacam_render.psf.robust import aligned_speed_psf, speed_robust_psf
 from pacam_render.restore import deconvolve as D
-from pacam_render.restore import metrics
+from pacam_render.restore.metrics import psnr
+from pacam_render.restore.noise import NoiseModel
+from pacam_render.restore.sparse import sparse_deconvolve
+from pacam_render.sensor.model import SensorModel, aperture_area_mm2, simulate_capture
 
 SIGMA = 0.01
+PHOTOS = (
+    "astronaut",
+    "brick",
+    "camera",
+    "chelsea",
+    "clock",
+    "coffee",
+    "coins",
+    "grass",
+    "gravel",
+    "hubble_deep_field",
+    "moon",
+    "retina",
+    "rocket",
+)
+LIGHT = 300.0  # photons/px/ms, the demo's
+CAM = prototype()
+K = design_psf(CAM, "coded", 0.0)
+SENSOR = SensorModel.from_preset("grasshopper-icx285")
 
 
-def capture(shape: tuple[int, int], k: np.ndarray, seed: int = 0):
-    x = transform.resize(color.rgb2gray(data.astronaut()), shape, anti_aliasing=True)
+def photo(name: str, rgb: bool) -> np.ndarray:
+    x = getattr(data, name)() / 255.0
+    if x.ndim == 2 and rgb:
+        x = np.repeat(x[..., None], 3, axis=2)
+    elif x.ndim == 3 and not rgb:
+        x = color.rgb2gray(x)
+    return np.clip(transform.resize(x, (256, 256), anti_aliasing=True), 0.0, 1.0)
+
+
+def blur(x: np.ndarray, k: np.ndarray = K) -> np.ndarray:
+    if x.ndim == 3:
+        return np.stack([blur(x[..., c], k) for c in range(x.shape[2])], axis=-1)
     pad = k.shape[0]
-    y = fftconvolve(np.pad(x, pad, mode="reflect"), k, mode="same")[pad:-pad, pad:-pad]
-    return x, y + np.random.default_rng(seed).normal(0, SIGMA, y.shape)
+    return fftconvolve(np.pad(x, pad, mode="reflect"), k, mode="same")[pad:-pad, pad:-pad]
 
 
-def speed_rows(k: np.ndarray, repeat: int) -> list[dict]:
+def grey_capture(x: np.ndarray, seed: int = 0):
+    y = blur(x) + np.random.default_rng(seed).normal(0, SIGMA, x.shape)
+    return y, {"noise_sigma": SIGMA}, {"noise_sigma": SIGMA}
+
+
+def sensor_capture(x: np.ndarray, seed: int = 0):
+    area = {"open_area_mm2": aperture_area_mm2(CAM.R_mm)}
+    area["reference_area_mm2"] = aperture_area_mm2(CAM.R_max_mm)
+    res = simulate_capture(blur(x), SENSOR, exposure_ms=45.0, seed=seed, light_level=LIGHT, **area)
+    noise = NoiseModel.from_sensor(SENSOR, SENSOR.qe * res.photons_per_unit, 45.0)
+    y = res.linear.astype(float)
+    white = {"noise_sigma": float(np.sqrt(noise.variance(y.mean())))}
+    return y, white, {"noise": noise}
+
+
+def methods(bm3d: bool) -> dict:
+    runs = {
+        "none (blurred input)": lambda y, w, s: y,
+        "wiener": lambda y, w, s: D.wiener(y, K, **w),
+        "hl": lambda y, w, s: sparse_deconvolve(y, K, "hl", **s),
+        "tv": lambda y, w, s: sparse_deconvolve(y, K, "tv", **s),
+        "richardson-lucy 30 it": lambda y, w, s: D.richardson_lucy(np.clip(y, 0, None), K, 30),
+    }
+    if bm3d:
+        runs["bm3d deblurring"] = lambda y, w, s: D.bm3d_deblur(y, K, w["noise_sigma"])
+    return runs
+
+
+def quality_rows(capture, rgb: bool, bm3d: bool) -> list[dict]:
+    scores: dict[str, list] = {}
+    for name in PHOTOS:
+        x = photo(name, rgb)
+        y, white, own = capture(x)
+        for label, fn in methods(bm3d).items():
+            t0 = time.perf_counter()
+            est = fn(y, white, own)
+            dt = time.perf_counter() - t0
+            ssim = structural_similarity(
+                np.clip(est, 0, 1), x, data_range=1.0, channel_axis=2 if rgb else None
+            )
+            scores.setdefault(label, []).append((psnr(est, x), ssim, dt))
     rows = []
-    for shape in [(512, 512), (960, 1280)]:
-        _, y = capture(shape, k)
-        ours = median_spread(timeit(lambda y=y: D.wiener(y, k, nsr=1e-2), repeat))
-        prior = median_spread(timeit(lambda y=y: D.wiener(y, k, noise_sigma=SIGMA), repeat))
-        theirs = median_spread(timeit(lambda y=y: sk_wiener(y, k, 1e-2, clip=False), repeat))
+    for label, v in scores.items():
+        a = np.array(v)
         rows.append(
             {
-                "image": f"{shape[1]}x{shape[0]}",
-                "ours_const_ms": 1e3 * ours[0],
-                "ours_prior_ms": 1e3 * prior[0],
-                "skimage_ms": 1e3 * theirs[0],
-                "ratio_ours/skimage": ours[0] / theirs[0],
-                "ratio_spread": (ours[0] + ours[1]) / max(theirs[0] - theirs[1], 1e-9)
-                - ours[0] / theirs[0],
+                "method": label,
+                "mean PSNR dB": a[:, 0].mean(),
+                "min dB": a[:, 0].min(),
+                "max dB": a[:, 0].max(),
+                "mean SSIM": a[:, 1].mean(),
+                "median s": float(np.median(a[:, 2])),
             }
         )
     return rows
 
 
-def quality_rows(k: np.ndarray, shape: tuple[int, int]) -> list[dict]:
-    x, y = capture(shape, k)
-    runs = {
-        "none (blurred input)": lambda: y,
-        "wiener (1/f^2 prior)": lambda: D.wiener(y, k, noise_sigma=SIGMA),
-        "wiener (oracle scale)": lambda: D.oracle_wiener(y, k, x, SIGMA)[0],
-        "skimage wiener b=1e-2": lambda: sk_wiener(y, k, 1e-2, clip=False),
-        "richardson-lucy 10 it": lambda: D.richardson_lucy(np.clip(y, 0, None), k, 10),
-        "richardson-lucy 30 it": lambda: D.richardson_lucy(np.clip(y, 0, None), k, 30),
-        "unsupervised wiener": lambda: D.unsupervised_wiener(y, k),
-    }
-    try:
-        import bm3d  # noqa: F401
-
-        runs["bm3d deblurring"] = lambda: D.bm3d_deblur(y, k, SIGMA)
-    except ImportError:
-        pass
+def option_rows() -> list[dict]:
     rows = []
-    for name, fn in runs.items():
+    xs = [photo(n, True) for n in PHOTOS]
+    caps = [sensor_capture(x) for x in xs]
+    for method in ("hl", "tv"):
+        for colour in ("joint", "channel"):
+            for noise in ("white", "sensor"):
+                got = []
+                for x, (y, white, own) in zip(xs, caps):
+                    kw = white if noise == "white" else own
+                    got.append(psnr(sparse_deconvolve(y, K, method, colour=colour, **kw), x))
+                rows.append(
+                    {"method": method, "colour": colour, "noise": noise, "mean dB": np.mean(got)}
+                )
+    return rows
+
+
+def iteration_rows() -> list[dict]:
+    rows = []
+    xs = [photo(n, False) for n in PHOTOS[:4]]
+    ys = [grey_capture(x)[0] for x in xs]
+    for method in ("hl", "tv"):
+        for n in (1, 2, 3, 6, 9, 12, 24):
+            t0 = time.perf_counter()
+            got = [
+                psnr(sparse_deconvolve(y, K, method, SIGMA, iterations=n), x)
+                for x, y in zip(xs, ys)
+            ]
+            rows.append(
+                {
+                    "method": method,
+                    "iterations": n,
+                    "mean dB": np.mean(got),
+                    "s per image": (time.perf_counter() - t0) / len(xs),
+                }
+            )
+    for n in (5, 10, 30, 60):
         t0 = time.perf_counter()
-        est = fn()
-        dt = time.perf_counter() - t0
+        got = [psnr(D.richardson_lucy(np.clip(y, 0, None), K, n), x) for x, y in zip(xs, ys)]
         rows.append(
             {
-                "method": name,
-                "time_s": dt,
-                "psnr_db": metrics.psnr(est, x),
-                "ssim": structural_similarity(np.clip(est, 0, 1), x, data_range=1.0),
+                "method": "rl",
+                "iterations": n,
+                "mean dB": np.mean(got),
+                "s per image": (time.perf_counter() - t0) / len(xs),
+            }
+        )
+    return rows
+
+
+def robust_rows() -> list[dict]:
+    kr = speed_robust_psf(CAM)
+    k0 = aligned_speed_psf(CAM, "coded", 0.0, size=kr.shape)
+    xs = [photo(n, False) for n in PHOTOS[:4]]
+    rows = []
+    for frac in (0.0, 0.5, 1.0):
+        ks = aligned_speed_psf(CAM, "coded", frac * CAM.velocity_range_px_per_ms, size=kr.shape)
+        ys = [blur(x, ks) + np.random.default_rng(0).normal(0, SIGMA, x.shape) for x in xs]
+        row = {"s / range": frac}
+        for label, k in (("s = 0 kernel", k0), ("robust kernel", kr)):
+            for m in ("wiener", "hl"):
+                est = [D.deconvolve(y, k, m, noise_sigma=SIGMA) for y in ys]
+                row[f"{m}, {label} dB"] = np.mean([psnr(e, x) for e, x in zip(est, xs)])
+        rows.append(row)
+    return rows
+
+
+def speed_rows(repeat: int = 5) -> list[dict]:
+    rows = []
+    for shape in [(512, 512), (960, 1280)]:
+        x = transform.resize(color.rgb2gray(data.astronaut()), shape, anti_aliasing=True)
+        y = blur(x) + np.random.default_rng(0).normal(0, SIGMA, shape)
+        ours = median_spread(timeit(lambda y=y: D.wiener(y, K, nsr=1e-2), repeat))
+        theirs = median_spread(timeit(lambda y=y: sk_wiener(y, K, 1e-2, clip=False), repeat))
+        rows.append(
+            {
+                "image": f"{shape[1]}x{shape[0]}",
+                "ours_ms": 1e3 * ours[0],
+                "skimage_ms": 1e3 * theirs[0],
+                "ratio": ours[0] / theirs[0],
             }
         )
     return rows
@@ -90,20 +216,46 @@ def quality_rows(k: np.ndarray, shape: tuple[int, int]) -> list[dict]:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--full", action="store_true", help="1280x960 quality run, more repeats")
+    ap.add_argument("--no-bm3d", action="store_true", help="leave out BM3D (minutes)")
     args = ap.parse_args()
-    k = design_psf(prototype(), "coded", 0.0)
+    try:
+        import bm3d  # noqa: F401
+
+        bm3d_ok = not args.no_bm3d
+    except ImportError:
+        bm3d_ok = False
     record(
-        "Deconvolution speed: pacam Wiener vs skimage.restoration.wiener (issue 6)",
-        speed_rows(k, 9 if args.full else 5),
-        notes=f"grey float64, PSF {k.shape[0]}x{k.shape[1]} (prototype coded, s=0); ours pads "
-        "by the PSF size and tapers, skimage wraps around; median of repeats",
+        "Deconvolution speed: pacam Wiener vs skimage.restoration.wiener",
+        speed_rows(),
+        notes="grey, prototype coded PSF 25x25; ours pads and tapers, skimage wraps",
     )
-    shape = (960, 1280) if args.full else (256, 256)
     record(
-        f"Deconvolution quality vs run time, {shape[1]}x{shape[0]} astronaut (issue 6)",
-        quality_rows(k, shape),
-        notes=f"prototype coded PSF at s=0, Gaussian noise sigma={SIGMA}; PSNR/SSIM vs sharp image",
+        f"(a) Deconvolution of 13 photographs, grey, sigma = {SIGMA} (issue 16)",
+        quality_rows(grey_capture, False, bm3d_ok),
+        notes="256x256 each, prototype coded PSF (s = 0); times per image on 2 cores",
+    )
+    record(
+        f"(a) Deconvolution of 13 photographs, colour, ICX285 at {LIGHT:g} photons/px/ms",
+        quality_rows(sensor_capture, True, bm3d_ok),
+        notes="Bayer RGGB, bilinear demosaic, coded opening F9.85, 45 ms; hl/tv get the "
+        "sensor's Poisson-Gaussian model, wiener/bm3d the sigma at the mean level",
+    )
+    record(
+        "hl/tv options on the ICX285 captures (issue 16)",
+        option_rows(),
+        notes="13 colour photographs as above; colour: one prior per gradient colour vector "
+        "(joint) or per channel; noise: white at the mean level or the sensor's model",
+    )
+    record(
+        "PSNR against iterations and run time (issue 16)",
+        iteration_rows(),
+        notes=f"4 grey photographs, sigma {SIGMA}; hl/tv: beta from 1 to 256 in n steps",
+    )
+    record(
+        "Speed-robust kernel against the s = 0 kernel (issue 16)",
+        robust_rows(),
+        notes="4 grey photographs blurred with the vertex-aligned coded PSF at s; the robust "
+        f"kernel averages it over |s| <= {CAM.velocity_range_px_per_ms:.3g} px/ms (33 speeds)",
     )
 
 

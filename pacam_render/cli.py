@@ -17,7 +17,7 @@ import numpy as np
 
 from .errors import ParameterError, check_finite, check_positive
 from .exposure.capture import CaptureInterrupted
-from .exposure.record import CaptureRecord, analytic_psf
+from .exposure.record import CaptureRecord, analytic_psf, robust_psf
 from .io.exr import pick_layer, read_exr, write_exr
 from .io.outputs import check_writable, prepare_out_dir, writable_dir, write_json
 from .io.preview import srgb8, write_png
@@ -28,6 +28,7 @@ from .model.modes import MODES, MODES_WITH_PSF
 from .model.report import design_report
 from .psf.analytic import design_psf
 from .restore.deconvolve import BM3D_LICENCE, METHODS, deconvolve
+from .sensor.apply import layer_noise
 
 
 def _design_from_args(args: argparse.Namespace) -> CameraDesign:
@@ -216,11 +217,11 @@ def _capture_record(capture: Path, required: bool) -> CaptureRecord | None:
 
 
 def _load_psf(spec: str, capture: Path, record: CaptureRecord | None) -> np.ndarray:
-    if spec == "analytic":
+    if spec in ("analytic", "robust"):
         if record is None:
             path = capture.with_suffix(".json")
-            raise ParameterError(f"--psf analytic needs the capture's parameters in {path}")
-        return analytic_psf(record)
+            raise ParameterError(f"--psf {spec} needs the capture's parameters in {path}")
+        return analytic_psf(record) if spec == "analytic" else robust_psf(record)
     path = capture.parent / "psf_rendered.exr" if spec == "rendered" else Path(spec)
     if spec == "rendered" and not path.is_file():
         raise ParameterError(
@@ -304,6 +305,21 @@ def _noise_sigma(args, layer: str, layers: list[str], record) -> float | None:
     return None
 
 
+def _sparse_options(args, layer: str, record) -> tuple[dict, str | None]:
+    """The hl/tv keywords: --colour, and the sensor's Poisson-Gaussian noise for its own noisy
+    layer (unless --noise-sigma). Returns (kwargs, noise description or None)."""
+    if args.method not in ("hl", "tv"):
+        if args.colour is not None:
+            raise ParameterError(f"--colour needs --method hl or tv, not {args.method}")
+        return {}, None
+    kw = {} if args.colour is None else {"colour": args.colour}
+    own = record is not None and record.sensor is not None and layer == "noisy"
+    if own and args.noise_sigma is None:
+        kw["noise"] = layer_noise(record)
+        return kw, "the sensor's Poisson-Gaussian noise"
+    return kw, None
+
+
 def _cmd_deconvolve(args: argparse.Namespace) -> int:
     out = Path(args.out)
     if out.suffix not in (".exr", ".png"):
@@ -313,11 +329,11 @@ def _cmd_deconvolve(args: argparse.Namespace) -> int:
     layers = read_exr(capture)
     layer = _deconvolve_layer(list(layers), args.layer)
     image = pick_layer(layers, layer, capture)
-    record = _capture_record(capture, required=args.psf == "analytic")
+    record = _capture_record(capture, required=args.psf in ("analytic", "robust"))
+    kw, how = _sparse_options(args, layer, record)
     k = _load_psf(args.psf, capture, record)
-    kw = {}
-    sigma = _noise_sigma(args, layer, list(layers), record)
-    if args.method in ("wiener", "hl", "tv", "bm3d"):
+    sigma = None if "noise" in kw else _noise_sigma(args, layer, list(layers), record)
+    if args.method in ("wiener", "hl", "tv", "bm3d") and "noise" not in kw:
         kw["noise_sigma"] = sigma
     if args.method == "bm3d":
         print(f"note: {BM3D_LICENCE}", file=sys.stderr)
@@ -326,9 +342,9 @@ def _cmd_deconvolve(args: argparse.Namespace) -> int:
         write_exr(out, {"deconvolved": est}, force=args.force)
     else:
         write_png(out, srgb8(est), force=args.force)
-    how = "estimated" if sigma is None else f"{sigma:.4g}"
+    how = how or ("estimated" if sigma is None else f"sigma {sigma:.4g}")
     print(
-        f"wrote {out} ({args.method}, layer {layer}, noise sigma {how}, "
+        f"wrote {out} ({args.method}, layer {layer}, noise {how}, "
         f"PSF {k.shape[0]}x{k.shape[1]} px from {args.psf})"
     )
     return 0
@@ -627,13 +643,26 @@ def _add_psf(sub) -> None:
 def _add_deconvolve(sub) -> None:
     p = sub.add_parser("deconvolve", help="deblur a capture with one PSF")
     p.add_argument("capture", metavar="CAPTURE.exr")
-    p.add_argument("--psf", default="analytic", help="analytic | rendered | PATH (.exr or .npy)")
+    p.add_argument(
+        "--psf",
+        default="analytic",
+        help="analytic (s = 0) | robust (the analytic PSF averaged over the design's speed "
+        "range: better at its edge, worse at rest) | rendered | PATH (.exr or .npy)",
+    )
     p.add_argument(
         "--method",
-        default="wiener",
+        default="hl",
         choices=METHODS,
-        help=f"bm3d is optional: pip install bm3d ({BM3D_LICENCE})",
+        help="default hl (hyper-Laplacian prior); bm3d is optional: pip install bm3d "
+        f"({BM3D_LICENCE})",
     )
+    p.add_argument(
+        "--colour",
+        choices=("joint", "channel"),
+        help="hl/tv: one prior on each gradient's colour vector, or one per channel (default: "
+        "joint for hl, channel for tv, the better of each)",
+    )
+
     p.add_argument(
         "--layer",
         help="EXR layer to deconvolve (default: noisy when the capture has one, else capture)",

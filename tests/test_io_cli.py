@@ -153,15 +153,26 @@ def test_cli_deconvolve_uses_the_noise_a_sensor_capture_recorded(tmp_path, capsy
     assert meta["noise_sigma"] == pytest.approx(0.01 * meta["light_factor"], rel=0.02)
     capsys.readouterr()
     out = tmp_path / "d.exr"
-    assert main(["deconvolve", str(cap / "capture.exr"), "--out", str(out)]) == 0
+    cmd = ["deconvolve", str(cap / "capture.exr"), "--method", "wiener", "--out", str(out)]
+    assert main(cmd) == 0
     said = capsys.readouterr().out
     assert "layer noisy" in said and f"noise sigma {meta['noise_sigma']:.4g}" in said
     assert np.isfinite(exrio.read_exr(out)["deconvolved"]).all()
+    # the default (hl) weights the data by the sensor's own noise model, which at the paper
+    # preset is white with the same sigma
+    from pacam_render.exposure.record import CaptureRecord
+    from pacam_render.sensor.apply import layer_noise
+
+    noise = layer_noise(CaptureRecord.from_json(meta))
+    assert noise.shot == 0 and np.sqrt(noise.floor) == pytest.approx(meta["noise_sigma"], rel=0.02)
+    out1 = tmp_path / "d1.exr"
+    assert main(["deconvolve", str(cap / "capture.exr"), "--out", str(out1)]) == 0
+    assert "(hl, layer noisy, noise the sensor's Poisson-Gaussian noise" in capsys.readouterr().out
     # the noiseless layer, asked for by name, is not given the sensor's noise
     out2 = tmp_path / "d2.exr"
     cmd = ["deconvolve", str(cap / "capture.exr"), "--layer", "capture", "--out", str(out2)]
     assert main(cmd) == 0
-    assert "layer capture, noise sigma estimated" in capsys.readouterr().out
+    assert "layer capture, noise estimated" in capsys.readouterr().out
 
 
 def test_cli_version(capsys):

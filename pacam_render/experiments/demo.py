@@ -30,7 +30,7 @@ from ..io.outputs import prepare_out_dir, write_text
 from ..model import paper
 from ..restore.deconvolve import deconvolve
 from ..restore.metrics import aligned_psnr, crop, psnr, shift_search_px, ssim
-from ..sensor.apply import add_sensor_layers
+from ..sensor.apply import add_sensor_layers, layer_noise
 
 SENSOR_PRESET = "grasshopper-icx285"
 LIGHT_LEVEL = 300.0
@@ -107,15 +107,18 @@ def _deconvolve(cap, rendered_psf: bool, spp_psf: int, method: str = DEMO_METHOD
     from ..model.camera import CameraDesign
 
     noisy = _noisy(cap)
-    sigma = cap.record.sensor.noise_sigma_white_units  # known from the sensor
+    if method in ("hl", "tv"):  # the sensor's own Poisson-Gaussian noise, white = 1 units
+        kw = {"noise": layer_noise(cap.record).scaled(1.0 / cap.record.light_factor)}
+    else:
+        kw = {"noise_sigma": cap.record.sensor.noise_sigma_white_units}
     k = analytic_psf(cap.record)
-    out = {"analytic PSF": deconvolve(noisy, k, method, noise_sigma=sigma)}
+    out = {"analytic PSF": deconvolve(noisy, k, method, **kw)}
     if rendered_psf:
         from ..exposure.psf_render import render_psf
 
         cam = CameraDesign.from_inputs(cap.record.camera)
         rk = render_psf(cam, "coded", 0.0, size=k.shape, spp=spp_psf, origin="pinhole").kernel
-        out["rendered PSF"] = deconvolve(noisy, rk, method, noise_sigma=sigma)
+        out["rendered PSF"] = deconvolve(noisy, rk, method, **kw)
     return out
 
 

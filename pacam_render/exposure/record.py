@@ -146,3 +146,14 @@ def analytic_psf(record: CaptureRecord, s: float = 0.0, size=None):
 
     cam = CameraDesign.from_inputs(record.camera)
     return design_psf(cam, record.mode, s, size, origin="pinhole")
+
+
+def robust_psf(record: CaptureRecord, size=None):
+    """The speed-robust analytic PSF of a recorded capture: averaged over the design's invariant
+    range (:func:`~pacam_render.psf.robust.speed_robust_psf`), registered as :func:`analytic_psf`.
+    """
+    from ..model.camera import CameraDesign
+    from ..psf.robust import speed_robust_psf
+
+    cam = CameraDesign.from_inputs(record.camera)
+    return speed_robust_psf(cam, record.mode, size=size, origin="pinhole")

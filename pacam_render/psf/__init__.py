@@ -24,10 +24,12 @@ from .analytic import (
     short_exposure_psf,
     static_psf,
 )
+from .robust import aligned_speed_psf, speed_robust_psf
 
 __all__ = [
     "MODE_TRAJECTORIES",
     "PSFTruncationWarning",
+    "aligned_speed_psf",
     "coded_psf",
     "design_psf",
     "design_trajectory",
@@ -36,5 +38,6 @@ __all__ = [
     "levin_psf",
     "pillbox_psf",
     "short_exposure_psf",
+    "speed_robust_psf",
     "static_psf",
 ]

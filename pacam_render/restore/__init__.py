@@ -33,11 +33,14 @@ from .metrics import (
     rel_l1,
     ssim,
 )
-from .sparse import shrink, sparse_deconvolve
+from .noise import NoiseModel
+from .sparse import sparse_deconvolve
+from .splitting import shrink
 
 __all__ = [
     "MAX_SHIFT_PX",
     "METHODS",
+    "NoiseModel",
     "aligned_psnr",
     "best_shift_px",
     "bm3d_deblur",

@@ -59,7 +59,7 @@ def check_psf(psf, image_shape: tuple[int, ...]) -> np.ndarray:
     ------
     ParameterError
         If the PSF is not 2-D or 3-D, contains NaN or infinite values, has a negative value, has
-        zero total mass (in any channel), is larger than the image in either direction, or is
+        zero total mass (in any channel), is larger than half the image in either direction, or is
         3-D with a channel count other than the image's (1 for an (H, W) image).
     """
     k = np.asarray(psf, dtype=float)
@@ -72,10 +72,12 @@ def check_psf(psf, image_shape: tuple[int, ...]) -> np.ndarray:
     sums = k.sum(axis=(0, 1))
     if np.any(sums <= 0):
         raise ParameterError("psf is all zero: it must have positive total mass")
-    if k.shape[0] > image_shape[0] or k.shape[1] > image_shape[1]:
+    if 2 * k.shape[0] > image_shape[0] + 1 or 2 * k.shape[1] > image_shape[1] + 1:
         raise ParameterError(
-            f"psf of {k.shape[0]}x{k.shape[1]} px is larger than the "
-            f"{image_shape[0]}x{image_shape[1]} px image"
+            f"psf of {k.shape[0]}x{k.shape[1]} px is larger than half the "
+            f"{image_shape[0]}x{image_shape[1]} px image: the borders, which the blur mixes "
+            "with the unseen scene outside, would be most of it; deblur a larger image (or "
+            "crop the PSF's empty margins)"
         )
     if k.ndim == 3:
         channels = image_shape[2] if len(image_shape) == 3 else 1

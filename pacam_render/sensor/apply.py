@@ -11,7 +11,7 @@ import warnings
 
 import numpy as np
 
-from ..errors import check_positive
+from ..errors import ParameterError, check_positive
 from ..exposure.record import SensorRecord
 from ..limits import PacamWarning
 from .model import DEFAULT_LIGHT_LEVEL, SensorModel, simulate_capture
@@ -139,3 +139,28 @@ def add_sensor_layers(
         saturated_fraction=saturated,
     )
     rec.noise_sigma = sigma * rec.light_factor  # in the capture's own units
+
+
+def _layer_unit(rec) -> float:
+    """The noisy layer's units per unit of the sensor's input (see :func:`_sensor_input`)."""
+    s = rec.sensor
+    if s.light_level_photons_per_px_per_ms is None:
+        return rec.light_factor
+    return rec.exposure_ms / rec.reference_exposure_ms
+
+
+def layer_noise(rec):
+    """The temporal noise of a sensor capture's ``noisy`` layer, in the layer's units.
+
+    Poisson-Gaussian (:class:`~pacam_render.restore.noise.NoiseModel`), from the recorded
+    sensor model and photons per unit; what a weighted deconvolution assumes. Divide the layer
+    by ``rec.light_factor`` and use ``.scaled(1 / rec.light_factor)`` for white = 1 units.
+    """
+    from ..restore.noise import NoiseModel
+
+    s = rec.sensor
+    if s is None:
+        raise ParameterError("the capture went through no sensor model: it has no sensor noise")
+    model = SensorModel(**s.model)
+    e_per_unit = model.qe * s.photons_per_unit / _layer_unit(rec)
+    return NoiseModel.from_sensor(model, e_per_unit, rec.exposure_ms)
