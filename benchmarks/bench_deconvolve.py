@@ -80,7 +80,9 @@ def grey_capture(x: np.ndarray, seed: int = 0):
 def sensor_capture(x: np.ndarray, seed: int = 0):
     area = {"open_area_mm2": aperture_area_mm2(CAM.R_mm)}
     area["reference_area_mm2"] = aperture_area_mm2(CAM.R_max_mm)
-    res = simulate_capture(blur(x), SENSOR, exposure_ms=45.0, seed=seed, light_level=LIGHT, **area)
+    res = simulate_capture(
+        np.clip(blur(x), 0, None), SENSOR, exposure_ms=45.0, seed=seed, light_level=LIGHT, **area
+    )
     noise = NoiseModel.from_sensor(SENSOR, SENSOR.qe * res.photons_per_unit, 45.0)
     y = res.linear.astype(float)
     white = {"noise_sigma": float(np.sqrt(noise.variance(y.mean())))}
@@ -217,6 +219,7 @@ def speed_rows(repeat: int = 5) -> list[dict]:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--no-bm3d", action="store_true", help="leave out BM3D (minutes)")
+    ap.add_argument("--skip-grey", action="store_true", help="leave out the speed and grey runs")
     args = ap.parse_args()
     try:
         import bm3d  # noqa: F401
@@ -224,6 +227,12 @@ def main() -> None:
         bm3d_ok = not args.no_bm3d
     except ImportError:
         bm3d_ok = False
+    if not args.skip_grey:
+        grey_sections(bm3d_ok)
+    colour_sections(bm3d_ok)
+
+
+def grey_sections(bm3d_ok: bool) -> None:
     record(
         "Deconvolution speed: pacam Wiener vs skimage.restoration.wiener",
         speed_rows(),
@@ -234,6 +243,9 @@ def main() -> None:
         quality_rows(grey_capture, False, bm3d_ok),
         notes="256x256 each, prototype coded PSF (s = 0); times per image on 2 cores",
     )
+
+
+def colour_sections(bm3d_ok: bool) -> None:
     record(
         f"(a) Deconvolution of 13 photographs, colour, ICX285 at {LIGHT:g} photons/px/ms",
         quality_rows(sensor_capture, True, bm3d_ok),

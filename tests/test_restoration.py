@@ -138,7 +138,7 @@ def test_speed_robust_kernel_is_the_mean_of_aligned_kernels():
 
 
 def test_speed_robust_kernel_wins_at_the_edge_of_the_range():
-    """Measured on bench_deconvolve.py: +2.0 dB at s = s_max, -5.8 dB at rest (hl)."""
+    """Measured on bench_deconvolve.py: +1.7 dB at s = s_max, -5.0 dB at rest (hl)."""
     cam = prototype()
     kr = speed_robust_psf(cam)
     k0 = aligned_speed_psf(cam, "coded", 0.0, size=kr.shape)

@@ -251,7 +251,7 @@ def _table(panels, ref, caps, spp, seconds) -> str:
         f"{_geometry(spec)}, {spp} spp, Grasshopper ICX285 sensor model at {LIGHT_LEVEL:g} "
         "photons/px/ms (white, F2.8), hyper-Laplacian deconvolution (Krishnan & Fergus 2009) "
         "with the analytic PSF and the "
-        f"sensor's noise sigma; {seconds:.0f} s in all.",
+        f"sensor's own noise model; {seconds:.0f} s in all.",
         "",
         f"The prototype's coded design (r = {proto['r_px']:.2f} px, a_i = "
         f"{proto['a_i_px_per_ms2']:.4f} px/ms^2 at this size) keeps speeds up to "
