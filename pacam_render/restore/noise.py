@@ -6,7 +6,7 @@ A data term weighted by 1 / var(y) is the Gaussian approximation of that likelih
 pixels, which are noisier in absolute terms, count less. We weight the data term rather than
 apply a variance-stabilising transform (the generalised Anscombe transform): the transform makes
 the noise white but turns the blur into a non-linear operator, so the FFT x-step of
-:mod:`.admm` would no longer be exact.
+:mod:`.splitting` would no longer be exact.
 
 Units: ``y`` in the image's own units; the sensor's electrons per image unit make the link
 (:meth:`NoiseModel.from_sensor`).
@@ -18,7 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import ParameterError, check_finite
+from ..errors import ParameterError, check_finite, check_positive
 
 VARIANCE_FLOOR = 1e-12
 """Smallest variance used in a weight, relative to the image's bright end squared."""
@@ -51,17 +51,15 @@ class NoiseModel:
             v = check_finite(name, getattr(self, name))
             if v < 0:
                 raise ParameterError(f"NoiseModel.{name} must be >= 0, got {v!r}")
-        if self.saturation is not None and not check_finite("saturation", self.saturation) > 0:
-            raise ParameterError(f"NoiseModel.saturation must be > 0, got {self.saturation!r}")
+        if self.saturation is not None:
+            check_positive("NoiseModel.saturation", self.saturation)
         if self.shot == 0 and self.floor == 0 and self.prnu == 0:
             raise ParameterError("NoiseModel needs some noise: shot, floor or prnu > 0")
 
     @classmethod
     def white(cls, sigma: float) -> NoiseModel:
         """Signal-independent Gaussian noise of standard deviation ``sigma`` (> 0)."""
-        s = check_finite("noise_sigma", sigma)
-        if s <= 0:
-            raise ParameterError(f"noise_sigma must be > 0, got {sigma!r}")
+        s = check_positive("noise_sigma", sigma)
         return cls(floor=s * s)
 
     @classmethod
@@ -85,9 +83,7 @@ class NoiseModel:
             saturation = min(full well, ADC top above the dark level) / e_u, with e_u the
             electrons per unit (EMVA 1288's sigma_y^2 = K^2 (sigma_d^2 + mu_e) + sigma_q^2).
         """
-        e_u = check_finite("electrons_per_unit", electrons_per_unit)
-        if e_u <= 0:
-            raise ParameterError(f"electrons_per_unit must be > 0, got {electrons_per_unit!r}")
+        e_u = check_positive("electrons_per_unit", electrons_per_unit)
         dark = model.dark_electrons(exposure_ms)
         floor_e2 = model.read_noise_e**2 + model.dsnu_e**2 + 1.0 / (12.0 * model.K**2)
         if model.shot_noise:

@@ -104,9 +104,9 @@ class Problem:
     Attributes
     ----------
     y : ndarray
-        (C, Hp, Wp) data, 0 where unobserved.
+        (C, Hp, Wp) data, the pad included.
     weight : ndarray
-        (C, Hp, Wp) data weights w (lambda / variance), 0 where unobserved.
+        (C, Hp, Wp) data weights w (lambda / variance), 0 where a sample is left out.
     otf : ndarray
         (C, Hp, Wp // 2 + 1) transfer functions (:func:`~.deconvolve.psf_to_otf`).
     alpha : float

@@ -57,15 +57,23 @@ def apply_sensor(cap, model: SensorModel, light_level: float | None, seed: int):
     return res.raw_dn, res.linear * back, res.photons_per_unit
 
 
+def _layer_unit(rec, light_level: float | None) -> float:
+    """The capture's (and noisy layer's) units per unit of the sensor's input: the light factor
+    without a light level (white reads 1.0); with one, the render's exposure factor."""
+    if light_level is None:
+        return rec.light_factor
+    return 1.0 / (rec.reference_exposure_ms / rec.exposure_ms)  # as the input's inverse
+
+
 def _sensor_input(cap, light_level: float | None) -> tuple[np.ndarray, float]:
     """The render in the units :func:`simulate_capture` takes, and the factor back to the
     capture's units: divided by the light factor without a light level (white reads 1.0);
     with one, the render's exposure factor undone (the area factor stays in it)."""
     rec = cap.record
+    back = _layer_unit(rec, light_level)
     if light_level is None:
-        return cap.image / rec.light_factor, rec.light_factor
-    scale = rec.reference_exposure_ms / rec.exposure_ms
-    return cap.image * scale, 1.0 / scale
+        return cap.image / back, back
+    return cap.image * (rec.reference_exposure_ms / rec.exposure_ms), back
 
 
 def saturated_fraction(cap, model: SensorModel, light_level: float | None, ppu: float) -> float:
@@ -141,14 +149,6 @@ def add_sensor_layers(
     rec.noise_sigma = sigma * rec.light_factor  # in the capture's own units
 
 
-def _layer_unit(rec) -> float:
-    """The noisy layer's units per unit of the sensor's input (see :func:`_sensor_input`)."""
-    s = rec.sensor
-    if s.light_level_photons_per_px_per_ms is None:
-        return rec.light_factor
-    return rec.exposure_ms / rec.reference_exposure_ms
-
-
 def layer_noise(rec):
     """The temporal noise of a sensor capture's ``noisy`` layer, in the layer's units.
 
@@ -162,5 +162,6 @@ def layer_noise(rec):
     if s is None:
         raise ParameterError("the capture went through no sensor model: it has no sensor noise")
     model = SensorModel(**s.model)
-    e_per_unit = model.qe * s.photons_per_unit / _layer_unit(rec)
+    back = _layer_unit(rec, s.light_level_photons_per_px_per_ms)
+    e_per_unit = model.qe * s.photons_per_unit / back
     return NoiseModel.from_sensor(model, e_per_unit, rec.exposure_ms)
