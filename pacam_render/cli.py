@@ -388,7 +388,12 @@ def _cmd_render(args: argparse.Namespace) -> int:
         cover_px_per_ms=args.cover,
         preset=args.preset,
         object_depth_mm=args.depth,
+        schedule=args.schedule,
     )
+    if args.schedule is not None:  # read and check it before any rendering
+        from .exposure.capture import capture_design
+
+        capture_design(spec)
     model = _sensor_model(args.sensor) if args.sensor else None
     if args.light_level is not None and model is None:
         raise ParameterError("--light-level needs --sensor")
@@ -581,6 +586,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_deconvolve(sub)
     _add_reproduce(sub)
     _add_render(sub)
+    _add_optimize(sub)
     _add_validate_psf(sub)
     _add_validate_scene(sub)
     _add_study(sub)
@@ -691,6 +697,95 @@ def _add_reproduce(sub) -> None:
     p.set_defaults(func=_cmd_reproduce)
 
 
+def _cmd_optimize(args: argparse.Namespace) -> int:
+    from .io.lock import output_lock
+    from .optimize.run import run_optimize
+    from .optimize.search import Problem, check_problem
+
+    problem = Problem(
+        max_velocity_px_per_ms=args.max_velocity,
+        depth_range_mm=_depth_range(args.depth_range, args.preset),
+        n_patterns=args.n_patterns,
+        sensor=args.sensor,
+        light_level=args.light_level,
+        preset=args.preset,
+        f_number=args.f_number,
+        r_px=args.r_px,
+        free_radius=args.free_radius,
+    )
+    check_problem(problem)
+    for flag in ("starts", "iterations"):
+        v = getattr(args, flag)
+        if v is not None and (v < 1):
+            raise ParameterError(f"--{flag} must be an integer >= 1, got {v!r}")
+    out = prepare_out_dir(args.out, args.force)
+    with output_lock(out):
+        doc = run_optimize(problem, out, quick=args.quick, seed=args.seed, force=args.force,
+                           starts=args.starts, iterations=args.iterations,
+                           progress=not args.quiet)  # fmt: skip
+    print((out / "report.md").read_text())
+    gain = doc["objective_worst"] - doc["parabola_objective_worst"]
+    print(f"worst-case gain over the parabola at equal light: {gain:+.2f} dB (predicted)")
+    print(f"written: {out / 'schedule.json'}, report.md, 4 plots, lcos/ ({doc['n_patterns']} PNG)")
+    return 0
+
+
+def _depth_range(text: str | None, preset_name: str) -> tuple[float, float]:
+    if text is None:
+        d = preset(preset_name).object_depth_mm
+        return d, d
+    try:
+        near, far = (float(v) for v in text.split(","))
+    except ValueError:
+        raise ParameterError(f"--depth-range must be NEAR,FAR in mm, got {text!r}") from None
+    return near, far
+
+
+def _add_optimize(sub) -> None:
+    p = sub.add_parser("optimize", help="design the aperture schedule for a speed/depth range")
+    p.add_argument(
+        "--max-velocity",
+        type=float,
+        required=True,
+        metavar="PX_PER_MS",
+        help="cover speeds |s| <= this, px/ms of the preset's sensor",
+    )
+    p.add_argument("--depth-range", metavar="NEAR,FAR", help="mm (default: the preset's depth)")
+    p.add_argument(
+        "--light-level",
+        type=float,
+        metavar="L",
+        help="photons/px/ms of white through the full lens (default 300, the demo's)",
+    )
+    p.add_argument(
+        "--sensor",
+        default="grasshopper-icx285",
+        help="sensor noise preset (default grasshopper-icx285; paper: sigma 0.01)",
+    )
+    p.add_argument("--n-patterns", type=int, default=16, metavar="N", help="default 16")
+    p.add_argument(
+        "--free-radius",
+        action="store_true",
+        help="also choose the opening's radius (light counted through the noise)",
+    )
+    p.add_argument("--f-number", type=float, metavar="N", help="the parabola's opening")
+    p.add_argument("--r-px", type=float, metavar="PX", help="the parabola's defocus radius")
+    p.add_argument("--preset", default="prototype", help="base camera (default: prototype)")
+    p.add_argument("--seed", type=int, default=0, metavar="S", help="random starts (default 0)")
+    p.add_argument("--starts", type=int, metavar="K", help="local searches (default 6; quick 2)")
+    p.add_argument(
+        "--iterations",
+        type=int,
+        metavar="I",
+        help="L-BFGS-B iterations per start (default 100; quick 30)",
+    )
+    p.add_argument("--quick", action="store_true", help="a coarse grid, 2 short starts")
+    p.add_argument("--out", required=True, metavar="DIR")
+    p.add_argument("--force", action="store_true", help="overwrite results in DIR")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.set_defaults(func=_cmd_optimize)  # fmt: skip
+
+
 def _add_render(sub) -> None:
     p = sub.add_parser("render", help="render a capture of a scene in one mode")
     p.add_argument("scene", help="train, soccer, walker, or a path to a Mitsuba .xml scene")
@@ -736,6 +831,11 @@ def _add_render(sub) -> None:
         type=float,
         metavar="PX_PER_MS",
         help="coded/levin: solve the design so this speed (preset px) is motion-invariant",
+    )
+    p.add_argument(
+        "--schedule",
+        metavar="SCHEDULE.json",
+        help="coded: show a designed schedule (pacam optimize's schedule.json)",
     )
     p.add_argument(
         "--depth",

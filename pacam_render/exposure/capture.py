@@ -80,6 +80,7 @@ class CaptureSpec:
     f_number: float | None = None
     r_px: float | None = None
     object_depth_mm: float | None = None
+    schedule: str | None = None
 
     def __post_init__(self) -> None:
         mode(self.mode)  # raises, listing the valid modes
@@ -98,6 +99,8 @@ class CaptureSpec:
             check_positive("object_depth_mm", self.object_depth_mm, "mm")
         if (self.f_number is not None or self.r_px is not None) and self.cover_px_per_ms is None:
             raise ParameterError("f_number and r_px size a covering design: they need --cover")
+        if self.schedule is not None and self.cover_px_per_ms is not None:
+            raise ParameterError("give --cover or --schedule, not both: each sets the design")
 
     @property
     def image_size(self) -> tuple[int, int]:
@@ -176,6 +179,13 @@ def capture_design(spec: CaptureSpec) -> CameraDesign:
         from ..model.design import solve
 
         base = solve(spec.cover_px_per_ms, f_number=spec.f_number, r_px=spec.r_px, base=base)
+    if spec.schedule is not None:
+        from ..model.schedule_file import apply_schedule, read_schedule
+
+        sched = read_schedule(spec.schedule)
+        if spec.object_depth_mm is None and "object_depth_mm" in sched:
+            base = base.with_(object_depth_mm=sched["object_depth_mm"])
+        base = apply_schedule(base, sched, spec.schedule)
     return base.with_(width_px=spec.width, height_px=spec.height)
 
 

@@ -86,6 +86,7 @@ from ..model.modes import (
     MODES_WITH_PSF,
     image_acceleration,
     mode_exposure_ms,
+    pattern_offsets_px,
     sensor_params,
     t0_offset_px,
 )
@@ -121,7 +122,9 @@ class ModeSetup:
     ``sensor``: ``configure`` arguments; ``exposure_ms``: the shutter interval [0, exposure];
     ``edges_ms``: window edges (sensor time); ``open``: whether each window lets light in;
     ``origin_px``: film-column offset of the t = 0 image from the point's pinhole image;
-    ``a_i``: the model's image acceleration (px/ms^2); ``discrete``: positions held per window.
+    ``a_i``: the model's image acceleration (px/ms^2); ``discrete``: positions held per window;
+    ``held_px``: a designed schedule's held (u, v) per window, px from the t = 0 image (None:
+    the parabola's a_i t_k^2 / 2 on row 0).
     """
 
     mode: str
@@ -132,6 +135,11 @@ class ModeSetup:
     origin_px: float
     a_i: float
     discrete: bool
+    held_px: np.ndarray | None = None
+
+    def held_u_px(self, tm: np.ndarray) -> np.ndarray:
+        """Where each discrete window (mid-times tm, ms) holds the still point, columns px."""
+        return 0.5 * self.a_i * tm**2 if self.held_px is None else self.held_px[:, 0]
 
     @property
     def T_ms(self) -> float:
@@ -163,7 +171,15 @@ def mode_setup(design: CameraDesign, mode: str = "coded") -> ModeSetup:
         origin_px=t0_offset_px(design, mode),
         a_i=image_acceleration(design, mode),
         discrete=mode == "flutter" or (m.schedule == "parabolic" and not m.continuous),
+        held_px=_held_px(design) if design.designed and mode == "coded" else None,
     )
+
+
+def _held_px(design: CameraDesign) -> np.ndarray:
+    """A designed schedule's held image positions, (u, v) px from the t = 0 pattern's."""
+    off = pattern_offsets_px(design)
+    off[:, 0] -= off[design.n_patterns // 2, 0]
+    return off
 
 
 def model_window_centroids(setup: ModeSetup, velocity: float) -> np.ndarray:
@@ -175,10 +191,11 @@ def model_window_centroids(setup: ModeSetup, velocity: float) -> np.ndarray:
     e = setup.edges_ms - T
     t0, t1 = e[:-1], e[1:]
     tm = 0.5 * (t0 + t1)
-    mean_t2 = tm**2 if setup.discrete else (t1**3 - t0**3) / (3.0 * (t1 - t0))
     if setup.mode == "flutter":
-        mean_t2 = np.zeros_like(tm)
-    return velocity * tm + 0.5 * setup.a_i * mean_t2
+        return velocity * tm
+    if setup.discrete:
+        return velocity * tm + setup.held_u_px(tm)
+    return velocity * tm + 0.5 * setup.a_i * (t1**3 - t0**3) / (3.0 * (t1 - t0))
 
 
 def model_window_kernels(design: CameraDesign, mode: str, velocity: float, shape) -> list:
@@ -201,7 +218,8 @@ def model_window_kernels(design: CameraDesign, mode: str, velocity: float, shape
         t0, t1 = float(e[k]), float(e[k + 1])
         tm = 0.5 * (t0 + t1)
         if setup.discrete and mode != "flutter":
-            seg = Segment(t0, t1, 0.5 * setup.a_i * tm * tm, s, 0.0)
+            u, v = (0.5 * setup.a_i * tm * tm, 0.0) if setup.held_px is None else setup.held_px[k]
+            seg = Segment(t0, t1, float(u), s, 0.0, y=float(v))
         else:
             seg = Segment(t0, t1, 0.0, s, setup.a_i)
         out.append(kernel_from_trajectory([seg], r, size=shape))

@@ -46,6 +46,10 @@ class CameraDesign:
     n_patterns: int = paper.N_PATTERNS
     pixel_pitch_mm: float = paper.PIXEL_PITCH_MM
     lcos_pitch_mm: float = optics.LCOS_PITCH_MM
+    pattern_centres_mm: tuple[tuple[float, float], ...] | None = None
+    """A designed schedule (``pacam optimize``): pattern k's opening centre (x, y) in mm, x to
+    the image's right and y downwards (the LCoS bitmaps' orientation); the opening keeps the
+    radius R. None: the parabola of Eq. 11."""
     name: str = "custom"
     quoted_a_i_px_per_ms2: float | None = field(default=None, compare=False)
 
@@ -61,6 +65,8 @@ class CameraDesign:
         check_positive("lcos_pitch_mm", self.lcos_pitch_mm, "mm")
         sch.check_n_patterns(self.n_patterns)
         self._check_physical_limits()
+        if self.pattern_centres_mm is not None:
+            self._check_centres()
         if self.R_mm > self.R_max_mm:
             raise ParameterError(
                 f"R_mm must be in (0, R_max_mm = {self.R_max_mm:g}] mm: the opening must fit "
@@ -87,6 +93,41 @@ class CameraDesign:
                 f"exposure_ms must be >= {MIN_EXPOSURE_MS:g} ms (the sensor's shortest "
                 f"shutter), got {self.exposure_ms!r}"
             )
+
+    def _check_centres(self) -> None:
+        """A designed schedule: one finite centre per pattern, every opening inside the lens."""
+        try:
+            c = np.array(self.pattern_centres_mm, dtype=float)
+        except (TypeError, ValueError):
+            c = np.zeros((0, 0))
+        if c.shape != (self.n_patterns, 2) or not np.all(np.isfinite(c)):
+            raise ParameterError(
+                f"pattern_centres_mm must be n_patterns = {self.n_patterns} finite (x, y) pairs "
+                f"in mm, got {self.pattern_centres_mm!r}"
+            )
+        reach = np.hypot(c[:, 0], c[:, 1]) + min(self.R_mm, self.R_max_mm)
+        bad = np.flatnonzero(reach > self.R_max_mm * (1 + 1e-9))
+        if bad.size:
+            k = int(bad[0])
+            raise ParameterError(
+                f"pattern_centres_mm[{k}] = ({c[k, 0]:g}, {c[k, 1]:g}) mm puts the opening "
+                f"outside the lens: |centre| + R = {reach[k]:.6g} mm > R_max = "
+                f"{self.R_max_mm:g} mm"
+            )
+        object.__setattr__(self, "pattern_centres_mm", tuple(map(tuple, c.tolist())))
+
+    @property
+    def designed(self) -> bool:
+        """The camera shows a designed schedule, not the parabola."""
+        return self.pattern_centres_mm is not None
+
+    def pattern_centres_xy_mm(self) -> np.ndarray:
+        """Each pattern's opening centre (x right, y down), mm, shape (n, 2): the designed
+        schedule's, or the parabola's (Eq. 11 at the windows' mid-times, y = 0)."""
+        if self.designed:
+            return np.array(self.pattern_centres_mm, dtype=float)
+        x = sch.pattern_centres_mm(self.R_max_mm, self.R_mm, self.T_ms, self.n_patterns)
+        return np.stack([x, np.zeros_like(x)], axis=1)
 
     @property
     def pattern_rate_fps(self) -> float:
@@ -181,7 +222,7 @@ class CameraDesign:
     def pattern_table(self) -> list[dict]:
         """The n-pattern schedule: window, centre (mm, LCoS px) and upright-image offset (px)."""
         edges = sch.pattern_edges_ms(self.T_ms, self.n_patterns)
-        centres = sch.pattern_centres_mm(self.R_max_mm, self.R_mm, self.T_ms, self.n_patterns)
+        centres = self.pattern_centres_xy_mm()[:, 0]
         rows = []
         for k, c in enumerate(centres):
             rows.append(
@@ -240,7 +281,10 @@ class CameraDesign:
             "a_a_mm_per_ms2": self.a_a_mm_per_ms2,
             "n_patterns": self.n_patterns,
             "open_area_mm2": self.open_area_mm2,
+            "schedule": "designed" if self.designed else "parabola",
         }
+        if self.designed:
+            out["pattern_centres_mm"] = [list(c) for c in self.pattern_centres_mm]
         return out
 
     def with_(self, **changes) -> CameraDesign:

@@ -30,6 +30,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numpy as np
+
 from ..errors import ParameterError
 from . import paper
 from .camera import CameraDesign
@@ -116,6 +118,10 @@ def mode(name: str) -> Mode:
     return MODES[name]
 
 
+DESIGNED_REFUSED = {"coded_continuous": "continuous limit", "levin": "camera-motion equivalent"}
+"""Modes that a designed schedule cannot take, and what it lacks for them."""
+
+
 def mode_exposure_ms(design: CameraDesign, name: str) -> float:
     """The exposure a mode takes with ``design``, ms."""
     m = mode(name)
@@ -129,6 +135,11 @@ def capture_camera(design: CameraDesign, name: str) -> CameraDesign:
     ``design_psf(capture_camera(design, name), name)``.
     """
     m = mode(name)
+    if design.designed and name in DESIGNED_REFUSED:
+        raise ParameterError(
+            f"mode {name!r} follows the parabola of Eq. 11; a designed schedule "
+            f"(pattern_centres_mm) has no {DESIGNED_REFUSED[name]}: use mode 'coded'"
+        )
     cam = design.with_(focus_distance_mm=design.object_depth_mm) if m.refocus else design
     if m.full_opening:
         cam = cam.with_(R_mm=design.R_max_mm)
@@ -150,6 +161,8 @@ def sensor_params(cam: CameraDesign, name: str) -> dict:
     p = {"lens_radius": cam.R_max_mm, "aperture_radius": cam.R_mm, "focus_distance": focus}
     if m.schedule == "parabolic":
         cam.require_parallax()
+        if cam.designed and not m.continuous:
+            return {**p, "schedule": "centres", "centres": _local_centres(cam)}
         if cam.R_mm >= cam.R_max_mm:  # F_min: the full opening cannot move
             return {**p, "schedule": "static"}
         extra = {"continuous": True} if m.continuous else {}
@@ -157,6 +170,18 @@ def sensor_params(cam: CameraDesign, name: str) -> dict:
     if m.schedule == "camera_parabolic":
         return {**p, "schedule": "camera_parabolic", "image_acceleration": cam.a_i_px_per_ms2}
     return {**p, "schedule": m.schedule}
+
+
+def _local_centres(cam: CameraDesign) -> str:
+    """A designed schedule's centres in the plugin's local frame, ``"x y; ..."`` (mm): local
+    +x is the image's left and +y its top, so (x right, y down) maps to (-x, -y)."""
+    return "; ".join(f"{-x!r} {-y!r}" for x, y in cam.pattern_centres_xy_mm().tolist())
+
+
+def pattern_offsets_px(cam: CameraDesign) -> np.ndarray:
+    """Where each pattern images a still point, px from its pinhole image, (n, 2) as (u, v):
+    beta_px times the opening's centre (Eq. 8), for the designed schedule or the parabola."""
+    return cam.beta_px_per_mm * cam.pattern_centres_xy_mm()
 
 
 def image_acceleration(cam: CameraDesign, name: str) -> float:
@@ -170,5 +195,8 @@ def t0_offset_px(cam: CameraDesign, name: str) -> float:
     The aperture (or Levin's body) starts at an edge: X_a(0) = -(R_max - R), so the coded
     image sits at -beta (R_max - R) = -a_i T^2 / 4 (Eqs. 10, 17). 0 for still modes.
     """
+    if cam.designed and mode(name).moves_image:
+        # the pattern shown at t = 0 (schedule.pattern_index: t = 0 opens pattern n // 2)
+        return float(pattern_offsets_px(cam)[cam.n_patterns // 2, 0])
     T = 0.5 * mode_exposure_ms(cam, name)
     return -0.25 * image_acceleration(cam, name) * T * T

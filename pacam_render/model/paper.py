@@ -22,6 +22,8 @@ OPENING_LCOS_PX = 145.5
 """Section 4's opening radius in LCoS pixels (F9.85 on the paper's scale)."""
 EXPOSURE_MS = 45.0
 """The exposure 2T, ms: 16 patterns at 365 fps (Section 4)."""
+LCOS_RATE_FPS = 365.0
+"""Patterns the LCoS shows per second (Table 1)."""
 N_PATTERNS = 16
 """Aperture patterns shown during one exposure (Section 4)."""
 SHORT_EXPOSURE_MS = 0.679

@@ -30,7 +30,14 @@ from ..errors import ParameterError, check_finite, check_positive
 from ..limits import check_memory
 from ..model import paper
 from ..model import schedule as sch
-from ..model.modes import MODES, MODES_WITH_PSF, mode_exposure_ms, t0_offset_px
+from ..model.modes import (
+    DESIGNED_REFUSED,
+    MODES,
+    MODES_WITH_PSF,
+    capture_camera,
+    mode_exposure_ms,
+    t0_offset_px,
+)
 from .pillbox import quadrant_area
 from .trajectory import Segment, bin_statistics, extent, total_weight
 
@@ -104,31 +111,47 @@ def _deposit_discs(kernel, xe, ye, r, centres, masses) -> None:
 def kernel_from_trajectory(
     segments: list[Segment], r_px: float = 0.0, size=None, du_px: float | None = None
 ) -> np.ndarray:
-    """Pixel-integrated PSF of a point moving along ``segments``, blurred by a pillbox r_px."""
+    """Pixel-integrated PSF of a point moving along ``segments``, blurred by a pillbox r_px.
+
+    Segments on other rows than 0 (a designed schedule's vertical offsets, ``Segment.y``) are
+    deposited row by row; the rows' masses add.
+    """
     r = float(r_px)
     if not math.isfinite(r) or r < 0:
         raise ParameterError(f"r_px must be a finite radius >= 0 px, got {r_px!r}")
     if r < R_DELTA_PX:
         r = 0.0
     lo, hi = extent(segments)
-    h, w = _shape(size, lo, hi, r)
+    ys = sorted({seg.y for seg in segments})
+    y_max = max(abs(ys[0]), abs(ys[-1]))
+    h, w = _shape(size, lo - y_max, hi + y_max, r)
     xe = np.arange(w + 1) - w // 2 - 0.5
     ye = np.arange(h + 1) - h // 2 - 0.5
     kernel = np.zeros((h, w))
-    if r == 0.0:
-        mass, _ = bin_statistics(segments, xe)
-        kernel[h // 2] = mass
-    else:
-        du = default_du_px(r) if du_px is None else check_positive("du_px", du_px, "px")
-        ulo, uhi = max(lo, xe[0] - r), min(hi, xe[-1] + r)
-        if ulo <= uhi:
-            n = max(1, math.ceil((uhi - ulo) / du))
-            ue = np.linspace(ulo - 0.5 * du, uhi + 0.5 * du, n + 2)
-            mass, moment = bin_statistics(segments, ue)
-            keep = mass > 0.0
-            centres = moment[keep] / mass[keep]
-            _deposit_discs(kernel, xe, ye, r, centres, mass[keep] / (math.pi * r * r))
+    for y in ys:
+        row = [seg for seg in segments if seg.y == y]
+        _deposit_row(kernel, row, xe, ye - y, r, du_px, extent(row))
     return _normalise(kernel, total_weight(segments))
+
+
+def _deposit_row(kernel, segments, xe, ye, r: float, du_px, span) -> None:
+    """Add the segments' pixel-integrated mass, on the row ye's origin stands for."""
+    h = kernel.shape[0]
+    lo, hi = span
+    if r == 0.0:
+        i = int(np.searchsorted(ye, 0.0, side="right")) - 1  # the row whose pixel holds y
+        if 0 <= i < h:
+            kernel[i] += bin_statistics(segments, xe)[0]
+        return
+    du = default_du_px(r) if du_px is None else check_positive("du_px", du_px, "px")
+    ulo, uhi = max(lo, xe[0] - r), min(hi, xe[-1] + r)
+    if ulo <= uhi:
+        n = max(1, math.ceil((uhi - ulo) / du))
+        ue = np.linspace(ulo - 0.5 * du, uhi + 0.5 * du, n + 2)
+        mass, moment = bin_statistics(segments, ue)
+        keep = mass > 0.0
+        centres = moment[keep] / mass[keep]
+        _deposit_discs(kernel, xe, ye, r, centres, mass[keep] / (math.pi * r * r))
 
 
 def _normalise(kernel: np.ndarray, expected: float) -> np.ndarray:
@@ -271,11 +294,36 @@ def flutter_segments(s: float, T_ms: float, code: str = sch.RASKAR_2006_CODE) ->
     return [Segment(e0, e1, 0.0, s, 0.0, b) for e0, e1, b in zip(edges[:-1], edges[1:], bits)]
 
 
+def designed_segments(cam, s: float, x0_px: float = 0.0) -> list[Segment]:
+    """A designed schedule (``cam.pattern_centres_mm``): pattern k holds the point's image at
+    x0 + beta_px X_k - (the t = 0 pattern's), on row beta_px Y_k (Eq. 8), while it moves at s.
+
+    Parameters
+    ----------
+    cam : CameraDesign
+        With ``pattern_centres_mm`` set.
+    s : float
+        Image speed, px/ms.
+    x0_px : float
+        Where the pattern shown at t = 0 images the point, px.
+    """
+    from ..model.modes import pattern_offsets_px
+
+    s = check_finite("s (px/ms)", s)
+    off = pattern_offsets_px(cam)
+    off[:, 0] += check_finite("x0_px", x0_px) - off[cam.n_patterns // 2, 0]
+    edges = sch.pattern_edges_ms(cam.T_ms, cam.n_patterns)
+    return [Segment(e0, e1, u, s, 0.0, y=v) for e0, e1, (u, v) in zip(edges[:-1], edges[1:], off)]
+
+
+def _coded_segments(cam, s: float, x0: float) -> list[Segment]:
+    if cam.designed:
+        return designed_segments(cam, s, x0)
+    return discrete_segments(s, cam.a_i_px_per_ms2, cam.T_ms, cam.n_patterns, x0)
+
+
 MODE_TRAJECTORIES = {
-    "discrete_coded": lambda cam, s, x0: (
-        discrete_segments(s, cam.a_i_px_per_ms2, cam.T_ms, cam.n_patterns, x0),
-        cam.r_px,
-    ),
+    "discrete_coded": lambda cam, s, x0: (_coded_segments(cam, s, x0), cam.r_px),
     "coded": lambda cam, s, x0: (parabola_segments(s, cam.a_i_px_per_ms2, cam.T_ms, x0), cam.r_px),
     "levin": lambda cam, s, x0: (parabola_segments(s, cam.a_i_px_per_ms2, cam.T_ms, x0), 0.0),
     "static": lambda cam, s, x0: (parabola_segments(s, 0.0, cam.T_ms), cam.r_px),
@@ -305,6 +353,8 @@ def design_trajectory(design, mode: str = "coded", s: float = 0.0, origin: str =
     if mode not in MODES_WITH_PSF:
         raise ParameterError(f"unknown mode {mode!r}; valid: {', '.join(MODES_WITH_PSF)}")
     m = MODES[mode]
+    if design.designed and mode in DESIGNED_REFUSED:
+        capture_camera(design, mode)  # raises, naming what the designed schedule lacks
     if m.needs_parallax:
         design.require_parallax()
     x0 = t0_offset_px(design, mode) if origin == "pinhole" else 0.0

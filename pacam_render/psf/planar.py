@@ -93,7 +93,7 @@ def _samples(segments: list[Segment], v: float, step: float):
         n = max(1, math.ceil(speed * dt / step))
         t = seg.t0 + (np.arange(n) + 0.5) * (dt / n)
         xs.append(seg.x(t))
-        ys.append(v * t)
+        ys.append(seg.y + v * t)
         ms.append(np.full(n, seg.w * dt / n))
     if not xs:
         raise ParameterError("the trajectory has no open time: no PSF")

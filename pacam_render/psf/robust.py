@@ -36,6 +36,11 @@ def aligned_speed_psf(design, mode: str, s: float, size=None, origin: str = "t0"
     a_i = image_acceleration(design, mode)
     if a_i == 0.0:
         raise ParameterError(f"mode {mode!r} does not move the image: it has no speed range")
+    if design.designed:
+        raise ParameterError(
+            "a designed schedule has no parabola vertex to align speeds on: use its s = 0 PSF "
+            "(--psf analytic), the kernel pacam optimize designed it for"
+        )
     segments, r = design_trajectory(design, mode, s, origin)
     dx = -vertex_shift_px(s, a_i)
     moved = [dataclasses.replace(g, x0=g.x0 + dx) for g in segments]

@@ -20,7 +20,8 @@ from ..errors import ParameterError
 
 @dataclass(frozen=True)
 class Segment:
-    """x(t) = x0 + v t + a t^2 / 2 for t in [t0, t1] ms, with shutter transmittance w."""
+    """x(t) = x0 + v t + a t^2 / 2 for t in [t0, t1] ms, with shutter transmittance w, on the
+    row y px (a designed schedule's vertical offset; 0 for every motion along x)."""
 
     t0: float
     t1: float
@@ -28,9 +29,10 @@ class Segment:
     v: float = 0.0
     a: float = 0.0
     w: float = 1.0
+    y: float = 0.0
 
     def __post_init__(self) -> None:
-        vals = (self.t0, self.t1, self.x0, self.v, self.a, self.w)
+        vals = (self.t0, self.t1, self.x0, self.v, self.a, self.w, self.y)
         if not np.all(np.isfinite(vals)):
             raise ParameterError(f"trajectory segment must be finite, got {self}")
         if self.t1 < self.t0:

@@ -43,8 +43,9 @@ AXES = {
 sensor). ``speed_px_per_ms``: image speed of the scene's fastest moving shape at t = 0 in the
 preset's own pixels (the motions are scaled); ``depth_mm``: the moving shapes' depth (they are
 moved along z, their image speed kept); ``light_level``: photons/px/ms of white through F2.8;
-``design``: ``prototype`` (the preset), or ``cover=S`` with optional ``,F=N`` or ``,r=PX``
-(:func:`~pacam_render.model.design.solve`)."""
+``design``: ``prototype`` (the preset), ``cover=S`` with optional ``,F=N`` or ``,r=PX``
+(:func:`~pacam_render.model.design.solve`), or ``schedule=PATH``: a designed schedule
+(``pacam optimize``'s schedule.json)."""
 RENDER = {
     "scene": "train",
     "preset": "prototype",
@@ -251,16 +252,24 @@ def _expand(grid, points: list, render: dict) -> tuple[Point, ...]:
 
 
 def parse_design(text: str) -> dict:
-    """``prototype`` or ``cover=S[,F=N | ,r=PX]`` as CaptureSpec fields.
+    """``prototype``, ``cover=S[,F=N | ,r=PX]`` or ``schedule=PATH`` (a ``pacam optimize``
+    schedule.json) as CaptureSpec fields.
 
     Returns
     -------
     dict
-        ``cover_px_per_ms`` (preset px/ms), ``f_number`` and ``r_px``, each None if not given.
+        ``cover_px_per_ms`` (preset px/ms), ``f_number``, ``r_px`` and ``schedule``, each None
+        if not given.
     """
-    out = {"cover_px_per_ms": None, "f_number": None, "r_px": None}
+    out = {"cover_px_per_ms": None, "f_number": None, "r_px": None, "schedule": None}
     if text == "prototype":
         return out
+    if str(text).startswith("schedule="):
+        from ..model.schedule_file import read_schedule
+
+        path = str(text)[len("schedule=") :]
+        read_schedule(path)  # checked with the spec, before any render
+        return {**out, "schedule": path}
     names = {"cover": "cover_px_per_ms", "F": "f_number", "r": "r_px"}
     try:
         for part in str(text).split(","):
