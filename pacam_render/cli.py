@@ -450,6 +450,11 @@ def _sensor_size(args: argparse.Namespace) -> dict:
 
 def _scale_line(optics: dict, coded: dict) -> str:
     """The camera's px quantities at the capture's resolution (they shrink with binning)."""
+    if coded.get("schedule") == "designed":  # no parabola: no a_i, no invariant range
+        return (
+            f"at {optics['width_px']}x{optics['height_px']} px: r = {optics['r_px']:.3g} px; "
+            f"a designed schedule of {coded['n_patterns']} openings (pacam optimize)"
+        )
     return (
         f"at {optics['width_px']}x{optics['height_px']} px: r = {optics['r_px']:.3g} px, "
         f"a_i = {optics['a_i_px_per_ms2']:.3g} px/ms^2; the coded design keeps |s| <= "
