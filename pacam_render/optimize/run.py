@@ -6,8 +6,14 @@ import time
 from pathlib import Path
 
 from ..model.design import solve
-from ..psf.analytic import design_psf  # noqa: F401 - imported by the plots; fail early
-from .outputs import plot_all, schedule_document, write_bitmaps, write_report, write_schedule_json
+from .outputs import (
+    designed_camera,
+    plot_all,
+    schedule_document,
+    write_bitmaps,
+    write_report,
+    write_schedule_json,
+)
 from .search import Problem, build_objective, multi_start, reference_design
 
 SCALE = {False: dict(n_speeds=33, n_depths=5, starts=6, iterations=100),
@@ -53,8 +59,6 @@ def run_optimize(problem: Problem, out: Path, *, quick: bool, seed: int, force: 
                quick=quick, best_start=best.index)  # fmt: skip
     doc = schedule_document(problem, obj, best, parabola, run)
     write_schedule_json(out, doc, force)
-    from .outputs import designed_camera
-
     write_bitmaps(out, designed_camera(obj, best.theta), force)
     plot_all(out, obj, best, parabola, found, force)
     write_report(out, doc, found, force)
