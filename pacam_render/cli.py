@@ -705,7 +705,7 @@ def _add_reproduce(sub) -> None:
 def _cmd_optimize(args: argparse.Namespace) -> int:
     from .io.lock import output_lock
     from .optimize.run import run_optimize
-    from .optimize.search import Problem, check_problem
+    from .optimize.search import Problem, check_problem, reference_design
 
     problem = Problem(
         max_velocity_px_per_ms=args.max_velocity,
@@ -719,10 +719,13 @@ def _cmd_optimize(args: argparse.Namespace) -> int:
         free_radius=args.free_radius,
     )
     check_problem(problem)
+    reference_design(problem)  # the parabola must cover the range: refused before any output
     for flag in ("starts", "iterations"):
         v = getattr(args, flag)
         if v is not None and (v < 1):
             raise ParameterError(f"--{flag} must be an integer >= 1, got {v!r}")
+    if not 0 <= args.seed < 2**32:
+        raise ParameterError(f"--seed must be an integer in [0, 2^32), got {args.seed!r}")
     out = prepare_out_dir(args.out, args.force)
     with output_lock(out):
         doc = run_optimize(problem, out, quick=args.quick, seed=args.seed, force=args.force,

@@ -108,6 +108,23 @@ def test_vertical_offset_moves_rows_by_beta():
     assert y == pytest.approx(d.beta_px_per_mm * 1.0 / 16, rel=2e-3)  # pixel binning
 
 
+@pytest.mark.parametrize("where", ["in focus", "far bound", "near bound", "loud", "quiet"])
+def test_objective_stays_finite_at_the_extremes(where):
+    """beta_0 = 0 (no coding: the discs collapse to a point), the focus at either bound, noise
+    10^4 x louder or 10^-6 x quieter: a finite error, a finite gradient, PSNR within reason."""
+    p = _problem()
+    ref = reference_design(p)
+    scale = {"loud": 1e4, "quiet": 1e-6}.get(where, 1.0)
+    obj = Objective(ref, _objective(p).grid, lambda R: 1e-4 * scale)
+    lo, hi = obj.bounds()[obj.n]
+    b = {"in focus": 0.0, "far bound": lo, "near bound": hi}.get(where, -1.0)
+    theta = obj.pack(ref.pattern_centres_xy_mm()[:, 0], b * obj.beta_ref)
+    L, g = obj.loss(theta)
+    psnr = obj.psnr_db(theta)
+    assert np.isfinite(L) and np.all(np.isfinite(g))
+    assert np.all((psnr > -10) & (psnr < 120))
+
+
 def test_optimiser_beats_its_start_and_is_reproducible():
     p = _problem()
     obj = _objective(p)
@@ -175,6 +192,9 @@ def test_unreadable_schedule(tmp_path):
         (["--max-velocity", "1", "--sensor", "paper", "--light-level", "300"], "--light-level"),
         (["--max-velocity", "1", "--depth-range", "600,500"], "NEAR <= FAR"),
         (["--max-velocity", "-1"], "--max-velocity"),
+        (["--max-velocity", "1", "--seed", "-1"], "--seed"),
+        (["--max-velocity", "1", "--starts", "0"], "--starts"),
+        (["--max-velocity", "1", "--f-number", "5", "--r-px", "2"], "not both"),
     ],
 )
 def test_optimize_cli_refuses_bad_input(tmp_path, capsys, args, words):

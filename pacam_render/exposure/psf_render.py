@@ -84,9 +84,9 @@ from ..model.camera import MIN_FOCUS_MM, CameraDesign
 from ..model.modes import (
     MODES,
     MODES_WITH_PSF,
+    held_offsets_px,
     image_acceleration,
     mode_exposure_ms,
-    pattern_offsets_px,
     sensor_params,
     t0_offset_px,
 )
@@ -171,15 +171,8 @@ def mode_setup(design: CameraDesign, mode: str = "coded") -> ModeSetup:
         origin_px=t0_offset_px(design, mode),
         a_i=image_acceleration(design, mode),
         discrete=mode == "flutter" or (m.schedule == "parabolic" and not m.continuous),
-        held_px=_held_px(design) if design.designed and mode == "coded" else None,
+        held_px=held_offsets_px(design) if design.designed and mode == "coded" else None,
     )
-
-
-def _held_px(design: CameraDesign) -> np.ndarray:
-    """A designed schedule's held image positions, (u, v) px from the t = 0 pattern's."""
-    off = pattern_offsets_px(design)
-    off[:, 0] -= off[design.n_patterns // 2, 0]
-    return off
 
 
 def model_window_centroids(setup: ModeSetup, velocity: float) -> np.ndarray:

@@ -172,16 +172,29 @@ def sensor_params(cam: CameraDesign, name: str) -> dict:
     return {**p, "schedule": m.schedule}
 
 
+def local_centres_mm(cam: CameraDesign) -> np.ndarray:
+    """The openings' centres in the plugin's local frame (mm, (n, 2)): local +x is the image's
+    left and +y its top, so (x right, y down) maps to (-x, -y)."""
+    return -cam.pattern_centres_xy_mm()
+
+
 def _local_centres(cam: CameraDesign) -> str:
-    """A designed schedule's centres in the plugin's local frame, ``"x y; ..."`` (mm): local
-    +x is the image's left and +y its top, so (x right, y down) maps to (-x, -y)."""
-    return "; ".join(f"{-x!r} {-y!r}" for x, y in cam.pattern_centres_xy_mm().tolist())
+    """:func:`local_centres_mm` as the plugin's ``"x y; ..."`` string, exact (repr)."""
+    return "; ".join(f"{x!r} {y!r}" for x, y in local_centres_mm(cam).tolist())
 
 
 def pattern_offsets_px(cam: CameraDesign) -> np.ndarray:
     """Where each pattern images a still point, px from its pinhole image, (n, 2) as (u, v):
     beta_px times the opening's centre (Eq. 8), for the designed schedule or the parabola."""
     return cam.beta_px_per_mm * cam.pattern_centres_xy_mm()
+
+
+def held_offsets_px(cam: CameraDesign) -> np.ndarray:
+    """:func:`pattern_offsets_px` with u measured from the pattern shown at t = 0 (pattern
+    n // 2, :func:`~pacam_render.model.schedule.pattern_index`): the kernel's ``t0`` origin."""
+    off = pattern_offsets_px(cam)
+    off[:, 0] -= off[cam.n_patterns // 2, 0]
+    return off
 
 
 def image_acceleration(cam: CameraDesign, name: str) -> float:

@@ -9,6 +9,7 @@ import numpy as np
 from ..io.outputs import atomic_save, write_json, write_text
 from ..io.preview import write_png
 from ..model.camera import CameraDesign
+from ..model.modes import local_centres_mm
 from ..render.masks import disc_mask
 from .objective import Objective
 
@@ -64,8 +65,8 @@ def write_bitmaps(out: Path, cam: CameraDesign, force: bool) -> list[Path]:
     """The n LCoS patterns, 1280x1024 8-bit PNG: an opening's pixels white (binary, pixel
     centres inside the disc), in the image's orientation (x right, y down)."""
     paths = []
-    for k, (x, y) in enumerate(cam.pattern_centres_xy_mm()):
-        m = disc_mask((-x, -y), cam.R_mm, pitch_mm=cam.lcos_pitch_mm)  # local frame: (-x, -y)
+    for k, c in enumerate(local_centres_mm(cam)):
+        m = disc_mask(c, cam.R_mm, pitch_mm=cam.lcos_pitch_mm)
         paths.append(write_png(out / "lcos" / f"pattern_{k:02d}.png", (m * 255).astype(np.uint8),
                                force=force))  # fmt: skip
     return paths

@@ -30,7 +30,8 @@ def _parabola(problem: Problem, obj, R_mm: float) -> dict:
     X = ref.pattern_centres_xy_mm()[:, 0]
     theta = obj.pack(X, ref.beta_px_per_mm, R_mm)
     p = obj.psnr_db(theta)
-    summary = {k: ref.summary()[k] for k in ("R_mm", "focus_distance_mm", "r_px", "a_i_px_per_ms2")}
+    full = ref.summary()
+    summary = {k: full[k] for k in ("R_mm", "focus_distance_mm", "r_px", "a_i_px_per_ms2")}
     summary["centres_mm"] = [[float(x), 0.0] for x in X]
     return dict(worst=float(p.min()), mean=float(p.mean()), psnr=p, design=summary,
                 camera=ref, theta=theta, theta_X=X)  # fmt: skip

@@ -307,11 +307,11 @@ def designed_segments(cam, s: float, x0_px: float = 0.0) -> list[Segment]:
     x0_px : float
         Where the pattern shown at t = 0 images the point, px.
     """
-    from ..model.modes import pattern_offsets_px
+    from ..model.modes import held_offsets_px
 
     s = check_finite("s (px/ms)", s)
-    off = pattern_offsets_px(cam)
-    off[:, 0] += check_finite("x0_px", x0_px) - off[cam.n_patterns // 2, 0]
+    off = held_offsets_px(cam)
+    off[:, 0] += check_finite("x0_px", x0_px)
     edges = sch.pattern_edges_ms(cam.T_ms, cam.n_patterns)
     return [Segment(e0, e1, u, s, 0.0, y=v) for e0, e1, (u, v) in zip(edges[:-1], edges[1:], off)]
 
