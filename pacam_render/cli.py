@@ -27,6 +27,7 @@ from .model.design import solve
 from .model.modes import MODES, MODES_WITH_PSF
 from .model.report import design_report
 from .psf.analytic import design_psf
+from .render.samplers import DEFAULT_SAMPLER, SAMPLERS
 from .restore.deconvolve import BM3D_LICENCE, METHODS, deconvolve
 from .sensor.apply import layer_noise
 
@@ -377,11 +378,12 @@ def _cmd_render(args: argparse.Namespace) -> int:
     from .exposure.capture import CaptureSpec, check_budget, render_capture, write_capture
     from .io.lock import output_lock
 
+    target = _noise_target(args)
     spec = CaptureSpec(
         scene=args.scene,
         mode=args.mode,
         **_sensor_size(args),
-        spp=args.spp,
+        spp=64 if args.spp is None else args.spp,
         seed=args.seed,
         max_step_px=args.max_step_px,
         per_pattern=args.per_pattern,
@@ -389,6 +391,8 @@ def _cmd_render(args: argparse.Namespace) -> int:
         preset=args.preset,
         object_depth_mm=args.depth,
         schedule=args.schedule,
+        passes=args.passes,
+        sampler=args.sampler,
     )
     if args.schedule is not None:  # read and check it before any rendering
         from .exposure.capture import capture_design
@@ -404,7 +408,7 @@ def _cmd_render(args: argparse.Namespace) -> int:
     if not args.checkpoint_every >= 0:  # 0: after every step
         raise ParameterError(f"--checkpoint-every must be >= 0 s, got {args.checkpoint_every!r}")
     check_budget(
-        spec, args.max_samples, not args.no_truth
+        spec, args.max_samples, not args.no_truth, target is not None
     )  # render_capture checks again; this is before any file
     out = Path(args.out)
     if (out / "capture.exr").exists() and not args.force:
@@ -418,23 +422,76 @@ def _cmd_render(args: argparse.Namespace) -> int:
             max_steps=args.max_steps,
             max_samples=args.max_samples,
             truth=not args.no_truth,
+            target=target,
         )
         if model is not None:
             from .sensor.apply import add_sensor_layers
 
             add_sensor_layers(cap, model, args.sensor, args.light_level, spec.seed)
-        paths = write_capture(cap, out, force=args.force)
+        paths = write_capture(cap, out, force=args.force, error_layer=args.mc_sigma_layer)
     m = cap.meta
     w, h = spec.image_size
     where = f"{w}x{h}" + (f" window at ({spec.crop[0]}, {spec.crop[1]})" if spec.crop else "")
+    err = m["render_error"]
     print(
         f"{spec.mode} capture of {spec.scene}: {where} of a {spec.width}x{spec.height} sensor, "
-        f"{m['effective_spp']} spp in {m['n_steps']} step(s), {m['render_seconds']:.1f} s -> "
-        + ", ".join(p.name for p in paths)
+        f"{m['effective_spp']} spp in {err['passes']} passes of {m['n_steps']} step(s), "
+        f"{m['render_seconds']:.1f} s -> " + ", ".join(p.name for p in paths)
     )
     print(_scale_line(m["optics"], m["coded_design"]))
-    print("layers: " + ", ".join(["capture", *cap.extra_layers]))
+    print(error_line(err))
+    print(
+        "layers: "
+        + ", ".join(["capture", *cap.extra_layers, *(["mc_sigma"] if args.mc_sigma_layer else [])])
+    )
     return 0
+
+
+def _noise_target(args: argparse.Namespace):
+    """The render's noise target from --noise-ratio (with --sensor) or --noise-target."""
+    from .exposure.estimate import AbsoluteTarget
+
+    given = [f for f in ("noise_ratio", "noise_target") if getattr(args, f) is not None]
+    if not given:
+        return None
+    if len(given) == 2:
+        raise ParameterError("give --noise-ratio or --noise-target, not both")
+    if args.spp is not None:
+        raise ParameterError(
+            f"--spp and --{given[0].replace('_', '-')} both set the samples: give one "
+            "(a target renders until it is met, within --max-samples)"
+        )
+    if args.noise_target is not None:
+        return AbsoluteTarget(check_positive("--noise-target", args.noise_target))
+    if args.sensor is None:
+        raise ParameterError(
+            "--noise-ratio needs --sensor (it scales the sensor's noise); without a sensor, "
+            "give an absolute --noise-target"
+        )
+    from .sensor.apply import SensorTarget
+
+    ratio = check_positive("--noise-ratio", args.noise_ratio)
+    return SensorTarget(ratio, ((args.sensor, args.light_level),))
+
+
+def error_line(err: dict) -> str:
+    """One line: the capture's Monte Carlo sigma, against the sensor's, its time steps' error,
+    and its cost."""
+    ratio = err.get("ratio_to_sensor")
+    vs = f" ({ratio:.2g}x the sensor's)" if ratio is not None else ""
+    target = ""
+    if "target_sigma" in err:
+        met = "met" if err["target_met"] else "NOT met"
+        target = f", target {err['target_sigma']:.3g} {met}"
+    steps = (
+        "time-step error 0 (stratified random times: inside the MC sigma)"
+        if err["time_steps_per_pass"]
+        else "no time steps (static)"
+    )
+    return (
+        f"MC sigma {err['mc_sigma']:.3g}{vs}{target}, {steps}, {err['seconds']:.1f} s "
+        f"({err['passes']} passes, {err['spp']} spp, {err['sampler']})"
+    )
 
 
 def _sensor_size(args: argparse.Namespace) -> dict:
@@ -537,9 +594,27 @@ def _cmd_study(args: argparse.Namespace) -> int:
     where = args.scheduler or (f"{workers} local workers" if workers else "serially, in-process")
     groups = len(spec.groups())
     print(f"study {spec.name}: {len(spec.points)} points in {groups} renders, {where}")
+    if args.budget is not None:
+        check_positive("--budget", args.budget, "h")
+
+    def estimate(summary) -> None:
+        print(
+            f"study {spec.name}: the renders still to do need about "
+            f"{summary.estimate_s / 3600:.2f} h (predicted from their pilot passes, kept)",
+            flush=True,
+        )
+
     try:
         s = run_study(
-            spec, args.out, workers, args.scheduler, args.keep_images, args.force, not args.quiet
+            spec,
+            args.out,
+            workers,
+            args.scheduler,
+            args.keep_images,
+            args.force,
+            not args.quiet,
+            budget_hours=args.budget,
+            on_estimate=estimate,
         )
     except KeyboardInterrupt:
         print(
@@ -818,7 +893,37 @@ def _add_render(sub) -> None:
     )
     p.add_argument("--preset", default="prototype", help="base camera (default: prototype)")
     p.add_argument(
-        "--spp", type=int, default=64, metavar="N", help="samples per pixel (default 64)"
+        "--spp", type=int, metavar="N", help="samples per pixel, over all passes (default 64)"
+    )
+    p.add_argument(
+        "--passes",
+        type=int,
+        default=2,
+        metavar="P",
+        help="independent passes; their spread is the Monte Carlo error (default 2)",
+    )
+    p.add_argument(
+        "--sampler",
+        default=DEFAULT_SAMPLER,
+        choices=list(SAMPLERS),
+        help=f"Mitsuba's sample generator (default {DEFAULT_SAMPLER}: most error per second)",
+    )
+    p.add_argument(
+        "--noise-ratio",
+        type=float,
+        metavar="R",
+        help="render until the Monte Carlo sigma is at most R x the sensor's noise (--sensor)",
+    )
+    p.add_argument(
+        "--noise-target",
+        type=float,
+        metavar="SIGMA",
+        help="render until the Monte Carlo sigma is at most SIGMA (the capture's units)",
+    )
+    p.add_argument(
+        "--mc-sigma-layer",
+        action="store_true",
+        help="write the per-pixel Monte Carlo sigma as an mc_sigma layer in capture.exr",
     )
     p.add_argument("--seed", type=int, default=0, metavar="S")
     p.add_argument(
@@ -962,6 +1067,12 @@ def _add_study(sub) -> None:
     p.add_argument("--quick", action="store_true", help="the study's small version")
     _add_engine_args(p)
     p.add_argument("--keep-images", action="store_true", help="keep each point's EXR layers")
+    p.add_argument(
+        "--budget",
+        type=float,
+        metavar="HOURS",
+        help="refuse the study if its renders, predicted from pilot passes, take longer",
+    )
     p.add_argument("--force", action="store_true", help="start afresh over other results")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=_cmd_study)
@@ -1026,6 +1137,11 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 _FLAGS = {
     "max_step_px": "--max-step-px",
+    "max_steps": "--max-steps",
+    "max_samples": "--max-samples",
+    "noise_ratio": "--noise-ratio",
+    "budget_hours": "--budget",
+    "noise_target": "--noise-target",
     "cover_px_per_ms": "--cover",
     "max_velocity_px_per_ms": "--max-velocity",
     "object_depth_mm": "--depth",

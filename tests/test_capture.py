@@ -13,9 +13,9 @@ from pacam_render.exposure.capture import (
     CaptureInterrupted,
     CaptureSpec,
     capture_design,
-    plan_steps,
     render_capture,
 )
+from pacam_render.exposure.integrate import plan_steps
 from pacam_render.scenes import psf_scene
 
 TINY = {"width": 48, "height": 36, "spp": 4}

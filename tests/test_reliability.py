@@ -20,10 +20,10 @@ from pacam_render.exposure.capture import (
     CaptureInterrupted,
     CaptureSpec,
     check_budget,
-    plan_steps,
     render_capture,
 )
 from pacam_render.exposure.checkpoint import Checkpoint
+from pacam_render.exposure.integrate import plan_steps
 from pacam_render.io.exr import read_layer, write_exr
 from pacam_render.limits import PacamWarning
 from pacam_render.model.camera import CameraDesign, prototype
@@ -79,15 +79,18 @@ def test_checkpoint_survives_a_stale_fixed_temporary_name(tmp_path):
     """Old checkpoints wrote accum.tmp.npy: a leftover (here a folder) broke every later save.
     Unique temporary names cannot collide with it, or with a concurrent writer."""
     folder = tmp_path / ".partial"
-    (folder / "accum.tmp.npy").mkdir(parents=True)
+    (folder / "arrays.tmp.npz").mkdir(parents=True)
     (folder / "state.tmp.json").mkdir()
     store = Checkpoint(folder, {"spec": "a"})
     acc = np.arange(12.0).reshape(2, 2, 3)
-    store.save(3, acc, {1: acc})
-    done, back, pats = Checkpoint(folder, {"spec": "a"}).load(acc.shape)
-    assert done == 3 and np.array_equal(back, acc) and np.array_equal(pats[1], acc)
+    store.save({"done": 3}, {"acc": acc, "pat_1": acc})
+    state, arrays = Checkpoint(folder, {"spec": "a"}).load()
+    assert state == {"done": 3} and np.array_equal(arrays["acc"], acc)
+    assert np.array_equal(arrays["pat_1"], acc)
     with pytest.warns(PacamWarning, match=r"\(spec changed\)"):
-        assert Checkpoint(folder, {"spec": "b"}).load(acc.shape) is None
+        assert Checkpoint(folder, {"spec": "b"}).load() is None
+    with pytest.warns(PacamWarning, match=r"does not fit this capture \(tampered\)"):
+        assert Checkpoint(folder, {"spec": "a"}).load(lambda st, ar: "tampered") is None
 
 
 # --- 2. one writer per --out ---------------------------------------------------------------------
@@ -144,7 +147,7 @@ def test_multi_step_same_seed_renders_are_bit_identical():
 # --- 4. SIGINT and SIGTERM -----------------------------------------------------------------------
 def _done(state) -> int:
     try:
-        return json.loads(state.read_text())["done"]
+        return json.loads(state.read_text())["state"]["steps_done"]
     except (OSError, ValueError):
         return 0
 
@@ -221,11 +224,11 @@ def test_deconvolve_checks_its_output_before_reading(tmp_path, capsys):
 def test_a_plan_of_too_many_steps_is_refused_at_once():
     spec = CaptureSpec(max_step_px=1e-6)
     t0 = time.perf_counter()
-    with pytest.raises(ParameterError, match=r"--max-steps.*raise --max-step-px"):
+    with pytest.raises(ParameterError, match=r"max_steps.*raise max_step_px"):
         plan_steps(np.linspace(0, 45, 17), np.ones(16, bool), 1.0, spec)
-    with pytest.raises(ParameterError, match="--max-steps"):  # a motion of 1e6 mm/ms
+    with pytest.raises(ParameterError, match="max_steps"):  # a motion of 1e6 mm/ms
         plan_steps(np.linspace(0, 45, 17), np.ones(16, bool), 1e12, CaptureSpec())
-    with pytest.raises(ParameterError, match="--max-steps"):
+    with pytest.raises(ParameterError, match="max_steps"):
         plan_steps(np.linspace(0, 45, 17), np.ones(16, bool), np.inf, CaptureSpec())
     assert time.perf_counter() - t0 < 1.0
     assert len(plan_steps(np.linspace(0, 45, 17), np.ones(16, bool), 1.0, CaptureSpec())) == 96
@@ -258,8 +261,9 @@ def test_limit_flags_reject_impossible_values(flag, value, tmp_path, capsys):
 
 def test_budget_counts_samples_and_memory():
     check_budget(CaptureSpec(width=1280, height=960, spp=1024))
-    with pytest.raises(ParameterError, match="--max-samples"):
+    with pytest.raises(ParameterError, match="max_samples"):  # the CLI says --max-samples
         check_budget(CaptureSpec(width=1280, height=960, spp=1024), max_samples=10**6)
+    check_budget(CaptureSpec(width=1280, height=960, spp=1024), 10**6, targeted=True)
 
 
 # --- 10. spp inflation ---------------------------------------------------------------------------
@@ -271,8 +275,8 @@ def test_more_samples_than_asked_are_reported(tmp_path, capsys):
     err = capsys.readouterr().err
     meta = json.loads((out / "capture.json").read_text())
     assert meta["effective_spp"] > 2 and meta["spec"]["spp"] == 2
-    assert f"takes {meta['effective_spp']} spp instead of --spp 2" in err
-    assert any("instead of --spp 2" in n for n in meta["notes"])
+    assert f"take {meta['effective_spp']} spp where 2 were asked" in err
+    assert any("where 2 were asked" in n for n in meta["notes"])
 
 
 # --- 11. physics that cannot be ------------------------------------------------------------------

@@ -1,15 +1,14 @@
 """Captures: a scene rendered through the programmable-aperture camera over a whole exposure.
 
-Exposure integration. A static scene is one render: each ray's time selects the pattern in the
-sensor, so there is no loop and no geometry update. A moving scene is split at the pattern
-boundaries, and each pattern window into ``m`` time steps, so that nothing moves more than
-``max_step_px`` (default 0.5 px) between steps: m = ceil(v_max dt / max_step_px), v_max the
-fastest image speed of any moving shape. Each step moves the geometry to its mid-time (one BVH
-rebuild) and renders only its own time window (the sensor's ``time_window``: windows that tile
-the exposure sum to the full image). The spp budget is shared among the steps in proportion
-to their duration, at least 1 each, so the total stays the request unless there are more steps
-than samples. Every step has its own seed, so an interrupted capture resumes from the steps
-already on disk and gives the same image as an uninterrupted run.
+Exposure integration (:mod:`.integrate`). A capture is the mean of independent passes. A static
+scene is one render per pass: each ray's time selects the pattern in the sensor, so there is no
+loop and no geometry update. A moving scene is split at the pattern boundaries, and each pattern
+window into time steps of at most ``max_step_px`` (default 0.5 px) of image motion; each pass
+poses the geometry at a random time within each step, so the steps add noise, not bias. The
+passes' spread is the capture's Monte Carlo error (:mod:`.estimate`), recorded in
+``render_error``; a capture can also be rendered until that error meets a target. Every step of
+every pass has its own seed, so an interrupted capture resumes from the work on disk and gives
+the same image as an uninterrupted run.
 
 Units. Pixel values are Mitsuba radiance x (open area / full aperture) x (exposure / 45 ms):
 a white diffuse surface seen through the full F2.8 aperture for 45 ms reads about its
@@ -22,11 +21,9 @@ from __future__ import annotations
 import contextlib
 import hashlib
 import json
-import math
-import signal
 import time
 import warnings
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -44,7 +41,10 @@ from ..model import paper
 from ..model.camera import CameraDesign, preset
 from ..model.modes import MODES as MODE_TABLE
 from ..model.modes import capture_camera, mode, sensor_params
+from ..render.samplers import DEFAULT_SAMPLER, check_sampler, quantum, sampler_dict
 from .checkpoint import deferred_signals
+from .estimate import check_passes
+from .integrate import CaptureInterrupted, Run
 from .record import CaptureRecord
 from .truth import TRUTH_LAYERS
 
@@ -64,6 +64,9 @@ class CaptureSpec:
     shrinks with it. ``crop`` = (x, y, w, h) renders only that window of the sensor, in its
     pixels (Mitsuba's film crop): the optics stay those of the whole sensor, so a crop of the
     full-resolution sensor is the prototype's camera at its real pixel scale.
+
+    ``spp`` is shared among ``passes`` independent passes (at least 2: their spread measures the
+    Monte Carlo error); ``sampler`` is Mitsuba's sample generator (:mod:`~..render.samplers`).
     """
 
     scene: str = "train"
@@ -81,6 +84,8 @@ class CaptureSpec:
     r_px: float | None = None
     object_depth_mm: float | None = None
     schedule: str | None = None
+    passes: int = 2
+    sampler: str = DEFAULT_SAMPLER
 
     def __post_init__(self) -> None:
         mode(self.mode)  # raises, listing the valid modes
@@ -93,6 +98,8 @@ class CaptureSpec:
         if not isinstance(self.seed, (int, np.integer)) or not 0 <= self.seed < 2**31:
             raise ParameterError(f"seed must be an integer in [0, 2^31), got {self.seed!r}")
         check_positive("max_step_px", self.max_step_px, "px")
+        check_passes(self.passes)
+        check_sampler(self.sampler)
         if self.cover_px_per_ms is not None:
             check_positive("cover_px_per_ms", self.cover_px_per_ms, "px/ms")
         if self.object_depth_mm is not None:
@@ -238,8 +245,8 @@ def sensor_entry(spec: CaptureSpec, design: CameraDesign, params: dict, exposure
     -------
     dict
         A ``mi.load_dict`` entry with an RGB float32 ``hdrfilm`` of width x height px, a box
-        reconstruction filter (samples stay in their pixel, as the analytic PSFs assume) and an
-        ``independent`` sampler of ``spec.spp`` samples per pixel. For ``reference`` it is a
+        reconstruction filter (samples stay in their pixel, as the analytic PSFs assume) and the
+        spec's sampler (each render sets its own sample count). For ``reference`` it is a
         ``perspective`` (pinhole) sensor; otherwise
         :func:`~pacam_render.render.registry.sensor_dict` with pixel values scaled to the
         :data:`REFERENCE_EXPOSURE_MS` exposure.
@@ -267,7 +274,7 @@ def sensor_entry(spec: CaptureSpec, design: CameraDesign, params: dict, exposure
     if spec.crop is not None:
         x, y, w, h = spec.crop
         film.update(crop_offset_x=x, crop_offset_y=y, crop_width=w, crop_height=h)
-    sampler = {"type": "independent", "sample_count": spec.spp}
+    sampler = sampler_dict(spec.sampler, quantum(spec.sampler))  # each render sets its count
     if spec.mode == "reference":
         return {"type": "perspective", "fov": design.fov_deg, "film": film, "sampler": sampler}
     return sensor_dict(
@@ -281,95 +288,6 @@ def sensor_entry(spec: CaptureSpec, design: CameraDesign, params: dict, exposure
     )
 
 
-@dataclass(frozen=True)
-class Step:
-    """One render of a moving scene: shutter window [t0, t1] ms, geometry at t_mid_ms."""
-
-    pattern: int
-    t0: float
-    t1: float
-    spp: int
-
-    @property
-    def t_mid_paper_ms(self) -> float:
-        """Mid-time of the window, ms, on the shutter's clock (t0, t1): subtract T for the paper's
-        t in [-T, T]."""
-        return 0.5 * (self.t0 + self.t1)
-
-
-def plan_steps(
-    edges: np.ndarray,
-    is_open: np.ndarray,
-    speed_px_per_ms: float,
-    spec,
-    max_steps: int = DEFAULT_MAX_STEPS,
-) -> list[Step]:
-    """Time steps within each open pattern window, and their share of the spp budget.
-
-    Parameters
-    ----------
-    edges : ndarray
-        The n + 1 pattern boundaries on the shutter's clock, ms.
-    is_open : ndarray of bool
-        Whether each of the n pattern windows lets light in; closed windows get no steps.
-    speed_px_per_ms : float
-        The fastest image speed of any moving shape, px/ms.
-    spec : CaptureSpec
-        Uses ``max_step_px`` (px) and ``spp``.
-    max_steps : int, optional
-        The most steps allowed (``--max-steps``).
-
-    Returns
-    -------
-    list of Step
-        In time order: each open window [a, b] is cut into
-        m = max(1, ceil(v_max (b - a) / max_step_px)) equal steps, so that nothing moves more
-        than ``max_step_px`` between steps.
-
-    Raises
-    ------
-    ParameterError
-        If the plan needs more than ``max_steps`` steps (counted before any is built).
-
-    Notes
-    -----
-    The spp budget is shared in proportion to duration: a step of duration d gets
-    floor(spp d / D) samples (D the open time), at least 1, and the samples still to give go to
-    the largest remainders. The total is ``spec.spp``, or more where the minimum of 1 per step
-    forces it.
-    """
-    windows = [(k, a, b) for k, (a, b, o) in enumerate(zip(edges[:-1], edges[1:], is_open)) if o]
-    counts = [speed_px_per_ms * (b - a) / spec.max_step_px - 1e-9 for _, a, b in windows]
-    check_count(
-        "time steps of this capture (fastest image speed "
-        f"{speed_px_per_ms:.4g} px/ms, --max-step-px {spec.max_step_px:g})",
-        sum(_n_steps(c) for c in counts),
-        max_steps,
-        "--max-steps",
-        "; or raise --max-step-px",
-    )
-    pieces = []
-    for (k, a, b), c in zip(windows, counts):
-        e = np.linspace(a, b, _n_steps(c) + 1)
-        pieces += [(k, float(x), float(y)) for x, y in zip(e[:-1], e[1:])]
-    dur = np.array([y - x for _, x, y in pieces])
-    share = spec.spp * dur / dur.sum()
-    spp = np.maximum(1, np.floor(share)).astype(int)
-    left = spec.spp - spp.sum()
-    if left > 0:  # largest remainders get the samples still to give
-        spp[np.argsort(-(share - np.floor(share)), kind="stable")[:left]] += 1
-    return [Step(k, x, y, int(n)) for (k, x, y), n in zip(pieces, spp)]
-
-
-def _n_steps(count: float) -> float:
-    """Steps for a window that the fastest point crosses in ``count`` step lengths."""
-    return max(1, math.ceil(count)) if math.isfinite(count) else math.inf
-
-
-def _step_seed(seed: int, index: int) -> int:
-    return int(np.random.SeedSequence([seed, index]).generate_state(1)[0] >> 1)
-
-
 @dataclass
 class Capture:
     """A finished capture: the image, optional per-pattern images, extra layers (the sensor's
@@ -379,6 +297,8 @@ class Capture:
     patterns: dict[int, np.ndarray]
     record: CaptureRecord
     extra_layers: dict[str, np.ndarray] = field(default_factory=dict)
+    mc_sigma: np.ndarray | None = None
+    """Per-pixel Monte Carlo sigma of ``image``, its units (``record.render_error`` sums it up)."""
 
     @property
     def meta(self) -> dict:
@@ -396,11 +316,15 @@ def render_capture(
     max_steps: int = DEFAULT_MAX_STEPS,
     max_samples: int = DEFAULT_MAX_SAMPLES,
     truth: bool = True,
+    target=None,
+    pilot_only: bool = False,
 ) -> Capture:
-    """Render one capture, and its ground-truth layers.
+    """Render one capture, its Monte Carlo error, and its ground-truth layers.
 
-    A static scene, or the reference, is one render; a moving scene is integrated over the
-    time steps of :func:`plan_steps` (see the module docstring).
+    A capture is ``spec.passes`` independent passes of ``spec.spp / passes`` samples, or, with
+    a ``target``, as many as its Monte Carlo sigma needs; a static scene, or the reference, is
+    one render per pass, a moving scene the time steps of
+    :func:`~pacam_render.exposure.integrate.plan_steps` (see :mod:`.integrate`).
 
     Parameters
     ----------
@@ -426,14 +350,28 @@ def render_capture(
     truth : bool, optional
         Also render the ground-truth layers ``sharp``, ``depth``, ``object_id`` and
         ``velocity`` (:mod:`pacam_render.exposure.truth`; ``--no-truth`` leaves them out).
+        ``sharp`` is rendered in passes like the capture, to the capture's target in white
+        units when it has one.
+    target : NoiseTarget, optional
+        Render until the Monte Carlo sigma (RMS over the window, the capture's units) meets
+        it (:class:`~pacam_render.exposure.estimate.AbsoluteTarget`, or
+        :class:`~pacam_render.sensor.apply.SensorTarget` for a multiple of the sensor's noise);
+        ``spec.spp`` is then not used, and ``max_samples`` bounds the work.
+    pilot_only : bool, optional
+        With a ``target``: stop after the pilot passes, keep them in ``partial_dir`` for the
+        capture to resume from, and return the pilot's image and error; its
+        ``render_error["planned_spp"]`` predicts the samples the target needs (the cost of the
+        rest is about ``render_error["seconds"]`` x planned / pilot spp). No ground truth.
 
     Returns
     -------
     Capture
         The image, (height, width, 3) float64 in radiance x (open area / full aperture) x
-        (exposure / 45 ms); the per-pattern images of a moving scene when ``spec.per_pattern``
-        is set; the ground-truth layers in ``extra_layers``, with their legend in
-        ``record.objects``; and the :class:`~pacam_render.exposure.record.CaptureRecord`.
+        (exposure / 45 ms); its per-pixel Monte Carlo sigma (``mc_sigma``); the per-pattern
+        images of a moving scene when ``spec.per_pattern`` is set; the ground-truth layers in
+        ``extra_layers``, with their legend in ``record.objects``; and the
+        :class:`~pacam_render.exposure.record.CaptureRecord`, whose ``render_error`` states
+        the error and its cost.
 
     Raises
     ------
@@ -447,21 +385,23 @@ def render_capture(
     Warns
     -----
     PacamWarning
-        When the steps take more samples than ``spec.spp``, a checkpoint is not resumed, or an
-        option does not apply to the mode; each note is also kept in ``record.notes``.
+        When the steps take more samples than ``spec.spp``, a target is not met within
+        ``max_samples``, a checkpoint is not resumed, or an option does not apply to the mode;
+        each note is also kept in ``record.notes``.
 
     Notes
     -----
     Selects and activates a Mitsuba variant. The fastest image speed is taken over the paper's
-    t in [-T, T] (the exposure is 2T), and each step renders the geometry at its mid-time.
-    Same-seed captures are bit-identical (:mod:`pacam_render.render.passes`).
+    t in [-T, T] (the exposure is 2T), and each step renders the geometry at a random time in
+    it. Same-seed captures are bit-identical (:mod:`pacam_render.render.passes`).
     """
-    check_budget(spec, max_samples, truth)
+    check_budget(spec, max_samples, truth, target is not None)
     lock = _partial_lock(partial_dir)
     with lock, warnings.catch_warnings(record=True) as caught, deferred_signals() as flag:
         warnings.simplefilter("always", PacamWarning)
-        run = _Run(partial_dir, progress, save_every_s, stop_after_steps, max_steps, flag)
-        cap = _render(spec, description, run, truth)
+        run = Run(partial_dir, progress, save_every_s, stop_after_steps, max_steps, flag)
+        run = replace(run, max_samples=max_samples, pilot_only=pilot_only and target is not None)
+        cap = _render(spec, description, run, truth, target)
     cap.record.notes = _replay(caught)
     return cap
 
@@ -483,39 +423,47 @@ def _replay(caught) -> list[str]:
 
 
 def check_budget(
-    spec: CaptureSpec, max_samples: int = DEFAULT_MAX_SAMPLES, truth: bool = False
+    spec: CaptureSpec,
+    max_samples: int = DEFAULT_MAX_SAMPLES,
+    truth: bool = False,
+    targeted: bool = False,
 ) -> None:
     """Refuse a capture whose samples or memory are beyond bounds, before any work.
+
+    A capture rendered to a noise target (``targeted``) has no spp to check: it stops at
+    ``max_samples`` instead.
 
     Raises
     ------
     ParameterError
-        Naming ``--max-samples``, or ``--width`` and ``--height`` for memory (about 160 bytes
+        Naming ``--max-samples``, or ``--width`` and ``--height`` for memory (about 210 bytes
         per pixel, plus 24 per pixel and pattern with ``per_pattern`` and 96 with ``truth``).
     """
     from ..render.passes import MAX_WAVEFRONT
 
     w, h = spec.image_size
     pixels = w * h
-    per_px = 160 + (24 * paper.N_PATTERNS if spec.per_pattern else 0) + (96 if truth else 0)
+    per_px = 208 + (24 * paper.N_PATTERNS if spec.per_pattern else 0) + (96 if truth else 0)
     check_memory(f"a {w}x{h} capture", per_px * pixels, "--width/--height or --crop")
     if pixels > MAX_WAVEFRONT:
         raise ParameterError(
             f"a {w}x{h} image has more than Mitsuba's {MAX_WAVEFRONT} samples per pass at 1 "
             "spp; reduce --width/--height or --crop"
         )
-    check_count(
-        f"samples of this capture (--spp {spec.spp} x {w} x {h} px)",
-        spec.spp * pixels,
-        max_samples,
-        "--max-samples",
-    )
+    if not targeted:
+        check_count(
+            f"samples of this capture (spp {spec.spp} x {w} x {h} px)",
+            spec.spp * pixels,
+            max_samples,
+            "max_samples",
+        )
 
 
-def _render(spec: CaptureSpec, description, run: _Run, truth: bool) -> Capture:
+def _render(spec: CaptureSpec, description, run: Run, truth: bool, target) -> Capture:
     from ..render.backend import select_variant
-    from ..render.passes import render_passes
     from ..scenes import load_scene
+    from .checkpoint import Checkpoint, resume_parts
+    from .integrate import integrate
 
     variant = select_variant()
     _note_ignored_options(spec)
@@ -527,35 +475,137 @@ def _render(spec: CaptureSpec, description, run: _Run, truth: bool) -> Capture:
     scene = desc.load(sensor=sensor_entry(spec, cam, params, cam.exposure_ms))
     sensor = scene.sensors()[0]
     run.check_signal()
-    layers, objects = _truth(scene, desc, spec, design, run) if truth else ({}, None)
-    if desc.is_static or spec.mode == "reference":  # one pass, no geometry update
+    exp, speed = _exposure(scene, sensor, desc, design, cam, spec, run)
+    record = _record(spec, design, cam, params, sensor, variant, 0.0, {})
+    plan = {"windows": exp.windows, "target": None if target is None else target.to_json()}
+    parts = resume_parts(spec, scene, desc, plan, _versions(), variant)
+    store = Checkpoint(None if run.partial_dir is None else Path(run.partial_dir), parts)
+    prog = integrate(exp, spec, run, store, target, record, f"{spec.mode} {spec.scene}")
+    render_s = time.perf_counter() - t_start
+    _note_samples(spec, exp, prog, target)
+    if exp.moving:  # back to t = 0 for the ground truth
+        sensor.configure(time_window=None)
+        exp.animator.set_time(0.0)
+    image = prog.stats.mean()
+    if run.pilot_only:
+        store.save(prog.state(), prog.arrays())
+        truth = False
+    layers, objects, sharp = _truth(scene, desc, spec, design, run, prog, record, store, truth)
+    if spec.mode == "reference" and truth:
+        layers["sharp"], sharp = image, prog.stats
+    steps = {
+        "n_steps": len(exp.windows) or 1,
+        "n_geometry_updates": exp.animator.n_updates if exp.moving else 0,
+        "effective_spp": prog.stats.spp,
+        "resumed_from_step": prog.resumed_from if exp.moving else None,
+        "fastest_image_speed_px_per_ms": speed if exp.moving else None,
+    }
+    record = _record(
+        spec, design, cam, params, sensor, variant, time.perf_counter() - t_start, steps
+    )
+    record.objects = objects
+    ids = layers.get("object_id")
+    record.render_error = _render_error(prog, exp, spec, render_s, objects, ids, record, sharp)
+    if not run.pilot_only:
+        store.clear()
+    patterns = prog.stats.pattern_means() if spec.per_pattern else {}
+    layers = {k: layers[k] for k in TRUTH_LAYERS if k in layers}
+    return Capture(image, patterns, record, layers, prog.stats.sigma_px())
+
+
+def _exposure(scene, sensor, desc, design, cam, spec, run: Run):
+    """The :class:`~.integrate.Exposure` of a capture, and the fastest image speed (px/ms)."""
+    from ..scenes import fastest_image_speed_px_per_ms
+    from .integrate import Exposure, plan_windows
+
+    w, h = spec.image_size
+    exp = Exposure(scene, sensor, quantum=quantum(spec.sampler), pixels=w * h)
+    if desc.is_static or spec.mode == "reference":  # one render per pass, no geometry update
         if spec.per_pattern:
             _note("--per-pattern keeps nothing here: a static scene or the reference is one pass")
-        image = render_passes(scene, spec.spp, spec.seed, run.signalled)
-        run.check_signal()  # a partial image (None) never leaves
-        patterns, steps = {}, {"n_steps": 1, "n_geometry_updates": 0, "effective_spp": spec.spp}
-    else:
-        image, patterns, steps = _render_moving(scene, sensor, desc, design, cam, spec, run)
-    if spec.mode == "reference" and truth:
-        layers["sharp"] = image
-    seconds = time.perf_counter() - t_start
-    record = _record(spec, design, cam, params, sensor, variant, seconds, steps)
-    record.objects = objects
-    return Capture(image, patterns, record, {k: layers[k] for k in TRUTH_LAYERS if k in layers})
+        return exp, 0.0
+    exposure = cam.exposure_ms
+    speed = fastest_image_speed_px_per_ms(desc, design, (-0.5 * exposure, 0.5 * exposure))
+    plan = sensor.plan
+    exp.windows = plan_windows(
+        plan.pattern_edges, plan.is_open, speed, spec.max_step_px, run.max_steps
+    )
+    exp.animator, exp.mid_ms = desc.animator(scene), 0.5 * exposure
+    return exp, speed
 
 
-def _truth(scene, desc, spec, design, run: _Run) -> tuple[dict, dict]:
-    """The ground-truth layers, rendered before the steps move anything (scene at t = 0).
+def _note_samples(spec: CaptureSpec, exp, prog, target) -> None:
+    """Say when the passes took more samples than asked, or a target was not met."""
+    sched = prog.sched
+    if target is None and prog.stats.spp > spec.spp:
+        per = "time step" if exp.moving else "pass"
+        _note(
+            f"{spec.passes} passes of at least {exp.quantum} spp per {per} ({spec.sampler}) take "
+            f"{prog.stats.spp} spp where {spec.spp} were asked"
+            + ("; raise max_step_px for fewer steps" if exp.moving else "")
+        )
+    if target is not None and not sched.met:
+        from .estimate import rms
 
-    The reference's own image is its ``sharp`` layer, so it is not rendered twice."""
+        _note(
+            f"the noise target was not met: Monte Carlo sigma {rms(prog.stats.variance()):.3g} > "
+            f"{sched.target_sigma:.3g} after {prog.stats.spp} spp, the most that max_samples "
+            "allows; raise max_samples, or render a smaller crop"
+        )
+
+
+def _truth(scene, desc, spec, design, run: Run, prog, record, store, truth: bool):
+    """The ground-truth layers (the scene back at t = 0), and the sharp layer's passes.
+
+    The sharp layer is rendered in passes like the capture: to the capture's target in white
+    units when it had one. The reference's own image is its ``sharp`` layer, so it is not
+    rendered twice. The capture's passes are saved first, so that an interrupt here loses none.
+    """
     from .truth import render_truth
 
-    layers, objects = render_truth(
-        scene, desc, spec, design, spec.mode != "reference", run.signalled
+    if not truth:
+        return {}, None, None
+    if store.folder is not None:
+        store.save(prog.state(), prog.arrays())
+    goal = prog.sched.target_sigma
+    goal = None if goal is None else goal / max(record.light_factor, 1e-300)
+    quiet = replace(run, progress=False, stop_after_steps=None, partial_dir=None)
+    try:
+        return render_truth(scene, desc, spec, design, spec.mode != "reference", quiet, goal)
+    except CaptureInterrupted as exc:
+        where = run.partial_dir if store.folder is not None else None
+        raise CaptureInterrupted(
+            "interrupted while rendering the ground truth; the capture's steps are "
+            + (f"saved in {where}: run the same command again to resume" if where else "lost"),
+            exc.done,
+            exc.total,
+            exc.signum,
+        ) from None
+
+
+def _render_error(prog, exp, spec, seconds, objects, ids, record, sharp) -> dict:
+    """``render_error`` of the record: the Monte Carlo sigma (capture units), its cost, and the
+    time steps' error (none: stratified random times make them noise, counted in the sigma)."""
+    from .estimate import error_summary, rms
+
+    out = error_summary(prog.stats, objects, ids)
+    lf = record.light_factor
+    out["mc_sigma_white_units"] = out["mc_sigma"] / lf if lf > 0 else None
+    out.update(sampler=spec.sampler, seconds=round(seconds, 3))
+    out["time_steps_per_pass"] = len(exp.windows)
+    out["time_step_bias"] = 0.0
+    out["time_sampling"] = (
+        "stratified random times, one per step and pass: unbiased, their noise is in mc_sigma"
+        if exp.moving
+        else "none: every ray samples the whole exposure"
     )
-    if layers is None:
-        run.check_signal()
-    return layers, objects
+    sched = prog.sched
+    if sched.target_sigma is not None:
+        out["target_sigma"], out["target_met"] = sched.target_sigma, bool(sched.met)
+        out["planned_spp"] = sched.planned_spp
+    if sharp is not None:
+        out["sharp_mc_sigma"] = rms(sharp.variance())
+    return out
 
 
 def _note(message: str) -> None:
@@ -584,116 +634,6 @@ def _note_binning(spec: CaptureSpec, cam: CameraDesign) -> None:
         f"{cam.velocity_range_px_per_ms:.3g} px/ms at this size); to see the camera at its real "
         f"pixel scale, render a window of the full sensor with --crop X,Y,W,H"
     )
-
-
-def _render_moving(scene, sensor, desc, design, cam, spec, run: _Run):
-    """Integrate a moving scene over the time steps of :func:`plan_steps`."""
-    from ..scenes import fastest_image_speed_px_per_ms
-    from .checkpoint import Checkpoint, resume_parts
-
-    exposure = cam.exposure_ms
-    speed = fastest_image_speed_px_per_ms(desc, design, (-0.5 * exposure, 0.5 * exposure))
-    plan = sensor.plan
-    steps = plan_steps(plan.pattern_edges, plan.is_open, speed, spec, run.max_steps)
-    effective = sum(s.spp for s in steps)
-    if effective > spec.spp:
-        _note(
-            f"{len(steps)} time steps need at least 1 sample each: the capture takes "
-            f"{effective} spp instead of --spp {spec.spp}; raise --max-step-px for fewer steps"
-        )
-    parts = resume_parts(spec, scene, desc, steps, _versions(), _variant())
-    store = Checkpoint(None if run.partial_dir is None else Path(run.partial_dir), parts)
-    image, patterns, meta = _integrate(scene, sensor, desc, steps, spec, exposure, run, store)
-    return image, patterns, {**meta, "fastest_image_speed_px_per_ms": speed}
-
-
-class CaptureInterrupted(RuntimeError):
-    """The capture stopped early (``stop_after_steps``, SIGINT or SIGTERM); the finished steps
-    are on disk when a ``partial_dir`` was given."""
-
-    def __init__(self, message: str, done: int = 0, total: int = 0, signum: int | None = None):
-        super().__init__(message)
-        self.done, self.total, self.signum = done, total, signum
-
-
-@dataclass(frozen=True)
-class _Run:
-    """How to run the steps: where to keep finished ones, progress, deliberate interruption,
-    and the flag that SIGINT and SIGTERM set (:func:`~.checkpoint.deferred_signals`)."""
-
-    partial_dir: Path | None
-    progress: bool
-    save_every_s: float
-    stop_after_steps: int | None
-    max_steps: int = DEFAULT_MAX_STEPS
-    flag: dict = field(default_factory=lambda: {"signal": None})
-
-    def signalled(self) -> bool:
-        return self.flag["signal"] is not None
-
-    def check_signal(self) -> None:
-        """Stop a capture that has no finished steps to save."""
-        if self.signalled():
-            raise _interrupted(0, 0, self.flag["signal"], None)
-
-
-def _integrate(scene, sensor, desc, steps, spec, exposure, run: _Run, store):
-    from tqdm import tqdm
-
-    from ..render.passes import render_passes
-
-    anim = desc.animator(scene)
-    shape = (spec.image_size[1], spec.image_size[0], 3)
-    resumed = store.load(shape)
-    done, acc, pats = resumed if resumed else (0, np.zeros(shape), {})
-    mid = 0.5 * exposure  # paper time t = shutter time - mid
-    last_save = time.perf_counter()
-    bar = tqdm(total=len(steps), initial=done, disable=not run.progress, unit="step",
-               desc=f"{spec.mode} {spec.scene}", leave=False)  # fmt: skip
-    with bar:
-        for i in range(done, len(steps)):
-            st = steps[i]
-            anim.set_time(st.t_mid_paper_ms - mid)
-            sensor.configure(time_window=(st.t0, st.t1))
-            img = render_passes(scene, st.spp, _step_seed(spec.seed, i), run.signalled)
-            if img is None:  # a signal came during the step: keep only the steps before it
-                if i == 0:
-                    run.check_signal()
-                store.save(i, acc, pats)
-                raise _interrupted(i, len(steps), run.flag["signal"], run.partial_dir)
-            acc += img
-            if spec.per_pattern:
-                pats[st.pattern] = pats.get(st.pattern, 0.0) + img
-            bar.update(1)
-            finished = i + 1
-            stop = run.stop_after_steps is not None and finished >= run.stop_after_steps
-            if (stop or run.signalled()) and finished < len(steps):
-                store.save(finished, acc, pats)
-                raise _interrupted(finished, len(steps), run.flag["signal"], run.partial_dir)
-            if time.perf_counter() - last_save > run.save_every_s and finished < len(steps):
-                store.save(finished, acc, pats)
-                last_save = time.perf_counter()
-    sensor.configure(time_window=None)
-    store.clear()
-    meta = {
-        "n_steps": len(steps),
-        "n_geometry_updates": anim.n_updates,
-        "resumed_from_step": done,
-        "effective_spp": int(sum(s.spp for s in steps)),
-    }
-    return acc, pats, meta
-
-
-def _interrupted(done: int, total: int, signum, partial_dir) -> CaptureInterrupted:
-    why = "stopped" if signum is None else f"interrupted ({signal.Signals(signum).name})"
-    if total == 0:
-        return CaptureInterrupted(f"{why} before any time step finished; nothing to resume")
-    where = (
-        f"; they are saved in {partial_dir}: run the same command again to resume"
-        if partial_dir is not None
-        else "; nothing was saved (no partial_dir)"
-    )
-    return CaptureInterrupted(f"{why} after {done} of {total} steps{where}", done, total, signum)
 
 
 def _versions() -> dict:
@@ -742,7 +682,7 @@ def _record(spec, design, cam, params, sensor, variant, seconds, steps: dict) ->
     )
 
 
-def write_capture(cap: Capture, out: Path, force: bool) -> list[Path]:
+def write_capture(cap: Capture, out: Path, force: bool, error_layer: bool = False) -> list[Path]:
     """capture.exr (float32 layers), capture.png (sRGB preview), capture.json.
 
     Parameters
@@ -753,6 +693,8 @@ def write_capture(cap: Capture, out: Path, force: bool) -> list[Path]:
         The output folder (created if missing).
     force : bool
         Overwrite existing files.
+    error_layer : bool, optional
+        Also write the per-pixel Monte Carlo sigma (``cap.mc_sigma``) as the ``mc_sigma`` layer.
 
     Returns
     -------
@@ -777,6 +719,8 @@ def write_capture(cap: Capture, out: Path, force: bool) -> list[Path]:
     from ..io.preview import srgb8, write_png
 
     layers = {"capture": cap.image, **cap.extra_layers}
+    if error_layer and cap.mc_sigma is not None:
+        layers["mc_sigma"] = cap.mc_sigma
     for k, img in sorted(cap.patterns.items()):
         layers[f"sub{k:02d}"] = img
     lf = cap.record.light_factor

@@ -5,9 +5,10 @@ A checkpoint is only reused by the capture that wrote it. Its key hashes everyth
 changes the image (:func:`resume_parts`): the capture's spec; the loaded scene's every
 parameter (geometry, textures and emitters, so the XML's contents and its assets count, not
 its path); the motions; the integrator; the package, Mitsuba and Dr.Jit versions and the
-variant; and the step plan. Any difference starts afresh, with a note that names what changed.
-Every file is written under a unique temporary name and renamed, and ``state.json``, written
-last, vouches for the arrays.
+variant; and the step plan and noise target. Any difference starts afresh, with a note that
+names what changed. Every file is written under a unique temporary name and renamed, and
+``state.json``, written last, vouches for the arrays, which are checked against the capture
+before they are trusted.
 """
 
 from __future__ import annotations
@@ -65,7 +66,7 @@ def scene_fingerprint(scene) -> str:
     return h.hexdigest()[:16]
 
 
-def resume_parts(spec, scene, desc, steps, versions: dict, variant: str) -> dict[str, str]:
+def resume_parts(spec, scene, desc, plan, versions: dict, variant: str) -> dict[str, str]:
     """The named hashes that a checkpoint must match to be resumed.
 
     Parameters
@@ -75,7 +76,8 @@ def resume_parts(spec, scene, desc, steps, versions: dict, variant: str) -> dict
         Loaded, before any motion is applied.
     desc : SceneDescription
         For its motions.
-    steps : list of Step
+    plan : JSON-able
+        How the passes go: the time steps (pattern, start, end) and the noise target.
     versions : dict
         Package versions, as the record holds them.
     variant : str
@@ -87,43 +89,50 @@ def resume_parts(spec, scene, desc, steps, versions: dict, variant: str) -> dict
         ``spec``, ``scene``, ``motion``, ``integrator``, ``versions`` and ``steps``, each a hash.
     """
     motions = {k: desc.motions[k].to_json() for k in sorted(desc.motions)}
-    plan = [(s.pattern, s.t0, s.t1, s.spp) for s in steps]
     return {
         "spec": spec.key(),
         "scene": scene_fingerprint(scene),
         "motion": _sha(json.dumps(motions, sort_keys=True, default=repr)),
         "integrator": _sha(str(scene.integrator())),
         "versions": _sha(json.dumps({**versions, "variant": variant}, sort_keys=True)),
-        "steps": _sha(json.dumps(plan)),
+        "steps": _sha(json.dumps(plan, sort_keys=True)),
     }
 
 
 class Checkpoint:
-    """Finished steps kept in ``folder`` (None keeps nothing), for the capture of ``parts``."""
+    """Finished work kept in ``folder`` (None keeps nothing), for the capture of ``parts``.
+
+    What is kept is a JSON state and named arrays; the caller checks that they fit its capture
+    (``check``) before trusting them, so a damaged or tampered checkpoint starts afresh.
+    """
 
     def __init__(self, folder: Path | None, parts: dict[str, str]):
         self.folder, self.parts = folder, dict(parts)
         self.key = _sha(json.dumps(self.parts, sort_keys=True))
 
-    def load(self, shape) -> tuple[int, np.ndarray, dict[int, np.ndarray]] | None:
-        """(steps done, accumulated image, per-pattern images), or None to start afresh."""
+    def load(self, check=None) -> tuple[dict, dict[str, np.ndarray]] | None:
+        """(state, arrays), or None to start afresh (with a note saying why).
+
+        Parameters
+        ----------
+        check : callable, optional
+            ``check(state, arrays)`` returns None when they fit the capture, else the reason.
+        """
         if self.folder is None or not (self.folder / "state.json").is_file():
             return None
         try:
-            state = json.loads((self.folder / "state.json").read_text())
-            if state.get("key") != self.key:
-                return self._mismatch(state.get("parts") or {})
-            acc = np.load(self.folder / "accum.npy")
-            pats = {}
-            if (self.folder / "patterns.npz").is_file():
-                with np.load(self.folder / "patterns.npz") as z:
-                    pats = {int(k): z[k] for k in z.files}
-            done = int(state["done"])
-        except (OSError, ValueError, KeyError, TypeError) as exc:
+            saved = json.loads((self.folder / "state.json").read_text())
+            if saved.get("key") != self.key:
+                return self._mismatch(saved.get("parts") or {})
+            with np.load(self.folder / "arrays.npz") as z:
+                arrays = {k: z[k] for k in z.files}
+            state = saved["state"]
+            why = check(state, arrays) if check is not None else None
+        except (OSError, ValueError, KeyError, TypeError, IndexError) as exc:
             return self._afresh(f"cannot be read ({exc})")
-        if acc.shape != shape:
-            return self._afresh(f"holds a {acc.shape} image, not {shape}")
-        return done, acc, pats
+        if why:
+            return self._afresh(f"does not fit this capture ({why})")
+        return state, arrays
 
     def _mismatch(self, old: dict) -> None:
         changed = [k for k, v in self.parts.items() if old.get(k) != v] or ["its format"]
@@ -133,17 +142,14 @@ class Checkpoint:
         warnings.warn(f"{self.folder} {why}: starting afresh", PacamWarning, stacklevel=3)
         return None
 
-    def save(self, done: int, acc: np.ndarray, pats: dict[int, np.ndarray]) -> None:
+    def save(self, state: dict, arrays: dict[str, np.ndarray]) -> None:
         """Write the arrays, then ``state.json``, each under a unique name and renamed."""
         if self.folder is None:
             return
         self.folder.mkdir(parents=True, exist_ok=True)
-        atomic_save(self.folder / "accum.npy", lambda t: np.save(t, acc), force=True)
-        if pats:
-            arrays = {str(k): v for k, v in pats.items()}
-            atomic_save(self.folder / "patterns.npz", lambda t: np.savez(t, **arrays), force=True)
-        state = json.dumps({"key": self.key, "parts": self.parts, "done": done})
-        atomic_save(self.folder / "state.json", lambda t: Path(t).write_text(state), force=True)
+        atomic_save(self.folder / "arrays.npz", lambda t: np.savez(t, **arrays), force=True)
+        text = json.dumps({"key": self.key, "parts": self.parts, "state": state})
+        atomic_save(self.folder / "state.json", lambda t: Path(t).write_text(text), force=True)
 
     def clear(self) -> None:
         if self.folder is not None and self.folder.exists():

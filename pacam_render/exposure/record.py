@@ -87,6 +87,13 @@ class CaptureRecord:
     """The window of the sensor rendered: x, y, width, height and the sensor's size, px."""
     objects: dict | None = None
     """The ``object_id`` layer's legend: id (a string) to shape id; 0 is no surface."""
+    render_error: dict | None = None
+    """The render's own error and its cost (:mod:`~pacam_render.exposure.estimate`):
+    ``mc_sigma`` (RMS over the window, the capture's units), ``mc_sigma_white_units``,
+    ``mc_sigma_by_object``, ``sharp_mc_sigma`` (white = 1), ``passes``, ``pass_spp``, ``spp``,
+    ``sampler``, ``seconds``, the time steps' ``time_step_bias`` and ``time_sampling``, and,
+    for a capture rendered to a target, ``target_sigma`` and ``target_met``; the sensor adds
+    ``ratio_to_sensor``."""
     extra: dict = field(default_factory=dict)
     """Keys this version does not know (kept, and written back)."""
 
@@ -94,7 +101,7 @@ class CaptureRecord:
         """The JSON-ready dict; optional fields that are unset are left out."""
         out = {k: v for k, v in asdict(self).items() if k not in ("extra", "sensor")}
         optional = ("resumed_from_step", "fastest_image_speed_px_per_ms", "noise_sigma")
-        for key in (*optional, "crop", "objects"):
+        for key in (*optional, "crop", "objects", "render_error"):
             if out[key] is None:
                 del out[key]
         if self.sensor is not None:

@@ -5,8 +5,9 @@ Every capture can carry, beside its image, what a study scores it against:
 ========== ========== ==========================================================================
 layer      channels   meaning
 ========== ========== ==========================================================================
-sharp      R, G, B    the t = 0 pinhole image at the capture's spp and seed (bit for bit the
-                      ``reference`` capture of the same spec)
+sharp      R, G, B    the t = 0 pinhole image in passes like the capture's: its spp and seed
+                      (bit for bit the ``reference`` capture of the same spec), or its noise
+                      target in white units
 depth      Y          z of the surface seen at the pixel's centre, mm (the camera looks down +z);
                       0 where no surface is seen
 object_id  Y          1 + the shape's index in the scene (``objects`` in the JSON names it);
@@ -33,7 +34,9 @@ _DT_MS = 1e-3
 """Half-step of the central difference for the velocity, ms (exact for translations)."""
 
 
-def render_truth(scene, desc, spec, design, sharp: bool = True, stop=None) -> tuple[dict, dict]:
+def render_truth(
+    scene, desc, spec, design, sharp: bool = True, run=None, target_sigma: float | None = None
+) -> tuple[dict, dict, object]:
     """The ground-truth layers of a capture of ``scene`` (its shapes at their t = 0 pose).
 
     Parameters
@@ -43,41 +46,60 @@ def render_truth(scene, desc, spec, design, sharp: bool = True, stop=None) -> tu
     desc : SceneDescription
         Its description (the motions).
     spec : CaptureSpec
-        The capture (size, crop, spp and seed).
+        The capture (size, crop, spp, passes, sampler and seed).
     design : CameraDesign
         The capture's design at the capture's resolution (field of view, pixel scale).
     sharp : bool, optional
         Render the ``sharp`` layer (a ``reference`` capture is its own, so it skips it).
-    stop : callable, optional
-        Asked between passes of the sharp render (see
-        :func:`~pacam_render.render.passes.render_passes`).
+    run : Run, optional
+        Signals (:class:`~pacam_render.exposure.integrate.Run`); None: none are watched.
+    target_sigma : float, optional
+        Render ``sharp`` to this Monte Carlo sigma (white = 1) instead of ``spec.spp``.
 
     Returns
     -------
-    layers : dict of str to ndarray or None
+    layers : dict of str to ndarray
         ``sharp`` (H, W, 3) if asked, ``depth`` (H, W) mm, ``object_id`` (H, W) and
-        ``velocity`` (H, W, 2) px/ms; None when ``stop`` abandoned the sharp render.
+        ``velocity`` (H, W, 2) px/ms.
     objects : dict of str to str
         The legend: object id (as a string, JSON's keys) to shape id.
+    sharp_stats : PassStats or None
+        The sharp layer's passes (its Monte Carlo error), if rendered.
+
+    Raises
+    ------
+    CaptureInterrupted
+        On a signal during the sharp render.
     """
     import mitsuba as mi
 
-    from ..render.passes import render_passes
     from .capture import sensor_entry
 
     pinhole = sensor_entry(replace(spec, mode="reference"), design, {}, 0.0)
-    layers = {}
+    layers, stats = {}, None
     if sharp:
-        image = render_passes(scene, spec.spp, spec.seed, stop, sensor=mi.load_dict(pinhole))
-        if image is None:
-            return None, {}
-        layers["sharp"] = image
+        stats = _sharp_passes(scene, mi.load_dict(pinhole), spec, run, target_sigma)
+        layers["sharp"] = stats.mean()
     position, registry = _surface_aovs(scene, pinhole)
     ids, objects = _object_ids(scene, registry)
     layers["depth"] = np.where(ids > 0, position[..., 2], 0.0)
     layers["object_id"] = ids.astype(np.float64)
     layers["velocity"] = velocity_layer(position, ids, objects, desc, design)
-    return layers, objects
+    return layers, objects, stats
+
+
+def _sharp_passes(scene, sensor, spec, run, target_sigma):
+    """The t = 0 pinhole image's passes, as a static capture's (same seeds and sizes)."""
+    from ..render.samplers import quantum
+    from .checkpoint import Checkpoint
+    from .estimate import AbsoluteTarget
+    from .integrate import Exposure, Run, integrate
+
+    w, h = (int(v) for v in sensor.film().crop_size())
+    exp = Exposure(scene, sensor, quantum=quantum(spec.sampler), pixels=w * h)
+    run = run if run is not None else Run(None, False, 1e9, None)
+    target = None if target_sigma is None else AbsoluteTarget(target_sigma)
+    return integrate(exp, spec, run, Checkpoint(None, {}), target).stats
 
 
 def _surface_aovs(scene, pinhole: dict) -> tuple[np.ndarray, np.ndarray]:
@@ -96,6 +118,8 @@ def _object_ids(scene, registry: np.ndarray) -> tuple[np.ndarray, dict]:
     import mitsuba as mi
 
     shapes = scene.shapes()
+    if not shapes:  # an empty scene: no surface anywhere
+        return np.zeros_like(registry), {}
     reg = np.array(dr.reinterpret_array(mi.UInt32, scene.shapes_dr()), dtype=np.int64)
     lut = np.zeros(max(int(reg.max()), int(registry.max())) + 1, dtype=np.int64)
     lut[reg] = np.arange(1, len(shapes) + 1)

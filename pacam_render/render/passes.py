@@ -5,9 +5,12 @@ film with atomic scatter-adds, while Dr.Jit's LLVM backend runs the wavefront in
 2^14 lanes on several threads. When ``spp`` does not divide the block size, some pixels' samples
 fall in two blocks, two threads add to that pixel in an order that varies from run to run, and
 the float32 sum differs by an ulp (measured: 18 to 37 of 19 200 pixels at 300 spp, 0 at 256).
-A pass whose spp is a power of two no larger than :data:`MAX_PASS_SPP` keeps every pixel inside
-one block, so it is deterministic. :func:`split_spp` writes any spp as such passes (its binary
-digits), which also keeps a pass below Mitsuba's limit of 2^32 samples per wavefront.
+A chunk whose spp is a power of two no larger than :data:`MAX_PASS_SPP` keeps every pixel
+inside one block, so it is deterministic. :func:`split_spp` writes any spp as such chunks (its
+binary digits, or the sizes a sampler renders exactly, :mod:`.samplers`), which also keeps a
+chunk below Mitsuba's limit of 2^32 samples per wavefront. (These chunks are one render's
+parts; the independent passes whose spread measures a capture's Monte Carlo error are
+:mod:`pacam_render.exposure.estimate`'s.)
 """
 
 from __future__ import annotations
@@ -20,31 +23,43 @@ MAX_WAVEFRONT = 1 << 31
 """The most samples one pass may hold (Mitsuba refuses 2^32 and more)."""
 
 
-def split_spp(spp: int, pixels: int) -> list[int]:
-    """Powers of two that sum to ``spp``, largest first, each pass under the wavefront limit.
+def split_spp(spp: int, pixels: int, sampler: str = "independent") -> list[int]:
+    """Chunk sizes that sum to ``spp``, largest first, each under the wavefront limit.
 
     Parameters
     ----------
     spp : int
-        Samples per pixel, >= 1.
+        Samples per pixel, >= 1; a multiple of the sampler's smallest size
+        (:func:`~.samplers.quantum`).
     pixels : int
         Film pixels (width x height), >= 1.
+    sampler : str, optional
+        Mitsuba's sampler: the chunks are sizes it renders exactly (:data:`~.samplers.SAMPLERS`).
 
     Returns
     -------
     list of int
-        Pass sizes, each a power of two <= min(:data:`MAX_PASS_SPP`, MAX_WAVEFRONT / pixels).
+        Chunk sizes, each a power of two <= min(:data:`MAX_PASS_SPP`, MAX_WAVEFRONT / pixels).
 
     Raises
     ------
     ValueError
-        If one sample per pixel already exceeds :data:`MAX_WAVEFRONT`.
+        If one sample per pixel already exceeds :data:`MAX_WAVEFRONT`, or ``spp`` is not a
+        multiple of the sampler's smallest size.
     """
+    from .samplers import SAMPLERS, check_sampler
+
     if pixels > MAX_WAVEFRONT:
         raise ValueError(f"{pixels} pixels exceed one wavefront ({MAX_WAVEFRONT} samples)")
     cap = min(MAX_PASS_SPP, 1 << (MAX_WAVEFRONT // pixels).bit_length() - 1)
-    full, rest = divmod(int(spp), cap)
-    return [cap] * full + [1 << b for b in reversed(range(cap.bit_length())) if rest >> b & 1]
+    sizes = [n for n in SAMPLERS[check_sampler(sampler)] if n <= cap][::-1]
+    if not sizes or int(spp) % sizes[-1]:
+        raise ValueError(f"{sampler} cannot render {spp} spp over {pixels} pixels exactly")
+    out, rest = [], int(spp)
+    for n in sizes:  # greedy: each size divides the larger ones
+        out += [n] * (rest // n)
+        rest %= n
+    return out
 
 
 def pass_seed(seed: int, index: int) -> int:
@@ -61,7 +76,8 @@ def render_passes(
     ----------
     scene : mitsuba.Scene
     spp : int
-        Samples per pixel of the whole render.
+        Samples per pixel of the whole render: a multiple of the sensor's sampler's smallest
+        render (:func:`~.samplers.quantum`).
     seed : int
         The first pass's seed; the others get :func:`pass_seed`.
     stop : callable, optional
@@ -78,10 +94,12 @@ def render_passes(
     """
     import mitsuba as mi
 
+    from .samplers import sampler_name
+
     sensor = scene.sensors()[0] if sensor is None else sensor
     film = sensor.film()
     w, h = (int(v) for v in film.crop_size())
-    passes = split_spp(spp, w * h)
+    passes = split_spp(spp, w * h, sampler_name(sensor.sampler()))
     acc = 0.0
     for i, n in enumerate(passes):
         s = seed if i == 0 else pass_seed(seed, i)

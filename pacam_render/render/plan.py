@@ -85,6 +85,8 @@ class AperturePlan:
     area_mm2: np.ndarray
     reference_exposure: float | None
     window: tuple[float, float] | None = None
+    window_at: float | None = None
+    """With a window: the one time every ray takes in it (the window's weight unchanged)."""
     continuous: bool = False
     tables: MaskTables | None = field(default=None, repr=False)
 
@@ -114,6 +116,12 @@ class AperturePlan:
         return float(np.mean(self.is_open))
 
     @property
+    def ray_times(self) -> tuple[float, float]:
+        """(start, length) of the ray times: the window, the one time in it, or the exposure."""
+        a, b = self.integration_interval
+        return (a, b - a) if self.window_at is None else (self.window_at, 0.0)
+
+    @property
     def integration_interval(self) -> tuple[float, float]:
         """The times the integrator samples: the time window, or the whole exposure."""
         return self.window if self.window is not None else (self.t_open, self.t_close)
@@ -130,7 +138,8 @@ class AperturePlan:
         """Time factor of every ray's weight.
 
         Whole exposure: E / E_ref, E the open time (rays are sampled in open chops only).
-        Time window [a, b]: (b - a) / E_ref (rays uniform in the window; closed chops weigh 0).
+        Time window [a, b]: (b - a) / E_ref (rays uniform in the window, or all at its one
+        time ``window_at``; closed chops weigh 0).
         """
         if self.window is None:
             return self.exposure_factor
@@ -300,7 +309,7 @@ def build_plan(
     n_given = c["n_patterns"]
     n = DEFAULT_N_PATTERNS if n_given is None else sch.check_n_patterns(n_given)
     e_ref = _reference_exposure(c, t1 - t0)
-    window = _time_window(c["time_window"], t0, t1)
+    window, window_at = _time_window(c["time_window"], t0, t1)
     if kind in TIME_VARYING:
         _need_time(kind, t0, t1, "by definition")
     continuous = c["continuous"]
@@ -335,6 +344,7 @@ def build_plan(
         area_mm2=np.asarray(s.area, dtype=float),
         reference_exposure=e_ref,
         window=window,
+        window_at=window_at,
         continuous=continuous,
         tables=s.tables,
     )
@@ -380,25 +390,33 @@ def _reference_exposure(c: dict, dur: float) -> float | None:
     return e_ref
 
 
-def _time_window(window, t0: float, t1: float) -> tuple[float, float] | None:
-    """The rendered part of the exposure, (start, end) ms inside [t0, t1], or None."""
+def _time_window(window, t0: float, t1: float) -> tuple[tuple[float, float] | None, float | None]:
+    """The rendered part of the exposure, (start, end) ms inside [t0, t1], or None; and the one
+    time its rays take (a third value ``at`` in [start, end]), or None for times uniform in it.
+    """
     if isinstance(window, str):
         window = [v for v in re.split(r"[,\s]+", window.strip()) if v] or None
     if window is None:
-        return None
+        return None, None
     try:
-        wa, wb = (float(v) for v in window)
+        values = [float(v) for v in window]
+        if len(values) not in (2, 3):
+            raise ValueError
     except (TypeError, ValueError):
         raise ParameterError(
-            f"time_window must be a pair (start, end) in ms, got {window!r}"
+            f"time_window must be (start, end) or (start, end, at) in ms, got {window!r}"
         ) from None
+    wa, wb = values[:2]
     eps = 1e-9 * max(1.0, abs(t0), abs(t1))
     if not (t1 - t0 > 0 and t0 - eps <= wa < wb <= t1 + eps):
         raise ParameterError(
             f"time_window must satisfy shutter_open <= start < end <= shutter_close = "
             f"[{t0:g}, {t1:g}] ms, got ({wa:g}, {wb:g})"
         )
-    return (max(wa, t0), min(wb, t1))
+    at = values[2] if len(values) == 3 else None
+    if at is not None and not wa <= at <= wb:
+        raise ParameterError(f"time_window's time must lie in [{wa:g}, {wb:g}] ms, got {at:g}")
+    return (max(wa, t0), min(wb, t1)), at
 
 
 def _need_time(kind: str, t0: float, t1: float, what: str) -> None:

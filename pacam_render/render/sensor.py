@@ -36,8 +36,8 @@ Parameters
 ``image_acceleration``  a_i of objects at ``focus_distance``, px/ms^2 (a_c = a_i Z_f / f_px)
 ``reference_exposure``  E_ref, ms: the exposure that gives thinlens' brightness (default: the
                      shutter interval, close - open)
-``time_window``      "start, end" (ms): render only this part of the exposure (see
-                     :meth:`configure`)
+``time_window``      "start, end" (ms): render only this part of the exposure, or
+                     "start, end, at": every ray at time ``at`` in it (see :meth:`configure`)
 ``near_clip``, ``far_clip``  as thinlens (defaults 0.01 and 10000 scene units)
 ==================== ======================================================================
 
@@ -263,6 +263,9 @@ class ProgrammableApertureCamera(mi.Sensor):
         time the integrator draws over the exposure onto the window (Mitsuba's own shutter
         is left alone: the integrators bake it into their kernels). Images of windows that
         tile the exposure sum to the full image. ``time_window=None``: whole exposure.
+        ``time_window=(start, end, at)`` gives every ray the time ``at`` and the window's
+        weight: with the scene posed at ``at`` too, a uniform random ``at`` makes the window's
+        image an unbiased estimate of the moving scene's (the captures' stratified time steps).
         """
         focus = changes.pop("focus_distance", None)
         unknown = set(changes) - set(PROP_KEYS)
@@ -326,9 +329,9 @@ class ProgrammableApertureCamera(mi.Sensor):
         self._n_open = opaque_scalar(len(open_idx), Int)
         self._open_idx = opaque_array(open_idx, UInt)
         self._time_scale = opaque_scalar(plan.time_scale)
-        win = plan.integration_interval
-        self._win_open = opaque_scalar(win[0])
-        self._win_len = opaque_scalar(win[1] - win[0])
+        start, length = plan.ray_times
+        self._win_open = opaque_scalar(start)
+        self._win_len = opaque_scalar(length)
         self._inv_dur = opaque_scalar(1.0 / dur if dur > 0 else 0.0)
         # per-pattern tables, and their first entries for the schedules that need no table
         ratio = plan.area_ratio.astype(np.float32)

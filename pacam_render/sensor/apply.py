@@ -8,6 +8,7 @@ records the sensor, the light level and the noise sigma in the capture's record,
 from __future__ import annotations
 
 import warnings
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -98,13 +99,13 @@ def saturated_fraction(cap, model: SensorModel, light_level: float | None, ppu: 
     return float(np.mean(model.qe * ppu * image > model.saturation_e))
 
 
-def sensor_sigma(cap, model: SensorModel, light_level: float | None, level: float) -> float:
-    """Temporal noise sigma of a sensor capture at a grey ``level`` (white = 1), in the same
-    white = 1 units: what a deconvolver should assume for it (Fig. 8's noise level).
+def sensor_sigma(rec, model: SensorModel, light_level: float | None, level: float) -> float:
+    """Temporal noise sigma of a capture (its record ``rec``) through the sensor at a grey
+    ``level`` (white = 1), in the same white = 1 units: what a deconvolver should assume for
+    it (Fig. 8's noise level).
 
     Without a light level (the ``paper`` preset) white fills the full well.
     """
-    rec = cap.record
     if light_level is None:
         e_white = model.full_well_e
     else:
@@ -122,8 +123,7 @@ def add_sensor_layers(
     ``light_level=None`` it gets :data:`~pacam_render.sensor.model.DEFAULT_LIGHT_LEVEL`. The
     noise sigma is taken at the noisy image's mean level.
     """
-    if light_level is None and model.shot_noise:
-        light_level = DEFAULT_LIGHT_LEVEL  # a physical sensor needs photons; paper does not
+    light_level = _light_level(model, light_level)
     raw, noisy, ppu = apply_sensor(cap, model, light_level, seed)
     saturated = saturated_fraction(cap, model, light_level, ppu)
     rec = cap.record
@@ -135,7 +135,7 @@ def add_sensor_layers(
         warnings.warn(note, PacamWarning, stacklevel=2)
         rec.notes.append(note)
     level = float(np.mean(noisy)) / rec.light_factor
-    sigma = sensor_sigma(cap, model, light_level, level)
+    sigma = sensor_sigma(rec, model, light_level, level)
     cap.extra_layers.update({"raw": raw.astype(np.float32), "noisy": noisy})
     rec.sensor = SensorRecord(
         preset=preset,
@@ -147,6 +147,54 @@ def add_sensor_layers(
         saturated_fraction=saturated,
     )
     rec.noise_sigma = sigma * rec.light_factor  # in the capture's own units
+    if rec.render_error is not None and rec.noise_sigma > 0:
+        rec.render_error["ratio_to_sensor"] = rec.render_error["mc_sigma"] / rec.noise_sigma
+
+
+def _light_level(model: SensorModel, light_level: float | None) -> float | None:
+    """A physical sensor (one with shot noise) needs photons: without a light level it gets
+    :data:`~pacam_render.sensor.model.DEFAULT_LIGHT_LEVEL`; the ``paper`` preset needs none."""
+    if light_level is None and model.shot_noise:
+        return DEFAULT_LIGHT_LEVEL
+    return light_level
+
+
+@dataclass(frozen=True)
+class SensorTarget:
+    """A noise target for a render: ``ratio`` times the sensor's temporal noise at the
+    capture's mean level (:func:`sensor_sigma`), in the capture's units; with several
+    ``sensors`` ((preset, light level) pairs, the light level None for the preset's default),
+    ``ratio`` times the lowest of their noises, so that the render adds at most ``ratio^2`` to
+    the noise variance of every one (:class:`~pacam_render.exposure.estimate.NoiseTarget`).
+    """
+
+    ratio: float
+    sensors: tuple[tuple[str, float | None], ...]
+
+    def __post_init__(self) -> None:
+        check_positive("noise_ratio", self.ratio)
+        if not self.sensors:
+            raise ParameterError("noise_ratio needs a sensor (its noise is what it scales)")
+        for preset, level in self.sensors:
+            SensorModel.from_preset(preset)  # raises, naming the presets
+            if level is not None:
+                check_positive("light_level", level, "photons/px/ms")
+
+    def sensor_sigmas(self, mean_image: np.ndarray, rec) -> list[float]:
+        """Each sensor's noise sigma at the image's mean level, the capture's units."""
+        lf = rec.light_factor
+        level = float(np.mean(mean_image)) / lf if lf > 0 else 0.0
+        out = []
+        for preset, light in self.sensors:
+            model = SensorModel.from_preset(preset)
+            out.append(sensor_sigma(rec, model, _light_level(model, light), level) * lf)
+        return out
+
+    def sigma(self, mean_image: np.ndarray, rec) -> float:
+        return self.ratio * min(self.sensor_sigmas(mean_image, rec))
+
+    def to_json(self) -> dict:
+        return {"kind": "sensor", "ratio": self.ratio, "sensors": [list(s) for s in self.sensors]}
 
 
 def layer_noise(rec):

@@ -12,12 +12,18 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from ..errors import ParameterError, check_positive
 from .engine import check_workers, run_tasks
-from .point import Task, point_row, run_task
+from .point import Task, pilot_task, point_row, run_task
 from .results import Results
 from .spec import StudySpec, builtin_studies, load_study
 
 __all__ = ["StudySummary", "builtin_studies", "load_study", "run_study"]
+
+OVERHEAD = 1.25
+"""A render's whole task over its capture's own passes: the ground truth (its sharp layer, to
+the same noise in white units, and the aov layers) and the scoring (measured on the crossover
+study's renders: 1.1 to 1.2)."""
 
 
 @dataclass
@@ -31,6 +37,8 @@ class StudySummary:
     failed: int = 0
     seconds: float = 0.0
     files: list[str] = field(default_factory=list)
+    estimate_s: float | None = None
+    """The cost of the renders still to do, predicted from their pilot passes, s."""
 
 
 def run_study(
@@ -42,6 +50,8 @@ def run_study(
     force: bool = False,
     progress: bool = True,
     threads: int | None = None,
+    budget_hours: float | None = None,
+    on_estimate=None,
 ) -> StudySummary:
     """Run the points of ``spec`` not yet finished in ``out``, then write the report.
 
@@ -61,6 +71,11 @@ def run_study(
         progress bar with an ETA.
     threads : int, optional
         Dr.Jit threads per LocalCluster worker (default cores / workers).
+    budget_hours : float, optional
+        Refuse the study when its renders, predicted from their pilot passes, would take
+        longer (hours of wall time). The pilots are kept, so a re-run does not repeat them.
+    on_estimate : callable, optional
+        Called with the :class:`StudySummary` once the cost is estimated (before the renders).
 
     Returns
     -------
@@ -80,12 +95,19 @@ def run_study(
     from .report import write_report
 
     workers = check_workers(workers)
+    if budget_hours is not None:
+        check_positive("budget_hours", budget_hours, "h")
     out = writable_dir(out)
     t0 = time.perf_counter()
     with output_lock(out):
         results = Results(out, spec, force)
-        tasks = _tasks(spec, results.done(), out if keep_images else None)
+        tasks = _tasks(spec, results.done(), out, keep_images)
         summary = StudySummary(spec.name, len(spec.points), skipped=len(results.done()))
+        if spec.render.get("noise_ratio") and tasks:
+            summary.estimate_s = _estimate(tasks, workers, scheduler, threads, progress)
+            if on_estimate is not None:
+                on_estimate(summary)
+            _check_budget(summary.estimate_s, budget_hours)
         todo = sum(len(t.points) for t in tasks)
         bar = tqdm(total=todo, unit="point", desc=spec.name, disable=not progress, smoothing=0)
 
@@ -104,14 +126,53 @@ def run_study(
     return summary
 
 
-def _tasks(spec: StudySpec, done: set[int], keep: Path | None) -> list:
+def _tasks(spec: StudySpec, done: set[int], out: Path, keep: bool) -> list:
     tasks = []
     for k, group in enumerate(spec.groups()):
         todo = tuple(p for p in group if p.index not in done)
         if todo:
-            where = None if keep is None else str(keep / "images" / f"render_{k:04d}")
-            tasks.append(Task(spec.render, todo, where))
+            where = str(out / "images" / f"render_{k:04d}") if keep else None
+            partial = str(out / ".renders" / f"render_{k:04d}" / ".partial")
+            tasks.append(Task(spec.render, todo, where, partial))
     return tasks
+
+
+def _estimate(tasks: list, workers: int, scheduler, threads, progress: bool) -> float:
+    """Run every task's pilot passes (kept for its render), and predict the wall time of the
+    renders: each pilot's seconds x planned / pilot samples x :data:`OVERHEAD`, shared among
+    the workers (a serial run's pilots ran on every core, a worker's on its share)."""
+    from tqdm import tqdm
+
+    costs: list[float] = []
+    bar = tqdm(total=len(tasks), unit="pilot", desc="pilot passes", disable=not progress)
+
+    def done(task: Task, result) -> None:
+        if isinstance(result, BaseException):
+            return  # the render itself will report the error
+        costs.append(result["seconds"] * result["planned_spp"] / result["pilot_spp"] * OVERHEAD)
+        bar.update(1)
+
+    with bar:
+        run_tasks(_safe_pilot, tasks, done, workers, scheduler, threads)
+    return sum(costs) / max(1, workers if scheduler is None else 1)
+
+
+def _safe_pilot(task: Task):
+    """A pilot, or the exception it raised (reported by the render later)."""
+    try:
+        return pilot_task(task)
+    except Exception as exc:  # noqa: BLE001 - a bad point is the render's to report
+        return exc
+
+
+def _check_budget(estimate_s: float, budget_hours: float | None) -> None:
+    if budget_hours is not None and estimate_s > budget_hours * 3600:
+        raise ParameterError(
+            f"the study's renders would take about {estimate_s / 3600:.2f} h (predicted from "
+            f"their pilot passes, which are kept), over budget_hours = {budget_hours:g} h; "
+            "raise it, or make the study cheaper (a tighter crop, a larger noise_ratio, fewer "
+            "points)"
+        )
 
 
 def _failed_rows(task: Task, exc: BaseException) -> list[dict]:

@@ -17,13 +17,6 @@ import numpy as np
 
 from .spec import Point, parse_design
 
-MODEL_SIGMA = 0.02
-"""A floor on the noise a study's deconvolver is told, white = 1: how far a whole scene departs
-from one convolution (depths, speeds, occlusions; issue 15 measures it). Without it, at high
-light, the deconvolver trusts the model to the sensor's tiny sigma and rings: on the crossover's
-prototype capture at 10^4 photons/px/ms (sensor + render sigma 0.006) hl gives 22.2 dB over
-the window, and 24.2, 25.3 and 25.4 dB with 0.01, 0.02 and 0.04; at 300 photons/px/ms (sigma
-0.022) the floor changes nothing. Measured once, on that capture: a tuned constant, stated."""
 STILL_KERNEL_MODES = ("normal", "short")
 """Modes restored with a delta kernel: denoised, not deblurred (see :func:`kernel`)."""
 
@@ -33,23 +26,28 @@ COLUMNS = (
     "psnr_db", "ssim", "psnr_moving_db", "psnr_static_db", "psnr_moving_interior_db",
     "psnr_by_object",
     "r_px", "a_i_px_per_ms2", "velocity_range_px_per_ms", "exposure_ms", "light_factor",
-    "noise_sigma", "render_noise_sigma", "render_s", "total_s", "status",
+    "noise_sigma", "render_noise_sigma", "render_noise_ratio", "sharp_noise_sigma",
+    "model_sigma", "deconv_sigma", "render_spp", "render_s", "total_s", "status",
 )  # fmt: skip
 """The columns of ``results.csv``, in order. Speeds are in the preset's own pixels (px/ms of
 the full sensor); r, a_i and the invariant range are the capture camera's at the study's
-resolution; ``noise_sigma`` is the sensor's and ``render_noise_sigma`` the render's Monte
-Carlo noise, white = 1 (the deconvolver is given their root sum of squares with
-:data:`MODEL_SIGMA`); ``render_s`` is
-the shared render of the point's group."""
+resolution. Noise, white = 1: ``noise_sigma`` is the sensor's, ``render_noise_sigma`` the
+render's measured Monte Carlo sigma (``render_error.mc_sigma``) and ``render_noise_ratio``
+the one over the other, ``sharp_noise_sigma`` the truth's own, ``model_sigma`` the capture's
+measured departure from its deconvolver's model (:mod:`.model_error`), and ``deconv_sigma``
+the root sum of squares of the three that the deconvolver is told. ``render_spp`` and
+``render_s`` are the shared render of the point's group."""
 
 
 @dataclass(frozen=True)
 class Task:
-    """A render and the points scored on it."""
+    """A render and the points scored on it; ``partial_dir`` keeps the render's finished
+    passes (its pilot's, and an interrupted render's), so that a re-run resumes them."""
 
     render: dict
     points: tuple[Point, ...]
     keep_dir: str | None = None
+    partial_dir: str | None = None
 
 
 def run_task(task: Task) -> list[dict]:
@@ -67,7 +65,7 @@ def run_task(task: Task) -> list[dict]:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", PacamWarning)  # notes stay in the capture's record
         try:
-            cap, desc, info = _render(task.render, task.points[0])
+            cap, desc, info = _render(task)
         except CaptureInterrupted:  # Ctrl-C in a serial run stops the study, not the point
             raise
         except Exception as exc:  # a point that cannot render is reported, the study goes on
@@ -105,6 +103,7 @@ def capture_inputs(render: dict, p: Point):
         height=render["height"],
         crop=tuple(render["crop"]) if render["crop"] else None,
         spp=render["spp"],
+        sampler=render.get("sampler", "ldsampler"),
         seed=p.seed,
         max_step_px=render["max_step_px"],
         preset=render["preset"],
@@ -121,18 +120,87 @@ def capture_inputs(render: dict, p: Point):
     return spec, desc, {**info, "depth_mm": moving_depth_mm(desc, full)}
 
 
-def _render(render: dict, p: Point):
+def _render(task: Task):
     from ..exposure.capture import render_capture
-    from ..restore.deconvolve import estimate_noise_sigma
 
-    spec, desc, info = capture_inputs(render, p)
-    cap = render_capture(spec, progress=False, description=desc, truth=True)
-    optics = cap.record.optics
+    spec, desc, info = capture_inputs(task.render, task.points[0])
+    target = render_target(task.render, task.points)
+    cap = render_capture(
+        spec, _partial(task), progress=False, description=desc, truth=True, target=target
+    )
+    rec = cap.record
+    optics = rec.optics
     info.update({k: optics[k] for k in ("r_px", "a_i_px_per_ms2", "velocity_range_px_per_ms")})
-    info.update(exposure_ms=cap.record.exposure_ms, light_factor=cap.record.light_factor)
-    # The render's own Monte Carlo noise, white = 1 (wavelet MAD of the noiseless capture)
-    info["render_noise_sigma"] = estimate_noise_sigma(cap.image / cap.record.light_factor)
+    info.update(exposure_ms=rec.exposure_ms, light_factor=rec.light_factor)
+    err = rec.render_error
+    info.update(
+        render_noise_sigma=err["mc_sigma_white_units"],
+        sharp_noise_sigma=err.get("sharp_mc_sigma"),
+        render_spp=err["spp"],
+    )
+    info["model_sigma"] = _model_sigma(cap, desc)
     return cap, desc, info
+
+
+def pilot_task(task: Task) -> dict:
+    """The pilot passes of a task's render, kept in its ``partial_dir`` for the render to
+    resume from, and what they predict: ``seconds`` (the pilot's), ``pilot_spp`` and
+    ``planned_spp`` (what the target needs)."""
+    import warnings
+
+    from ..exposure.capture import render_capture
+    from ..limits import PacamWarning
+
+    spec, desc, _ = capture_inputs(task.render, task.points[0])
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", PacamWarning)
+        cap = render_capture(
+            spec,
+            _partial(task),
+            progress=False,
+            description=desc,
+            truth=False,
+            target=render_target(task.render, task.points),
+            pilot_only=True,
+        )
+    err = cap.record.render_error
+    return {"seconds": err["seconds"], "pilot_spp": err["spp"], "planned_spp": err["planned_spp"]}
+
+
+def _partial(task: Task) -> Path | None:
+    return None if task.partial_dir is None else Path(task.partial_dir)
+
+
+def render_target(render: dict, points):
+    """The noise target of a render that feeds ``points``: ``noise_ratio`` times the lowest of
+    their sensors' noises (:class:`~pacam_render.sensor.apply.SensorTarget`), or None."""
+    if render.get("noise_ratio") is None:
+        return None
+    from ..sensor.apply import SensorTarget
+
+    sensors = tuple(sorted({(p.sensor, p.light_level) for p in points}))
+    return SensorTarget(float(render["noise_ratio"]), sensors)
+
+
+def _model_sigma(cap, desc) -> float:
+    """The capture's departure from its deconvolver's model, white = 1 (:mod:`.model_error`)."""
+    from ..restore.metrics import shift_search_px
+    from .model_error import model_sigma
+
+    lf = cap.record.light_factor
+    layers = cap.extra_layers
+    sharp_var = (cap.record.render_error.get("sharp_mc_sigma") or 0.0) ** 2
+    return model_sigma(
+        cap.image / lf,
+        layers["sharp"],
+        kernel(cap),
+        layers["object_id"],
+        cap.record.objects,
+        set(desc.moving_ids),
+        shift_search_px(cap.record.spec["width"]),
+        (cap.mc_sigma / lf) ** 2,
+        sharp_var,
+    )
 
 
 def _evaluate(cap, desc, p: Point, task: Task, info: dict) -> dict:
@@ -145,8 +213,10 @@ def _evaluate(cap, desc, p: Point, task: Task, info: dict) -> dict:
     add_sensor_layers(cap, SensorModel.from_preset(p.sensor), p.sensor, p.light_level, p.seed)
     noisy = cap.extra_layers["noisy"] / cap.record.light_factor  # white reads ~ its reflectance
     sigma = cap.record.sensor.noise_sigma_white_units
-    # The render's own Monte Carlo noise adds to the sensor's, and the model's error to both.
-    total = float(np.sqrt(sigma**2 + info["render_noise_sigma"] ** 2 + MODEL_SIGMA**2))
+    # the deconvolver is told every noise the capture has: the sensor's, the render's, and its
+    # measured departure from the model
+    parts = (sigma, info["render_noise_sigma"], info["model_sigma"])
+    total = float(np.sqrt(sum(x * x for x in parts)))
     est = noisy if p.method == "none" else _deconvolve(cap, noisy, total, p.method)
     if task.keep_dir is not None:
         _keep(cap, est, p, Path(task.keep_dir))
@@ -154,7 +224,8 @@ def _evaluate(cap, desc, p: Point, task: Task, info: dict) -> dict:
     out = score(
         est, cap.extra_layers, cap.record.objects, set(desc.moving_ids), shift, _edge_px(cap)
     )
-    return {**out, "noise_sigma": sigma}
+    ratio = info["render_noise_sigma"] / sigma if sigma > 0 else float("inf")
+    return {**out, "noise_sigma": sigma, "render_noise_ratio": ratio, "deconv_sigma": total}
 
 
 def _edge_px(cap) -> int:

@@ -18,14 +18,15 @@ from pathlib import Path
 import numpy as np
 
 from ..io.outputs import save_figure, write_text
-from .point import MODEL_SIGMA
 from .results import RESULTS, read_csv
 from .spec import StudySpec
 
 NUMERIC = (
     "speed_px_per_ms", "depth_mm", "light_level_photons_per_px_per_ms", "psnr_db", "ssim",
     "psnr_moving_db", "psnr_static_db", "psnr_moving_interior_db", "r_px", "a_i_px_per_ms2",
-    "velocity_range_px_per_ms", "exposure_ms", "noise_sigma", "render_s", "total_s",
+    "velocity_range_px_per_ms", "exposure_ms", "noise_sigma", "render_noise_sigma",
+    "render_noise_ratio", "sharp_noise_sigma", "model_sigma", "deconv_sigma", "render_spp",
+    "render_s", "total_s",
 )  # fmt: skip
 LIGHT = "light_level_photons_per_px_per_ms"
 
@@ -47,14 +48,34 @@ def label(row: dict, designs: int) -> str:
 
 def curves(rows: list[dict], x: str, y: str, panel: str | None = None) -> dict:
     """{panel value: {label: (xs, mean ys over seeds)}} of the rows with status ok."""
+    return {
+        p: {lab: (xs, ys) for lab, (xs, ys, _) in c.items()}
+        for p, c in curves_ci(rows, x, y, panel).items()
+    }
+
+
+def curves_ci(rows: list[dict], x: str, y: str, panel: str | None = None) -> dict:
+    """{panel value: {label: (xs, mean ys, 95 % half-widths)}} over the seeds of the rows with
+    status ok; the half-width is Student's t_{n-1} s / sqrt(n), 0 for a single seed."""
+    from scipy.stats import t as student
+
     designs = len({r["design"] for r in rows})
     acc: dict = defaultdict(lambda: defaultdict(lambda: defaultdict(list)))
     for r in rows:
         if r["status"] == "ok":
             acc[r[panel] if panel else ""][label(r, designs)][r[x]].append(r[y])
+
+    def half(v: list) -> float:
+        n = len(v)
+        return float(student.ppf(0.975, n - 1) * np.std(v, ddof=1) / np.sqrt(n)) if n > 1 else 0.0
+
     return {
         p: {
-            lab: (np.array(sorted(d)), np.array([np.mean(d[k]) for k in sorted(d)]))
+            lab: (
+                np.array(sorted(d)),
+                np.array([np.mean(d[k]) for k in sorted(d)]),
+                np.array([half(d[k]) for k in sorted(d)]),
+            )
             for lab, d in c.items()
         }
         for p, c in acc.items()
@@ -85,7 +106,7 @@ def write_report(spec: StudySpec, out: Path) -> list[str]:
             _plot(
                 out,
                 "crossover.png",
-                curves(ok, LIGHT, "psnr_moving_db", "speed_px_per_ms"),
+                curves_ci(ok, LIGHT, "psnr_moving_db", "speed_px_per_ms"),
                 "light level (photons/px/ms, white, F2.8)",
                 "speed",
                 log=True,
@@ -94,10 +115,11 @@ def write_report(spec: StudySpec, out: Path) -> list[str]:
         text += _crossover_text(ok)
     if spec.report == "speed" and ok:
         for y, name in (("psnr_moving_db", "speed"), ("psnr_moving_interior_db", "speed_interior")):
-            data = curves(ok, "speed_px_per_ms", y, LIGHT)
+            data = curves_ci(ok, "speed_px_per_ms", y, LIGHT)
             xlabel = "speed of the moving object (px/ms, preset pixels)"
             files.append(_plot(out, f"{name}.png", data, xlabel, "light", False, _YLABEL[y]))
             text += _speed_text(ok, y)
+    text += _error_text(ok)
     text += ["## Every point", "", *_table(rows)]
     write_text(out / "report.md", "\n".join(text) + "\n", force=True)
     return ["results.csv", "report.md", *files]
@@ -111,16 +133,54 @@ def _setup(spec: StudySpec, rows: list[dict], ok: list[dict]) -> str:
         else "the whole frame of"
     )
     failed = len(rows) - len(ok)
-    return (
-        f"{where} a {r['width']}x{r['height']} px `{r['preset']}` sensor, {r['spp']} spp, "
-        f"sensor model `{r['sensor']}` unless a point says otherwise; {len(rows)} of "
-        f"{len(spec.points)} points done, {failed} failed. Scores are against each capture's "
-        "own `sharp` layer; the moving objects' PSNR takes each object at its best horizontal "
-        "shift (a motion-invariant PSF moves it by -s^2 / (2 a_i)). Speeds are in the preset's "
-        "own pixels (px/ms of the full sensor). The deconvolver is told the root sum of squares "
-        f"of the sensor's noise, the render's Monte Carlo noise and a model floor of {MODEL_SIGMA} "
-        "(`pacam_render.study.point.MODEL_SIGMA`)."
+    samples = (
+        f"each render to a Monte Carlo sigma of at most {r['noise_ratio']:g}x the lowest "
+        "sensor noise it feeds"
+        if r.get("noise_ratio")
+        else f"{r['spp']} spp"
     )
+    seeds = len({row["seed"] for row in rows}) or 1
+    return (
+        f"{where} a {r['width']}x{r['height']} px `{r['preset']}` sensor, {samples} "
+        f"(`{r.get('sampler', 'independent')}`), sensor model `{r['sensor']}` unless a point "
+        f"says otherwise; {len(rows)} of {len(spec.points)} points done, {failed} failed; "
+        f"{seeds} seed(s), the plots show their mean and, with several, its 95 % confidence "
+        "interval. Scores are against each capture's own `sharp` layer; the moving objects' "
+        "PSNR takes each object at its best horizontal shift (a motion-invariant PSF moves it "
+        "by -s^2 / (2 a_i)). Speeds are in the preset's own pixels (px/ms of the full sensor). "
+        "The deconvolver is told the root sum of squares of the sensor's noise, the render's "
+        "measured Monte Carlo noise, and the capture's measured departure from the convolution "
+        "model it assumes (`model_sigma`, `pacam_render/study/model_error.py`)."
+    )
+
+
+def _error_text(ok: list[dict]) -> list[str]:
+    """The error budget: render noise against the sensor's, and the model error, per mode."""
+    if not ok or all(math.isnan(r["render_noise_ratio"]) for r in ok):
+        return []
+    lines = [
+        "## Error budget",
+        "",
+        "White = 1. The render's Monte Carlo sigma over the sensor's (`render_noise_ratio`: "
+        "the render adds its square to the point's noise variance), and the model error the "
+        "deconvolver is told (`model_sigma`), by mode and light level (median over the "
+        "points; largest ratio in brackets).",
+        "",
+        "| mode | light | sensor sigma | render sigma | ratio (max) | model sigma | render spp |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    groups = defaultdict(list)
+    for r in ok:
+        groups[(r["mode"], r[LIGHT])].append(r)
+    for (mode, light), rs in sorted(groups.items()):
+        med = {k: float(np.nanmedian([r[k] for r in rs])) for k in NUMERIC}
+        worst = max(r["render_noise_ratio"] for r in rs)
+        lines.append(
+            f"| {mode} | {light:.4g} | {med['noise_sigma']:.2e} | {med['render_noise_sigma']:.2e} "
+            f"| {med['render_noise_ratio']:.3f} ({worst:.3f}) | {med['model_sigma']:.4f} | "
+            f"{med['render_spp']:.0f} |"
+        )
+    return lines + [""]
 
 
 _YLABEL = {
@@ -140,8 +200,10 @@ def _plot(
     keys = sorted(data, key=lambda v: float(v) if v != "" else 0)
     fig, axes = plt.subplots(1, len(keys), figsize=(5.2 * len(keys), 4), squeeze=False)
     for ax, key in zip(axes[0], keys):
-        for lab, (xs, ys) in sorted(data[key].items()):
-            ax.plot(xs, ys, "o-" if "coded" in lab else "s--", label=lab, ms=4)
+        for lab, (xs, ys, ci) in sorted(data[key].items()):
+            line = ax.plot(xs, ys, "o-" if "coded" in lab else "s--", label=lab, ms=4)[0]
+            if np.any(ci > 0):
+                ax.fill_between(xs, ys - ci, ys + ci, color=line.get_color(), alpha=0.2, lw=0)
         ax.set_xscale("log" if log else "linear")
         ax.set_xlabel(xlabel)
         ax.set_ylabel(ylabel or _YLABEL["psnr_moving_db"])

@@ -1,0 +1,305 @@
+"""The render's own error against its cost (issue 25): samplers, time steps, bounces.
+
+1. Samplers: Mitsuba's sample generators on a coded capture of the train at the prototype's
+   full pixel scale (a 200x120 window at (200, 560): the near train over the backdrop, the
+   capture's own step plan), at equal spp. The Monte Carlo sigma is measured from two seeds,
+   the time is the capture's ``render_seconds`` (no ground truth); efficiency 1/(sigma^2 t)
+   against ``independent``, side by side in one run. The sigma each capture records beside it,
+   and each sampler's mean against ``independent``'s (bias, in units of their joint sigma).
+2. Time steps: a moving point (PSF scene, normal exposure: a 58 px streak) and the train window,
+   with stratified random times (each step's geometry and rays at one uniform time in it,
+   the default) and the midpoint rule (the earlier captures), at several step sizes. The error
+   is measured against a fine-step reference of many samples (its own noise taken out), and
+   split into the recorded Monte Carlo sigma and what it does not cover (the midpoint's
+   bias). Efficiency 1/(error^2 t).
+3. Bounces: how much light the paths past the first bounce add to each built-in scene
+   (``path`` max_depth 2, 3, 4 and 8, the reference camera, full pixel scale), in white units,
+   against the noise target of a study (0.2 x the ICX285's noise at 300 and 10^4
+   photons/px/ms), and what each depth costs.
+4. Error against seconds for a capture of the train window: the Monte Carlo sigma of the
+   default and of ``independent`` at 256 to 4096 spp, and the midpoint rule's total error,
+   plotted to ``benchmarks/figures/render_error_vs_seconds.png`` (and docs/render_error.png).
+
+    python benchmarks/bench_render_error.py [--full] [--part 1 2 3 4]
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import shutil
+import time
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt
+import numpy as np
+from common import record
+
+from pacam_render.exposure import integrate
+from pacam_render.exposure.capture import CaptureSpec, capture_design, render_capture
+from pacam_render.render.samplers import DEFAULT_SAMPLER, SAMPLERS
+from pacam_render.scenes import load_scene, psf_scene
+
+FIGURES = Path(__file__).with_name("figures")
+DOCS = Path(__file__).resolve().parents[1] / "docs"
+WINDOW = {"width": 1280, "height": 960, "crop": (200, 560, 200, 120)}
+"""The train window at full scale: the near train (1.4 px/ms) over the backdrop."""
+
+
+def capture(spec: CaptureSpec, desc=None):
+    return render_capture(spec, progress=False, truth=False, description=desc)
+
+
+def two_seeds(spec: CaptureSpec, desc=None) -> tuple[float, float, float, np.ndarray]:
+    """(two-seed sigma, mean recorded sigma, mean seconds, mean image) of a capture."""
+    a = capture(spec, desc)
+    b = capture(CaptureSpec(**{**spec.__dict__, "seed": spec.seed + 1}), desc)
+    sigma = float(np.sqrt(np.mean((a.image - b.image) ** 2) / 2))
+    recorded = 0.5 * (a.record.render_error["mc_sigma"] + b.record.render_error["mc_sigma"])
+    seconds = 0.5 * (a.record.render_seconds + b.record.render_seconds)
+    return sigma, recorded, seconds, 0.5 * (a.image + b.image)
+
+
+def sampler_rows(spps) -> list[dict]:
+    rows = []
+    for spp in spps:
+        base = None
+        for name in SAMPLERS:
+            spec = CaptureSpec(scene="train", mode="coded", spp=spp, sampler=name, **WINDOW)
+            sigma, recorded, t, mean = two_seeds(spec)
+            eff = 1.0 / (sigma**2 * t)
+            if base is None:
+                base = (eff, mean, sigma)
+            joint = np.sqrt(sigma**2 + base[2] ** 2) / np.sqrt(2)  # sigma of two-seed means
+            bias = float(np.mean(mean - base[1]) / (joint / np.sqrt(mean.size)))
+            rows.append(
+                {
+                    "spp": spp,
+                    "sampler": name,
+                    "sigma (two seeds)": sigma,
+                    "sigma recorded": recorded,
+                    "seconds": t,
+                    "1/(sigma^2 t)": eff,
+                    "vs independent": eff / base[0],
+                    "mean - independent's (SE)": bias,
+                }
+            )
+            print(rows[-1], flush=True)
+    return rows
+
+
+@contextlib.contextmanager
+def midpoint_rule():
+    """The earlier captures' time steps: geometry and rays at each step's mid-time."""
+    stratified = integrate.step_time
+    integrate.step_time = lambda t0, t1, u: 0.5 * (t0 + t1)
+    try:
+        yield
+    finally:
+        integrate.step_time = stratified
+
+
+def _streak(step_px: float, spp: int, seed: int, passes: int = 4):
+    spec = CaptureSpec(
+        scene="psf", mode="normal", width=80, height=8, spp=spp, seed=seed,
+        max_step_px=step_px, passes=passes, sampler="independent",
+    )  # fmt: skip
+    cam = capture_design(spec).with_(focus_distance_mm=500.0)
+    return capture(spec, psf_scene(500.0, 1.3, camera=cam, radius_mm=0.05))
+
+
+def _train(step_px: float, spp: int, seed: int, passes: int = 4):
+    spec = CaptureSpec(
+        scene="train", mode="coded", spp=spp, seed=seed, max_step_px=step_px, passes=passes,
+        **WINDOW,
+    )  # fmt: skip
+    return capture(spec)
+
+
+def time_step_rows(full: bool) -> list[dict]:
+    """Error of each rule and step against a fine stratified reference (noise removed)."""
+    rows = []
+    cases = [
+        ("moving point", _streak, 0.05, 4096, (0.25, 0.5, 1.0, 2.0, 6.0), 512),
+        ("train window", _train, 0.125, 8192 if full else 4096, (0.25, 0.5, 1.0, 2.0), 1024),
+    ]
+    for name, make, fine_px, fine_spp, steps, spp in cases:
+        ref = make(fine_px, fine_spp, 100)
+        ref_var = float(np.mean(ref.mc_sigma**2))
+        for rule in ("stratified", "midpoint"):
+            for step in steps:
+                with midpoint_rule() if rule == "midpoint" else contextlib.nullcontext():
+                    cap = make(step, spp, 0)
+                err2 = float(np.mean((cap.image - ref.image) ** 2)) - ref_var
+                sigma = cap.record.render_error["mc_sigma"]
+                uncounted = np.sqrt(max(err2 - sigma**2, 0.0))
+                t = cap.record.render_seconds
+                rows.append(
+                    {
+                        "case": name,
+                        "rule": rule,
+                        "max_step_px": step,
+                        "steps": cap.record.n_steps,
+                        "spp": cap.record.effective_spp,
+                        "RMS error": np.sqrt(max(err2, 0.0)),
+                        "recorded sigma": sigma,
+                        "error not in sigma": uncounted,
+                        "seconds": t,
+                        "1/(error^2 t)": 1.0 / (max(err2, 1e-30) * t),
+                    }
+                )
+                print(rows[-1], flush=True)
+    return rows
+
+
+SCENE_WINDOWS = {
+    "train": (128, 259, 512, 461),
+    "soccer": (360, 240, 560, 480),
+    "walker": (380, 0, 520, 960),
+}
+"""Windows of the full 1280x960 sensor around each scene's subject."""
+
+
+def bounce_rows(full: bool) -> list[dict]:
+    """Light added by the bounces past each depth; two seeds give its noise-free size."""
+    from pacam_render.sensor.apply import sensor_sigma
+    from pacam_render.sensor.model import SensorModel
+
+    icx = SensorModel.from_preset("grasshopper-icx285")
+    rows = []
+    spp = 1024 if full else 256
+    for scene, crop in SCENE_WINDOWS.items():
+        images, seconds = {}, {}
+        for depth in (2, 3, 4, 8):
+            desc = load_scene(scene)
+            desc.integrator = {"type": "path", "max_depth": depth}
+            pair = []
+            for seed in (0, 1):
+                spec = CaptureSpec(
+                    scene=scene, mode="reference", width=1280, height=960, crop=crop,
+                    spp=spp, seed=seed,
+                )  # fmt: skip
+                cap = capture(spec, desc)
+                pair.append(cap)
+            images[depth] = [c.image for c in pair]
+            seconds[depth] = np.mean([c.record.render_seconds for c in pair])
+        rec = pair[0].record
+        level = float(np.mean(images[8][0]))
+        targets = {light: 0.2 * sensor_sigma(rec, icx, light, level) for light in (300.0, 10000.0)}
+        for depth in (2, 3, 4):
+            # the bounces past `depth`, seed by seed (the shared first bounces cancel); the two
+            # seeds are independent, so E[d1 d2] is the contribution's own mean square
+            d1 = images[8][0] - images[depth][0]
+            d2 = images[8][1] - images[depth][1]
+            rms = float(np.sqrt(max(np.mean(d1 * d2), 0.0)))
+            rows.append(
+                {
+                    "scene": scene,
+                    "max_depth": depth,
+                    "light past it (mean)": float(np.mean(d1 + d2) / 2),
+                    "light past it (RMS)": rms,
+                    "share of the light": float(np.mean(d1 + d2) / 2 / level),
+                    "target at 300": targets[300.0],
+                    "target at 10^4": targets[10000.0],
+                    "seconds vs depth 8": seconds[depth] / seconds[8],
+                }
+            )
+            print(rows[-1], flush=True)
+    return rows
+
+
+def seconds_rows() -> list[dict]:
+    """Monte Carlo sigma against seconds on the train window, and the midpoint's error."""
+    rows = []
+    ref = _train(0.125, 8192, 100)
+    ref_var = float(np.mean(ref.mc_sigma**2))
+    for label, sampler, rule in (
+        (f"{DEFAULT_SAMPLER} (default)", DEFAULT_SAMPLER, "stratified"),
+        ("independent", "independent", "stratified"),
+        ("independent, midpoint rule", "independent", "midpoint"),
+    ):
+        for spp in (256, 1024, 4096):
+            spec = CaptureSpec(scene="train", mode="coded", spp=spp, sampler=sampler, **WINDOW)
+            with midpoint_rule() if rule == "midpoint" else contextlib.nullcontext():
+                cap = capture(spec)
+            err = np.sqrt(max(float(np.mean((cap.image - ref.image) ** 2)) - ref_var, 0.0))
+            rows.append(
+                {
+                    "capture": label,
+                    "spp": cap.record.effective_spp,
+                    "seconds": cap.record.render_seconds,
+                    "recorded sigma": cap.record.render_error["mc_sigma"],
+                    "error vs reference": err,
+                }
+            )
+            print(rows[-1], flush=True)
+    _plot_seconds(rows, ref.record.light_factor)
+    return rows
+
+
+def _plot_seconds(rows: list[dict], lf: float) -> None:
+    fig, ax = plt.subplots(figsize=(6.4, 4.2))
+    for label in dict.fromkeys(r["capture"] for r in rows):
+        rs = [r for r in rows if r["capture"] == label]
+        t = [r["seconds"] for r in rs]
+        (line,) = ax.plot(t, [r["error vs reference"] / lf for r in rs], "o-", label=label)
+        if "midpoint" not in label:
+            sig = [r["recorded sigma"] / lf for r in rs]
+            ax.plot(t, sig, "x--", color=line.get_color(), label=f"{label}: recorded sigma")
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlabel("render seconds (2 cores)")
+    ax.set_ylabel("error of the capture, white = 1 (RMS over the window)")
+    ax.set_title("coded train, 200x120 window at full scale")
+    ax.grid(alpha=0.3, which="both")
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    FIGURES.mkdir(exist_ok=True)
+    fig.savefig(FIGURES / "render_error_vs_seconds.png", dpi=100)
+    shutil.copy(FIGURES / "render_error_vs_seconds.png", DOCS / "render_error.png")
+    plt.close(fig)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--full", action="store_true", help="more spp (slower)")
+    ap.add_argument("--part", type=int, nargs="*", default=[1, 2, 3, 4])
+    args = ap.parse_args()
+    t0 = time.perf_counter()
+    if 1 in args.part:
+        record(
+            "Render error: samplers at equal spp (issue 25)",
+            sampler_rows((1024, 4096) if args.full else (1024, 4096)),
+            "coded train, 200x120 window at (200, 560) of the 1280x960 sensor, 0.5 px steps "
+            "(128 per pass), 2 passes; sigma from two seeds, t = render_seconds; bias: the "
+            "mean difference from independent in standard errors",
+        )
+    if 2 in args.part:
+        record(
+            "Render error: time steps, stratified random times against the midpoint rule",
+            time_step_rows(args.full),
+            "error against a fine stratified reference (moving point: 0.05 px, 4096 spp; "
+            "train: 0.125 px), its noise removed; 'error not in sigma' is the part the recorded "
+            "Monte Carlo sigma does not cover (the bias)",
+        )
+    if 3 in args.part:
+        record(
+            "Render error: light past each path depth, against a study's noise target",
+            bounce_rows(args.full),
+            "reference camera, full pixel scale; white = 1; the RMS is E[d1 d2] of two seeds "
+            "(noise-free); targets: 0.2 x the ICX285's noise at the scene's mean level",
+        )
+    if 4 in args.part:
+        record(
+            "Render error against seconds: a coded capture of the train window",
+            seconds_rows(),
+            "error against an 8192 spp, 0.125 px reference (its noise removed); capture units",
+        )
+    print(f"{time.perf_counter() - t0:.0f} s")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,185 @@
+"""The Monte Carlo error of a capture, measured from its independent passes.
+
+A capture is the mean of independent passes. Each pass is an unbiased estimate of the whole
+exposure: it has its own seeds, and, in a moving scene, its own random times within the time
+steps (:mod:`.capture`). The spread of the passes therefore measures the render's error, whatever
+the sampler. A stratified or low-discrepancy sampler has no per-sample variance that would say
+it. Passes come in groups of equal size: the two pilot passes of a capture rendered to a noise
+target, then the main passes. For a group g of n_g passes of N_g samples per pixel each, with
+per-pixel sample variance v_g, and N the total samples per pixel:
+
+    mean = sum_g N_g sum_p I_gp / N,     Var(mean) = sum_g N_g^2 n_g v_g / N^2,
+
+which is unbiased for any sampler, because every pass of a group has the same distribution.
+``mc_sigma`` is the square root of Var(mean). It is given per pixel, and as the root mean square
+over the window or an object, in the capture's own units.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Protocol
+
+import numpy as np
+
+from ..errors import ParameterError, check_positive
+
+
+@dataclass
+class PassGroup:
+    """Passes of ``spp`` samples per pixel each: their count, sum and sum of squares."""
+
+    spp: int
+    n: int = 0
+    s1: np.ndarray | float = 0.0
+    s2: np.ndarray | float = 0.0
+
+    def add(self, image: np.ndarray) -> None:
+        self.n += 1
+        self.s1 = self.s1 + image
+        self.s2 = self.s2 + image * image
+
+    def variance(self) -> np.ndarray:
+        """Per-pixel sample variance of one pass (n - 1 degrees of freedom); needs n >= 2."""
+        if self.n < 2:
+            raise ValueError("a pass group needs two passes for its variance")
+        return np.maximum(self.s2 - self.s1 * self.s1 / self.n, 0.0) / (self.n - 1)
+
+
+@dataclass
+class PassStats:
+    """A capture's passes, by group: the mean image and its per-pixel Monte Carlo variance."""
+
+    groups: list[PassGroup] = field(default_factory=list)
+    patterns: dict[int, np.ndarray] = field(default_factory=dict)
+    """Per-pattern images, each pass's weighted by its samples (divide by :attr:`spp`)."""
+
+    @property
+    def spp(self) -> int:
+        """Samples per pixel over every pass."""
+        return sum(g.spp * g.n for g in self.groups)
+
+    @property
+    def n_passes(self) -> int:
+        return sum(g.n for g in self.groups)
+
+    def add(self, group: int, image: np.ndarray, patterns: dict | None = None) -> None:
+        """One finished pass of group ``group`` (its per-pattern images in ``patterns``)."""
+        g = self.groups[group]
+        g.add(image)
+        for k, img in (patterns or {}).items():
+            self.patterns[k] = self.patterns.get(k, 0.0) + g.spp * img
+
+    def mean(self) -> np.ndarray:
+        """The capture: every pass weighted by its samples."""
+        return sum(g.spp * g.s1 for g in self.groups if g.n) / self.spp
+
+    def pattern_means(self) -> dict[int, np.ndarray]:
+        return {k: v / self.spp for k, v in self.patterns.items()}
+
+    def variance(self) -> np.ndarray:
+        """Per-pixel variance of :meth:`mean` (the module docstring's Var(mean))."""
+        total = self.spp
+        return sum(g.spp**2 * g.n * g.variance() for g in self.groups if g.n) / total**2
+
+    def sigma_px(self) -> np.ndarray:
+        """Per-pixel Monte Carlo sigma of the capture, its own units."""
+        return np.sqrt(self.variance())
+
+    def ready(self) -> bool:
+        """Whether every group with passes has two, so that the variance is known."""
+        return bool(self.groups) and all(g.n >= 2 or g.n == 0 for g in self.groups)
+
+
+def rms(variance: np.ndarray, mask: np.ndarray | None = None) -> float:
+    """Root mean square sigma from a per-pixel variance (H, W[, C]) over ``mask`` (H, W)."""
+    v = variance if mask is None else variance[mask]
+    return float(np.sqrt(np.mean(v))) if v.size else float("nan")
+
+
+def error_summary(stats: PassStats, objects: dict | None, ids: np.ndarray | None) -> dict:
+    """``mc_sigma`` over the window and per object (shape id to sigma), the capture's units."""
+    var = stats.variance()
+    out = {"mc_sigma": rms(var), "passes": stats.n_passes, "spp": stats.spp}
+    out["pass_spp"] = [g.spp for g in stats.groups for _ in range(g.n)]
+    if objects and ids is not None:
+        out["mc_sigma_by_object"] = {
+            name: rms(var, ids == int(key))
+            for key, name in objects.items()
+            if (ids == int(key)).any()
+        }
+    return out
+
+
+class NoiseTarget(Protocol):
+    """How far to render: the Monte Carlo sigma (RMS over the window, capture units) to reach,
+    from what the pilot passes show (their mean image and the capture's record)."""
+
+    def sigma(self, mean_image: np.ndarray, record) -> float: ...
+
+    def to_json(self) -> dict: ...
+
+
+@dataclass(frozen=True)
+class AbsoluteTarget:
+    """A Monte Carlo sigma in the capture's own units (``noise_target``)."""
+
+    sigma_units: float
+
+    def __post_init__(self) -> None:
+        check_positive("noise_target", self.sigma_units, "(the capture's units)")
+
+    def sigma(self, mean_image: np.ndarray, record) -> float:
+        return self.sigma_units
+
+    def to_json(self) -> dict:
+        return {"kind": "absolute", "sigma": self.sigma_units}
+
+
+PILOT_PASSES = 2
+"""Pilot passes of a capture rendered to a noise target: the fewest that measure an error."""
+MAIN_PASSES = 4
+"""The passes that the rest of the predicted samples are split into; the capture stops after
+any of them (from the second) once the target is met, and adds more if it is not."""
+MARGIN = 1.1
+"""The samples predicted from the pilot are raised by this factor: the pilot's sigma is itself an
+estimate, and stopping early costs less than one more pass."""
+
+
+def main_pass_spp(pilot: PassStats, sigma_target: float, quantum: int, max_spp: int) -> int:
+    """Samples per pixel of each main pass, from the pilot's error (sigma^2 ~ 1 / spp).
+
+    Parameters
+    ----------
+    pilot : PassStats
+        The pilot passes (:data:`PILOT_PASSES`), already rendered.
+    sigma_target : float
+        The Monte Carlo sigma to reach, the capture's units.
+    quantum : int
+        The pass size's multiple (the sampler's and the steps' smallest pass).
+    max_spp : int
+        The most samples per pixel the capture may take in all.
+
+    Returns
+    -------
+    int
+        A multiple of ``quantum``, at least ``quantum``; 0 when the pilot already meets the
+        target or leaves no samples to spend.
+    """
+    sigma = rms(pilot.variance())
+    if sigma <= sigma_target:
+        return 0
+    need = pilot.spp * (sigma / sigma_target) ** 2 * MARGIN - pilot.spp
+    room = max_spp - pilot.spp  # two main passes at least, for their spread
+    per = min(quantum * math.ceil(need / MAIN_PASSES / quantum), quantum * (room // (2 * quantum)))
+    return max(per, 0)
+
+
+def check_passes(passes: int) -> int:
+    """``passes``: an integer >= 2 (two measure an error)."""
+    if isinstance(passes, bool) or not isinstance(passes, (int, np.integer)) or passes < 2:
+        raise ParameterError(
+            f"passes must be an integer >= 2 (their spread measures the error), got {passes!r}"
+        )
+    return int(passes)

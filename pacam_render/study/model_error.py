@@ -1,0 +1,92 @@
+"""How far a capture departs from the convolution model that its deconvolver assumes.
+
+A study restores a capture y (white = 1) with one kernel k: the mode's s = 0 PSF
+(:func:`~.point.kernel`). If y = k * x + noise held with x the capture's ``sharp`` layer, the
+residual y - k * sharp would hold only noise: the render's (``mc_sigma``) and the sharp
+layer's, blurred by k. What is left over is the model error: the occlusions near moving edges,
+the kernel's change with speed and depth, the 16 held patterns. Each moving object is
+compared at its own best horizontal shift (a motion-invariant PSF moves it by -s^2 / 2 a_i,
+which the deconvolver does not need to know), still pixels where they are, and a border as
+wide as the kernel's reach and the shift search is left out (the window's edge sees light
+from outside it that the sharp layer does not hold).
+
+``model_sigma`` is the root mean square of that error over the window, with the noise taken
+out: what the deconvolver is told on top of the sensor's and the render's noise. Modes
+restored with a delta kernel (only denoised) have none: their data are what the denoiser
+assumes.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .score import best_shift_se
+
+
+def convolve(image: np.ndarray, k: np.ndarray) -> np.ndarray:
+    """``image`` (H, W, C) convolved with the odd-sized, centred kernel ``k``, same size."""
+    from scipy.signal import fftconvolve
+
+    return np.stack([fftconvolve(image[..., c], k, mode="same") for c in range(image.shape[2])], -1)
+
+
+def residual_mse(y, sharp, k, ids, objects: dict, moving: set, max_shift_px: int) -> tuple:
+    """Mean squared residual of ``y`` against ``k * sharp``, each moving object at its best
+    shift, over the window less its border; and the mask of the pixels it covers.
+
+    Returns
+    -------
+    mse : float
+    mask : ndarray of bool
+        (H, W): the pixels compared.
+    """
+    pred = convolve(sharp, k)
+    m = int(max_shift_px)
+    half = max(k.shape) // 2
+    inner = np.zeros(ids.shape, bool)
+    inner[half : ids.shape[0] - half, m + half : ids.shape[1] - m - half] = True
+    se, done = 0.0, np.zeros(ids.shape, bool)
+    for key, name in objects.items():
+        mask = inner & (ids == int(key))
+        if name in moving and mask.any():
+            err, _ = best_shift_se(pred, y, mask, m)
+            se, done = se + err, done | mask
+    rest = inner & ~done
+    if rest.any():
+        se += best_shift_se(pred, y, rest, 0)[0]
+    n = int(inner.sum()) * y.shape[2]
+    return (se / n if n else 0.0), inner
+
+
+def model_sigma(
+    y, sharp, k, ids, objects: dict, moving: set, max_shift_px: int, y_var, sharp_var
+) -> float:
+    """The model error's sigma, white = 1 (see the module docstring).
+
+    Parameters
+    ----------
+    y, sharp : ndarray
+        (H, W, C) the noiseless capture and its sharp layer, white = 1.
+    k : ndarray
+        The restoring kernel.
+    ids, objects, moving : ndarray, dict, set
+        The ``object_id`` layer, its legend, and the ids of the shapes that move.
+    max_shift_px : int
+        The alignment search, px.
+    y_var, sharp_var : ndarray or float
+        Per-pixel Monte Carlo variance of ``y`` and of ``sharp`` (white = 1).
+
+    Returns
+    -------
+    float
+        sqrt(max(0, mse - mean(y_var) - mean(sharp_var) sum(k^2))) over the compared pixels.
+    """
+    if k.size == 1:
+        return 0.0
+    mse, mask = residual_mse(y, sharp, k, ids, objects, moving, max_shift_px)
+    noise = _mean_on(y_var, mask) + _mean_on(sharp_var, mask) * float(np.sum(k**2))
+    return float(np.sqrt(max(0.0, mse - noise)))
+
+
+def _mean_on(var, mask: np.ndarray) -> float:
+    return float(np.mean(var[mask])) if np.ndim(var) else float(var)
