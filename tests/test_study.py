@@ -193,6 +193,8 @@ def test_an_interrupted_study_resumes_to_the_same_results(tmp_path, monkeypatch)
     real = S.run_tasks
 
     def one_then_ctrl_c(fn, tasks, on_done, *engine):
+        if fn is not S.run_task:  # the pilot passes run whole
+            return real(fn, tasks, on_done, *engine)
         on_done(tasks[0], fn(tasks[0]))
         raise KeyboardInterrupt
 
