@@ -360,8 +360,9 @@ def render_capture(
     pilot_only : bool, optional
         With a ``target``: stop after the pilot passes, keep them in ``partial_dir`` for the
         capture to resume from, and return the pilot's image and error; its
-        ``render_error["planned_spp"]`` predicts the samples the target needs (the cost of the
-        rest is about ``render_error["seconds"]`` x planned / pilot spp). No ground truth.
+        ``render_error["planned_spp"]`` predicts the samples the target needs, and
+        ``render_error["predicted_seconds"]`` the time the rest takes (one step of a main pass
+        timed). No ground truth.
 
     Returns
     -------
@@ -603,6 +604,8 @@ def _render_error(prog, exp, spec, seconds, objects, ids, record, sharp) -> dict
     if sched.target_sigma is not None:
         out["target_sigma"], out["target_met"] = sched.target_sigma, bool(sched.met)
         out["planned_spp"] = sched.planned_spp
+    if prog.predicted_s:
+        out["predicted_seconds"] = round(prog.predicted_s, 3)
     if sharp is not None:
         out["sharp_mc_sigma"] = rms(sharp.variance())
     return out

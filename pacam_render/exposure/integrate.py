@@ -299,6 +299,9 @@ class Progress:
     partial: np.ndarray | float = 0.0
     partial_pats: dict = field(default_factory=dict)
     steps_done: int = 0
+    resumed_from: int = 0
+    predicted_s: float = 0.0
+    """Seconds the planned passes still need (after a pilot, :func:`predict_seconds`)."""
 
     def state(self) -> dict:
         return {"schedule": asdict(self.sched), "step": self.step, "steps_done": self.steps_done}
@@ -478,6 +481,7 @@ def integrate(exp: Exposure, spec, run: Run, store, target=None, record=None, de
                 _stop(prog, run, store, n_steps)
             advance(prog.sched, prog.stats, exp, target, record)
             if run.pilot_only and prog.sched.phase != "pilot":
+                prog.predicted_s = predict_seconds(exp, prog, spec)
                 break  # the rest is planned: stop here (the caller keeps the checkpoint)
             bar.total = prog.sched.planned * n_steps
             if prog.stats.ready():
@@ -486,6 +490,25 @@ def integrate(exp: Exposure, spec, run: Run, store, target=None, record=None, de
             if more and (run.stop_after(prog.steps_done) or run.signalled()):
                 _stop(prog, run, store, n_steps)
     return prog
+
+
+def predict_seconds(exp: Exposure, prog: Progress, spec) -> float:
+    """The seconds the planned passes still need: one step of a main pass is rendered and
+    timed (then dropped), since a pilot pass of the smallest size is mostly per-step overhead
+    and would not scale with the samples. Geometry and window are those of that step."""
+    from ..render.passes import render_passes
+
+    spp = prog.sched.groups[-1][0]
+    steps = exp.steps(spp)
+    st = steps[0]
+    if exp.moving:
+        exp.animator.set_time(0.5 * (st.t0 + st.t1) - exp.mid_ms)
+        exp.sensor.configure(time_window=(st.t0, st.t1, 0.5 * (st.t0 + st.t1)))
+    t0 = time.perf_counter()
+    render_passes(exp.scene, st.spp, spec.seed, sensor=exp.sensor)
+    per_step = time.perf_counter() - t0
+    left = prog.sched.planned - prog.sched.done_passes
+    return per_step * sum(s.spp for s in steps) / st.spp * left
 
 
 def _shape(exp: Exposure) -> tuple[int, int, int]:

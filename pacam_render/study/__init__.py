@@ -20,10 +20,9 @@ from .spec import StudySpec, builtin_studies, load_study
 
 __all__ = ["StudySummary", "builtin_studies", "load_study", "run_study"]
 
-OVERHEAD = 1.25
+OVERHEAD = 1.2
 """A render's whole task over its capture's own passes: the ground truth (its sharp layer, to
-the same noise in white units, and the aov layers) and the scoring (measured on the crossover
-study's renders: 1.1 to 1.2)."""
+the same noise in white units, and the aov layers) and the scoring."""
 
 
 @dataclass
@@ -133,14 +132,15 @@ def _tasks(spec: StudySpec, done: set[int], out: Path, keep: bool) -> list:
         if todo:
             where = str(out / "images" / f"render_{k:04d}") if keep else None
             partial = str(out / ".renders" / f"render_{k:04d}" / ".partial")
-            tasks.append(Task(spec.render, todo, where, partial))
+            tasks.append(Task(spec.render, todo, where, partial, spec.decompose))
     return tasks
 
 
 def _estimate(tasks: list, workers: int, scheduler, threads, progress: bool) -> float:
     """Run every task's pilot passes (kept for its render), and predict the wall time of the
-    renders: each pilot's seconds x planned / pilot samples x :data:`OVERHEAD`, shared among
-    the workers (a serial run's pilots ran on every core, a worker's on its share)."""
+    renders: each render's planned passes (one of their steps timed) x :data:`OVERHEAD`,
+    shared among the workers (a serial run's pilots ran on every core, a worker's on its
+    share)."""
     from tqdm import tqdm
 
     costs: list[float] = []
@@ -149,7 +149,7 @@ def _estimate(tasks: list, workers: int, scheduler, threads, progress: bool) -> 
     def done(task: Task, result) -> None:
         if isinstance(result, BaseException):
             return  # the render itself will report the error
-        costs.append(result["seconds"] * result["planned_spp"] / result["pilot_spp"] * OVERHEAD)
+        costs.append(result["predicted_seconds"] * OVERHEAD)
         bar.update(1)
 
     with bar:

@@ -24,10 +24,13 @@ from .score import best_shift_se
 
 
 def convolve(image: np.ndarray, k: np.ndarray) -> np.ndarray:
-    """``image`` (H, W, C) convolved with the odd-sized, centred kernel ``k``, same size."""
-    from scipy.signal import fftconvolve
+    """``image`` (H, W, C) convolved with the odd-sized, centred kernel ``k``, same size, the
+    image continued by reflection past its edges (as a natural scene goes on)."""
+    from scipy.ndimage import convolve as nd_convolve
 
-    return np.stack([fftconvolve(image[..., c], k, mode="same") for c in range(image.shape[2])], -1)
+    return np.stack(
+        [nd_convolve(image[..., c], k, mode="reflect") for c in range(image.shape[2])], -1
+    )
 
 
 def residual_mse(y, sharp, k, ids, objects: dict, moving: set, max_shift_px: int) -> tuple:

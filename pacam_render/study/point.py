@@ -27,7 +27,8 @@ COLUMNS = (
     "psnr_by_object",
     "r_px", "a_i_px_per_ms2", "velocity_range_px_per_ms", "exposure_ms", "light_factor",
     "noise_sigma", "render_noise_sigma", "render_noise_ratio", "sharp_noise_sigma",
-    "model_sigma", "deconv_sigma", "render_spp", "render_s", "total_s", "status",
+    "model_sigma", "deconv_sigma", "render_spp", "psnr_moving_no_model_sigma_db",
+    "psnr_moving_floor_db", "psnr_moving_exact_model_db", "render_s", "total_s", "status",
 )  # fmt: skip
 """The columns of ``results.csv``, in order. Speeds are in the preset's own pixels (px/ms of
 the full sensor); r, a_i and the invariant range are the capture camera's at the study's
@@ -36,7 +37,8 @@ render's measured Monte Carlo sigma (``render_error.mc_sigma``) and ``render_noi
 the one over the other, ``sharp_noise_sigma`` the truth's own, ``model_sigma`` the capture's
 measured departure from its deconvolver's model (:mod:`.model_error`), and ``deconv_sigma``
 the root sum of squares of the three that the deconvolver is told. ``render_spp`` and
-``render_s`` are the shared render of the point's group."""
+``render_s`` are the shared render of the point's group. The ``psnr_moving_*_db`` columns
+after it decompose the score (:mod:`.plateau`; with ``[study] decompose = true``)."""
 
 
 @dataclass(frozen=True)
@@ -48,6 +50,7 @@ class Task:
     points: tuple[Point, ...]
     keep_dir: str | None = None
     partial_dir: str | None = None
+    decompose: bool = False
 
 
 def run_task(task: Task) -> list[dict]:
@@ -144,8 +147,8 @@ def _render(task: Task):
 
 def pilot_task(task: Task) -> dict:
     """The pilot passes of a task's render, kept in its ``partial_dir`` for the render to
-    resume from, and what they predict: ``seconds`` (the pilot's), ``pilot_spp`` and
-    ``planned_spp`` (what the target needs)."""
+    resume from, and what they predict: ``seconds`` (the pilot's), ``predicted_seconds`` (the
+    rest of the render's passes), ``pilot_spp`` and ``planned_spp`` (what the target needs)."""
     import warnings
 
     from ..exposure.capture import render_capture
@@ -164,7 +167,12 @@ def pilot_task(task: Task) -> dict:
             pilot_only=True,
         )
     err = cap.record.render_error
-    return {"seconds": err["seconds"], "pilot_spp": err["spp"], "planned_spp": err["planned_spp"]}
+    return {
+        "seconds": err["seconds"],
+        "predicted_seconds": err.get("predicted_seconds", 0.0),
+        "pilot_spp": err["spp"],
+        "planned_spp": err["planned_spp"],
+    }
 
 
 def _partial(task: Task) -> Path | None:
@@ -208,6 +216,7 @@ def _evaluate(cap, desc, p: Point, task: Task, info: dict) -> dict:
     from ..restore.metrics import shift_search_px
     from ..sensor.apply import add_sensor_layers
     from ..sensor.model import SensorModel
+    from .plateau import decompose
     from .score import score
 
     add_sensor_layers(cap, SensorModel.from_preset(p.sensor), p.sensor, p.light_level, p.seed)
@@ -221,9 +230,14 @@ def _evaluate(cap, desc, p: Point, task: Task, info: dict) -> dict:
     if task.keep_dir is not None:
         _keep(cap, est, p, Path(task.keep_dir))
     shift = shift_search_px(cap.record.spec["width"])
-    out = score(
-        est, cap.extra_layers, cap.record.objects, set(desc.moving_ids), shift, _edge_px(cap)
-    )
+    edge = _edge_px(cap)
+
+    def scorer(image):
+        return score(image, cap.extra_layers, cap.record.objects, set(desc.moving_ids), shift, edge)
+
+    out = scorer(est)
+    if task.decompose:
+        out.update(decompose(cap, kernel(cap), p.method, noisy, parts, scorer))
     ratio = info["render_noise_sigma"] / sigma if sigma > 0 else float("inf")
     return {**out, "noise_sigma": sigma, "render_noise_ratio": ratio, "deconv_sigma": total}
 

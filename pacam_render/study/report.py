@@ -26,7 +26,8 @@ NUMERIC = (
     "psnr_moving_db", "psnr_static_db", "psnr_moving_interior_db", "r_px", "a_i_px_per_ms2",
     "velocity_range_px_per_ms", "exposure_ms", "noise_sigma", "render_noise_sigma",
     "render_noise_ratio", "sharp_noise_sigma", "model_sigma", "deconv_sigma", "render_spp",
-    "render_s", "total_s",
+    "render_s", "total_s", "psnr_moving_no_model_sigma_db", "psnr_moving_floor_db",
+    "psnr_moving_exact_model_db",
 )  # fmt: skip
 LIGHT = "light_level_photons_per_px_per_ms"
 
@@ -120,6 +121,7 @@ def write_report(spec: StudySpec, out: Path) -> list[str]:
             files.append(_plot(out, f"{name}.png", data, xlabel, "light", False, _YLABEL[y]))
             text += _speed_text(ok, y)
     text += _error_text(ok)
+    text += _plateau_text(ok)
     text += ["## Every point", "", *_table(rows)]
     write_text(out / "report.md", "\n".join(text) + "\n", force=True)
     return ["results.csv", "report.md", *files]
@@ -173,7 +175,8 @@ def _error_text(ok: list[dict]) -> list[str]:
     for r in ok:
         groups[(r["mode"], r[LIGHT])].append(r)
     for (mode, light), rs in sorted(groups.items()):
-        med = {k: float(np.nanmedian([r[k] for r in rs])) for k in NUMERIC}
+        fields = ("noise_sigma", "render_noise_sigma", "render_noise_ratio", "model_sigma")
+        med = {k: float(np.nanmedian([r[k] for r in rs])) for k in (*fields, "render_spp")}
         worst = max(r["render_noise_ratio"] for r in rs)
         lines.append(
             f"| {mode} | {light:.4g} | {med['noise_sigma']:.2e} | {med['render_noise_sigma']:.2e} "
@@ -183,6 +186,47 @@ def _error_text(ok: list[dict]) -> list[str]:
     return lines + [""]
 
 
+def _plateau_text(ok: list[dict]) -> list[str]:
+    """What sets the moving objects' score at the two highest light levels (``decompose``)."""
+    col = "psnr_moving_exact_model_db"
+    rows = [r for r in ok if not math.isnan(r[col])]
+    if not rows:
+        return []
+    top = sorted({r[LIGHT] for r in rows})[-2:]
+    lines = [
+        "## What sets the high-light plateau",
+        "",
+        "The moving objects' PSNR (dB, mean over seeds) as the study restores them (told the "
+        "sensor's, the render's and the measured model error), told no model error, told the "
+        "old fixed floor of 0.02, and with the capture replaced by the convolution model's "
+        "prediction k * sharp under the same sensor noise, restored as the study restores it "
+        "(`pacam_render/study/plateau.py`).",
+        "",
+        "| mode | design | speed | method | light | study | no model sigma | floor 0.02 | "
+        "exact model | model sigma |",
+        "|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    groups = defaultdict(list)
+    for r in rows:
+        if r[LIGHT] in top:
+            key = (r["mode"], r["design"], r["speed_px_per_ms"], r["method"], r[LIGHT])
+            groups[key].append(r)
+    for (mode, design, speed, method, light), rs in sorted(groups.items()):
+        m = {k: np.mean([r[k] for r in rs]) for k in ("psnr_moving_db", *_PLATEAU)}
+        lines.append(
+            f"| {mode} | {design} | {speed:.3g} | {method} | {light:.4g} | "
+            f"{m['psnr_moving_db']:.2f} | {m[_PLATEAU[0]]:.2f} | {m[_PLATEAU[1]]:.2f} | "
+            f"{m[_PLATEAU[2]]:.2f} | {m['model_sigma']:.4f} |"
+        )
+    return lines + [""]
+
+
+_PLATEAU = (
+    "psnr_moving_no_model_sigma_db",
+    "psnr_moving_floor_db",
+    "psnr_moving_exact_model_db",
+    "model_sigma",
+)
 _YLABEL = {
     "psnr_moving_db": "PSNR of the moving objects (dB)",
     "psnr_moving_interior_db": "PSNR of their interiors, no occlusion (dB)",
@@ -222,8 +266,13 @@ def _crossover_text(ok: list[dict]) -> list[str]:
         for lab, (xs, ys) in sorted(cs.items()):
             if not lab.startswith("coded"):
                 continue
+            method = lab.rsplit(" + ", 1)[-1] if " + " in lab else None
             for other in ("short", "normal"):
-                match = [k for k in cs if k.startswith(other)]
+                match = [
+                    k
+                    for k in cs
+                    if k.startswith(other) and (method is None or k.endswith(f" + {method}"))
+                ]
                 if not match:
                     continue
                 ox, oy = cs[match[0]]

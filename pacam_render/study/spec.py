@@ -3,7 +3,7 @@
 A study renders captures, passes them through the image sensor, deconvolves and scores them
 (:mod:`.point`). Its TOML has four tables::
 
-    [study]   name, report ("crossover", "speed" or "table"), description
+    [study]   name, report ("crossover", "speed" or "table"), description, decompose
     [render]  what every point shares: scene, preset, object_depth_mm (the depth the designs
               are made for), width, height, crop, noise_ratio (or spp), sampler,
               max_step_px, sensor
@@ -100,10 +100,14 @@ class StudySpec:
     points: tuple[Point, ...]
     source: str = ""
     axes: tuple[str, ...] = field(default=())
+    decompose: bool = False
+    """Score kernel-restored points three more ways (:mod:`.plateau`)."""
 
     def key(self) -> str:
         """A hash of everything that changes results: a results folder belongs to one key."""
         blob = {"render": self.render, "points": [asdict(p) for p in self.points]}
+        if self.decompose:
+            blob["decompose"] = True
         return hashlib.sha256(json.dumps(blob, sort_keys=True).encode()).hexdigest()[:16]
 
     def groups(self) -> list[tuple[Point, ...]]:
@@ -161,7 +165,9 @@ def parse_study(doc: dict, quick: bool = False, source: str = "") -> StudySpec:
     """:class:`StudySpec` from a TOML document (see the module docstring)."""
     _keys(doc, "the study file", {"study", "render", "grid", "points", "quick"})
     head = _table(doc, "study")
-    _keys(head, "[study]", {"name", "report", "description"})
+    _keys(head, "[study]", {"name", "report", "description", "decompose"})
+    if not isinstance(head.get("decompose", False), bool):
+        raise ParameterError(f"[study] decompose must be true or false, got {head['decompose']!r}")
     report = head.get("report", "table")
     if report not in REPORTS:
         raise ParameterError(f"[study] report must be one of {', '.join(REPORTS)}, got {report!r}")
@@ -185,6 +191,7 @@ def parse_study(doc: dict, quick: bool = False, source: str = "") -> StudySpec:
         points=pts,
         source=source,
         axes=tuple(k for k in AXES if len({getattr(p, k) for p in pts}) > 1),
+        decompose=head.get("decompose", False),
     )
 
 
