@@ -24,6 +24,7 @@ from typing import Any
 _EXPORTS = {
     ".errors": ["ParameterError"],
     ".exposure.capture": ["Capture", "CaptureSpec", "render_capture", "write_capture"],
+    ".exposure.estimate": ["AbsoluteTarget"],
     ".exposure.record": ["CaptureRecord", "analytic_psf"],
     ".model.camera": ["CameraDesign", "preset", "prototype"],
     ".model.design": [("solve_design", "solve")],
@@ -44,7 +45,7 @@ _EXPORTS = {
     ".restore": ["metrics"],
     ".restore.deconvolve": [("DECONVOLUTION_METHODS", "METHODS"), "deconvolve", "wiener"],
     ".scenes": ["load_scene", "psf_scene"],
-    ".sensor.apply": ["add_sensor_layers"],
+    ".sensor.apply": ["SensorTarget", "add_sensor_layers"],
     ".sensor.model": [
         "DEFAULT_LIGHT_LEVEL",
         "SensorCapture",

@@ -15,7 +15,7 @@ from pacam_render.exposure.capture import (
     capture_design,
     render_capture,
 )
-from pacam_render.exposure.integrate import plan_steps
+from pacam_render.exposure.steps import plan_steps
 from pacam_render.scenes import psf_scene
 
 TINY = {"width": 48, "height": 36, "spp": 4}

@@ -23,7 +23,7 @@ from pacam_render.exposure.capture import (
     render_capture,
 )
 from pacam_render.exposure.checkpoint import Checkpoint
-from pacam_render.exposure.integrate import plan_steps
+from pacam_render.exposure.steps import plan_steps
 from pacam_render.io.exr import read_layer, write_exr
 from pacam_render.limits import PacamWarning
 from pacam_render.model.camera import CameraDesign, prototype

@@ -278,3 +278,53 @@ def test_cli_refuses_contradictory_targets(tmp_path, capsys):
         assert main([*base, *extra]) == 2
         assert message in capsys.readouterr().err
     assert not (tmp_path / "x").exists()
+
+
+@pytest.mark.render
+def test_a_targeted_capture_resumes_to_the_same_bits(tmp_path):
+    """Stopped in its pilot and again in its main passes, a capture rendered to a target
+    resumes from disk to exactly the uninterrupted image and error."""
+    spec = CaptureSpec(scene="train", mode="coded", seed=3, **TRAIN_WINDOW)
+    goal = AbsoluteTarget(2.5e-4)
+    whole = render_capture(spec, progress=False, truth=False, target=goal)
+    assert whole.record.render_error["passes"] > 2  # it went past the pilot
+    part = tmp_path / "c" / ".partial"
+    for stop in (20, 80):  # 32 steps per pass: inside the pilot, then inside a main pass
+        with pytest.raises(integ.CaptureInterrupted):
+            render_capture(
+                spec, partial_dir=part, progress=False, truth=False, target=goal,
+                stop_after_steps=stop,
+            )  # fmt: skip
+    resumed = render_capture(spec, partial_dir=part, progress=False, truth=False, target=goal)
+    assert resumed.record.resumed_from_step == 80
+    assert np.array_equal(resumed.image, whole.image)
+    assert np.array_equal(resumed.mc_sigma, whole.mc_sigma)
+    assert not part.exists()
+
+
+@pytest.mark.render
+def test_a_render_that_mitsuba_cut_short_is_never_used(tmp_path, monkeypatch):
+    """On SIGINT during mi.render Mitsuba's own handler cancels the render and returns a
+    partial image, and Python's handler never runs. The integrator's should_stop() tells it:
+    the capture stops as on Ctrl-C, keeps only whole steps, and resumes to the same bits."""
+    import mitsuba as mi
+
+    spec = CaptureSpec(scene="train", mode="coded", width=40, height=30, spp=16, seed=2)
+    whole = render_capture(spec, progress=False, truth=False)
+    real, calls = mi.render, []
+
+    def cut_at_the_fifth(scene, *args, **kwargs):
+        image = real(scene, *args, **kwargs)
+        calls.append(1)
+        if len(calls) == 5:  # as Mitsuba's SIGINT handler does mid-render
+            (kwargs.get("integrator") or scene.integrator()).cancel()
+        return image
+
+    monkeypatch.setattr(mi, "render", cut_at_the_fifth)
+    part = tmp_path / "c" / ".partial"
+    with pytest.raises(integ.CaptureInterrupted, match=r"interrupted \(SIGINT\) after 4 of"):
+        render_capture(spec, partial_dir=part, progress=False, truth=False)
+    monkeypatch.setattr(mi, "render", real)
+    resumed = render_capture(spec, partial_dir=part, progress=False, truth=False)
+    assert resumed.record.resumed_from_step == 4
+    assert np.array_equal(resumed.image, whole.image)

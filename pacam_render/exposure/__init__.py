@@ -1,12 +1,15 @@
 """Exposures: scenes and point sources rendered through the camera over a whole exposure 2T.
 
-:mod:`.capture` renders a capture (:class:`CaptureSpec` in, :class:`Capture` out): one render
-for a static scene, or, for a moving one, time steps within each aperture pattern's window so
-that nothing moves more than half a pixel between steps, resumable from disk. :mod:`.record`
-is its typed JSON sidecar (:class:`CaptureRecord`). :mod:`.psf_render` ray-traces PSFs of a
-camera design (:func:`render_psf`, :class:`PSFRenderer`), registered with the analytic kernels
-of :mod:`pacam_render.psf`. Importing this package imports neither Mitsuba nor Dr.Jit; they
-load on the first render. Units: mm, ms, px; velocities px/ms, accelerations px/ms^2.
+:mod:`.capture` renders a capture (:class:`CaptureSpec` in, :class:`Capture` out) as the mean
+of independent passes (:mod:`.integrate`): one render per pass for a static scene, or, for a
+moving one, time steps within each aperture pattern's window (:mod:`.steps`), each at a random
+time, resumable from disk. The passes' spread is the capture's Monte Carlo error
+(:mod:`.estimate`), and :mod:`.progress` renders passes until a sample budget or a noise target
+is met. :mod:`.record` is its typed JSON sidecar (:class:`CaptureRecord`). :mod:`.psf_render`
+ray-traces PSFs of a camera design (:func:`render_psf`, :class:`PSFRenderer`), registered with
+the analytic kernels of :mod:`pacam_render.psf`. Importing this package imports neither
+Mitsuba nor Dr.Jit; they load on the first render. Units: mm, ms, px; velocities px/ms,
+accelerations px/ms^2.
 """
 
 from .capture import (

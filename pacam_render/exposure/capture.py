@@ -517,7 +517,7 @@ def _render(spec: CaptureSpec, description, run: Run, truth: bool, target) -> Ca
 def _exposure(scene, sensor, desc, design, cam, spec, run: Run):
     """The :class:`~.integrate.Exposure` of a capture, and the fastest image speed (px/ms)."""
     from ..scenes import fastest_image_speed_px_per_ms
-    from .integrate import Exposure, plan_windows
+    from .steps import Exposure, plan_windows
 
     w, h = spec.image_size
     exp = Exposure(scene, sensor, quantum=quantum(spec.sampler), pixels=w * h)

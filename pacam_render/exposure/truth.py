@@ -93,7 +93,8 @@ def _sharp_passes(scene, sensor, spec, run, target_sigma):
     from ..render.samplers import quantum
     from .checkpoint import Checkpoint
     from .estimate import AbsoluteTarget
-    from .integrate import Exposure, Run, integrate
+    from .integrate import Run, integrate
+    from .steps import Exposure
 
     w, h = (int(v) for v in sensor.film().crop_size())
     exp = Exposure(scene, sensor, quantum=quantum(spec.sampler), pixels=w * h)

@@ -68,7 +68,7 @@ def pass_seed(seed: int, index: int) -> int:
 
 
 def render_passes(
-    scene, spp: int, seed: int, stop=None, sensor=None, integrator=None
+    scene, spp: int, seed: int, stop=None, sensor=None, integrator=None, on_cut=None
 ) -> np.ndarray | None:
     """``mi.render(scene, spp, seed)``, deterministically: the mean of :func:`split_spp` passes.
 
@@ -81,10 +81,14 @@ def render_passes(
     seed : int
         The first pass's seed; the others get :func:`pass_seed`.
     stop : callable, optional
-        Asked after each pass: True abandons the render. (On SIGINT Mitsuba cancels the
-        render under way and returns what it has, so a pass that saw the signal is partial.)
+        Asked after each chunk: True abandons the render.
     sensor, integrator : mitsuba objects, optional
         Render through these instead of the scene's own (``mi.render``'s arguments).
+    on_cut : callable, optional
+        Called when Mitsuba cut a chunk short: on SIGINT during ``mi.render`` its own handler
+        cancels the render and returns what it has, and Python's handler never runs. The
+        integrator's ``should_stop()`` says so afterwards; the render is then abandoned (a
+        partial chunk is never used) and ``on_cut`` told, so the caller knows of the signal.
 
     Returns
     -------
@@ -101,11 +105,16 @@ def render_passes(
     w, h = (int(v) for v in film.crop_size())
     passes = split_spp(spp, w * h, sampler_name(sensor.sampler()))
     acc = 0.0
+    integ = scene.integrator() if integrator is None else integrator
     for i, n in enumerate(passes):
         s = seed if i == 0 else pass_seed(seed, i)
         image = np.array(
             mi.render(scene, sensor=sensor, integrator=integrator, spp=n, seed=s), dtype=np.float64
         )
+        if integ.should_stop():  # Mitsuba took a SIGINT: this chunk is partial
+            if on_cut is not None:
+                on_cut()
+            return None
         if stop is not None and stop():
             return None
         acc = image if len(passes) == 1 else acc + n * image
