@@ -375,7 +375,7 @@ def _sensor_model(name: str):
 
 
 def _cmd_render(args: argparse.Namespace) -> int:
-    from .exposure.capture import CaptureSpec, check_budget, render_capture, write_capture
+    from .exposure.capture import CaptureSpec, check_budget, render_capture
     from .io.lock import output_lock
 
     target = _noise_target(args)
@@ -423,12 +423,13 @@ def _cmd_render(args: argparse.Namespace) -> int:
             max_samples=args.max_samples,
             truth=not args.no_truth,
             target=target,
+            keep_partial=True,
         )
         if model is not None:
             from .sensor.apply import add_sensor_layers
 
             add_sensor_layers(cap, model, args.sensor, args.light_level, spec.seed)
-        paths = write_capture(cap, out, force=args.force, error_layer=args.mc_sigma_layer)
+        paths = _write_or_rescue(cap, out, args)
     m = cap.meta
     w, h = spec.image_size
     where = f"{w}x{h}" + (f" window at ({spec.crop[0]}, {spec.crop[1]})" if spec.crop else "")
@@ -445,6 +446,34 @@ def _cmd_render(args: argparse.Namespace) -> int:
         + ", ".join(["capture", *cap.extra_layers, *(["mc_sigma"] if args.mc_sigma_layer else [])])
     )
     return 0
+
+
+def _write_or_rescue(cap, out: Path, args: argparse.Namespace) -> list[Path]:
+    """Write the capture; only then drop its rendered passes (``DIR/.partial``). A failed
+    write (a full disk) keeps them, tries the files in a temporary folder too, and says where
+    both are: the same command resumes from the passes without rendering again."""
+    import shutil
+    import tempfile
+
+    from .exposure.capture import write_capture
+
+    try:
+        paths = write_capture(cap, out, force=args.force, error_layer=args.mc_sigma_layer)
+    except OSError as exc:
+        kept = out / ".partial"
+        where = f"the rendered passes are kept in {kept}" if kept.is_dir() else "nothing was kept"
+        try:
+            rescue = Path(tempfile.mkdtemp(prefix="pacam-rescue-"))
+            write_capture(cap, rescue, force=True, error_layer=args.mc_sigma_layer)
+            where += f", and the capture was written to {rescue}"
+        except OSError:
+            pass
+        raise OSError(
+            f"writing the capture to {out} failed ({exc}); {where}: free the space and run the "
+            "same command again, which resumes without rendering"
+        ) from None
+    shutil.rmtree(out / ".partial", ignore_errors=True)
+    return paths
 
 
 def _noise_target(args: argparse.Namespace):
@@ -1141,6 +1170,7 @@ _FLAGS = {
     "max_samples": "--max-samples",
     "noise_ratio": "--noise-ratio",
     "budget_hours": "--budget",
+    "workers": "--workers",
     "noise_target": "--noise-target",
     "cover_px_per_ms": "--cover",
     "max_velocity_px_per_ms": "--max-velocity",

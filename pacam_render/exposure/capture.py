@@ -120,9 +120,14 @@ class CaptureSpec:
         Returns
         -------
         str
-            The first 16 hex digits of the SHA-256 of the spec's fields as sorted JSON.
+            The first 16 hex digits of the SHA-256 of the spec's fields as sorted JSON, and of
+            the contents of the schedule file it names (a file rewritten in place is another
+            capture).
         """
-        return hashlib.sha256(json.dumps(asdict(self), sort_keys=True).encode()).hexdigest()[:16]
+        h = hashlib.sha256(json.dumps(asdict(self), sort_keys=True).encode())
+        if self.schedule is not None and Path(self.schedule).is_file():
+            h.update(Path(self.schedule).read_bytes())
+        return h.hexdigest()[:16]
 
 
 def check_crop(crop, width: int, height: int) -> tuple[int, int, int, int]:
@@ -318,6 +323,7 @@ def render_capture(
     truth: bool = True,
     target=None,
     pilot_only: bool = False,
+    keep_partial: bool = False,
 ) -> Capture:
     """Render one capture, its Monte Carlo error, and its ground-truth layers.
 
@@ -363,6 +369,10 @@ def render_capture(
         ``render_error["planned_spp"]`` predicts the samples the target needs, and
         ``render_error["predicted_seconds"]`` the time the rest takes (one step of a main pass
         timed). No ground truth.
+    keep_partial : bool, optional
+        Keep the finished passes in ``partial_dir`` when the capture is done, for the caller
+        to remove once the capture is safely written (a failed write then loses no rendering:
+        the same capture resumes from them at once).
 
     Returns
     -------
@@ -402,7 +412,7 @@ def render_capture(
         warnings.simplefilter("always", PacamWarning)
         run = Run(partial_dir, progress, save_every_s, stop_after_steps, max_steps, flag)
         run = replace(run, max_samples=max_samples, pilot_only=pilot_only and target is not None)
-        cap = _render(spec, description, run, truth, target)
+        cap = _render(spec, description, run, truth, target, keep_partial)
     cap.record.notes = _replay(caught)
     return cap
 
@@ -460,7 +470,7 @@ def check_budget(
         )
 
 
-def _render(spec: CaptureSpec, description, run: Run, truth: bool, target) -> Capture:
+def _render(spec: CaptureSpec, description, run: Run, truth: bool, target, keep: bool) -> Capture:
     from ..render.backend import select_variant
     from ..scenes import load_scene
     from .checkpoint import Checkpoint, resume_parts
@@ -488,9 +498,9 @@ def _render(spec: CaptureSpec, description, run: Run, truth: bool, target) -> Ca
         sensor.configure(time_window=None)
         exp.animator.set_time(0.0)
     image = prog.stats.mean()
-    if run.pilot_only:
+    if run.pilot_only or keep or truth:  # what is done stays on disk until it is not needed
         store.save(prog.state(), prog.arrays())
-        truth = False
+    truth = truth and not run.pilot_only
     layers, objects, sharp = _truth(scene, desc, spec, design, run, prog, record, store, truth)
     if spec.mode == "reference" and truth:
         layers["sharp"], sharp = image, prog.stats
@@ -507,7 +517,7 @@ def _render(spec: CaptureSpec, description, run: Run, truth: bool, target) -> Ca
     record.objects = objects
     ids = layers.get("object_id")
     record.render_error = _render_error(prog, exp, spec, render_s, objects, ids, record, sharp)
-    if not run.pilot_only:
+    if not run.pilot_only and not keep:
         store.clear()
     patterns = prog.stats.pattern_means() if spec.per_pattern else {}
     layers = {k: layers[k] for k in TRUTH_LAYERS if k in layers}
@@ -566,8 +576,6 @@ def _truth(scene, desc, spec, design, run: Run, prog, record, store, truth: bool
 
     if not truth:
         return {}, None, None
-    if store.folder is not None:
-        store.save(prog.state(), prog.arrays())
     goal = prog.sched.target_sigma
     goal = None if goal is None else goal / max(record.light_factor, 1e-300)
     quiet = replace(run, progress=False, stop_after_steps=None, partial_dir=None)

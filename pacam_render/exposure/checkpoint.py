@@ -3,12 +3,13 @@ resumes where it stopped and gives the same image.
 
 A checkpoint is only reused by the capture that wrote it. Its key hashes everything that
 changes the image (:func:`resume_parts`): the capture's spec; the loaded scene's every
-parameter (geometry, textures and emitters, so the XML's contents and its assets count, not
-its path); the motions; the integrator; the package, Mitsuba and Dr.Jit versions and the
-variant; and the step plan and noise target. Any difference starts afresh, with a note that
-names what changed. Every file is written under a unique temporary name and renamed, and
-``state.json``, written last, vouches for the arrays, which are checked against the capture
-before they are trusted.
+parameter (geometry, textures and emitters) and every input it was loaded from (an XML's
+text, so an attribute ``mi.traverse`` does not show counts too, and every file it names); the
+contents of the files the spec names (a schedule); the motions; the integrator; the package,
+Mitsuba and Dr.Jit versions and the variant; and the step plan and noise target. Any
+difference starts afresh, with a note that names what changed. Every file is written under a
+unique temporary name and renamed, and ``state.json``, written last, vouches for the arrays,
+which are checked against the capture before they are trusted.
 """
 
 from __future__ import annotations
@@ -91,7 +92,7 @@ def resume_parts(spec, scene, desc, plan, versions: dict, variant: str) -> dict[
     motions = {k: desc.motions[k].to_json() for k in sorted(desc.motions)}
     return {
         "spec": spec.key(),
-        "scene": scene_fingerprint(scene),
+        "scene": _sha(scene_fingerprint(scene), desc.digest()),
         "motion": _sha(json.dumps(motions, sort_keys=True, default=repr)),
         "integrator": _sha(str(scene.integrator())),
         "versions": _sha(json.dumps({**versions, "variant": variant}, sort_keys=True)),
@@ -142,14 +143,28 @@ class Checkpoint:
         warnings.warn(f"{self.folder} {why}: starting afresh", PacamWarning, stacklevel=3)
         return None
 
-    def save(self, state: dict, arrays: dict[str, np.ndarray]) -> None:
-        """Write the arrays, then ``state.json``, each under a unique name and renamed."""
+    def save(self, state: dict, arrays: dict[str, np.ndarray]) -> bool:
+        """Write the arrays, then ``state.json``, each under a unique name and renamed.
+
+        Returns False, with a note, when the disk refuses (full, gone read-only): the work in
+        memory goes on, and an earlier checkpoint stays whole, since nothing is renamed over
+        it unless it was written in full."""
         if self.folder is None:
-            return
-        self.folder.mkdir(parents=True, exist_ok=True)
-        atomic_save(self.folder / "arrays.npz", lambda t: np.savez(t, **arrays), force=True)
-        text = json.dumps({"key": self.key, "parts": self.parts, "state": state})
-        atomic_save(self.folder / "state.json", lambda t: Path(t).write_text(text), force=True)
+            return False
+        try:
+            self.folder.mkdir(parents=True, exist_ok=True)
+            atomic_save(self.folder / "arrays.npz", lambda t: np.savez(t, **arrays), force=True)
+            text = json.dumps({"key": self.key, "parts": self.parts, "state": state})
+            atomic_save(self.folder / "state.json", lambda t: Path(t).write_text(text), force=True)
+        except OSError as exc:
+            warnings.warn(
+                f"could not save the finished work to {self.folder} ({exc}); the capture goes "
+                "on, but a stop now resumes only from what was saved before",
+                PacamWarning,
+                stacklevel=2,
+            )
+            return False
+        return True
 
     def clear(self) -> None:
         if self.folder is not None and self.folder.exists():

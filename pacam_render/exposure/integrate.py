@@ -211,9 +211,11 @@ def _stop(prog: Progress, run: Run, store, n_steps: int):
     """Save what is done and raise :class:`CaptureInterrupted`."""
     if prog.steps_done == 0:
         run.check_signal()
-    store.save(prog.state(), prog.arrays())
+    saved = store.save(prog.state(), prog.arrays())
     total = prog.sched.planned * n_steps
-    raise interrupted(prog.steps_done, total, run.flag["signal"], run.partial_dir)
+    raise interrupted(
+        prog.steps_done, total, run.flag["signal"], run.partial_dir if saved else None
+    )
 
 
 def _postfix(prog: Progress) -> str:

@@ -10,8 +10,10 @@ refers to.
 
 from __future__ import annotations
 
+import hashlib
 import json
 import os
+import re
 import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -43,6 +45,20 @@ class SceneDescription:
     depths_mm: dict[str, float] = field(default_factory=dict)
     info: dict = field(default_factory=dict)
     source: str | None = None
+    source_digest: str | None = None
+    """A hash of what the scene was loaded from: a file scene's XML text, its parameters and
+    every file it names (set by :func:`load_scene_file`); None for a scene built from a dict,
+    whose :meth:`digest` hashes the dict and the files it names instead."""
+
+    def digest(self) -> str:
+        """A hash of every input of the scene (16 hex digits): what an XML attribute that
+        ``mi.traverse`` does not expose (``flip_normals``, ``filter_type``, ``raw``, ...) or a
+        file the scene reads changes, so that a checkpoint of another scene is not resumed."""
+        if self.source_digest is not None:
+            return self.source_digest
+        h = hashlib.sha256()
+        _hash_value(h, self.scene_dict)
+        return h.hexdigest()[:16]
 
     @property
     def moving_ids(self) -> list[str]:
@@ -70,6 +86,53 @@ class SceneDescription:
 
     def animator(self, scene) -> SceneAnimator:
         return SceneAnimator(scene, self)
+
+
+def _hash_value(h, obj: Any) -> None:
+    """Feed a scene dict into ``h``: keys and values, arrays by their bytes, and the contents
+    of every file a string names."""
+    if isinstance(obj, dict):
+        for k in sorted(obj):
+            h.update(str(k).encode() + b"=")
+            _hash_value(h, obj[k])
+    elif isinstance(obj, (list, tuple)):
+        for v in obj:
+            _hash_value(h, v)
+    elif isinstance(obj, np.ndarray):
+        h.update(obj.tobytes())
+    elif isinstance(obj, str) and os.path.isfile(obj):
+        h.update(obj.encode() + _file_sha(Path(obj)).encode())
+    else:
+        h.update(repr(obj).encode())
+    h.update(b";")
+
+
+def _file_sha(path: Path) -> str:
+    d = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for chunk in iter(lambda: fh.read(1 << 20), b""):
+            d.update(chunk)
+    return d.hexdigest()
+
+
+_FILENAME = re.compile(r"""name\s*=\s*["']filename["']\s+value\s*=\s*["']([^"']+)["']""")
+_INCLUDE = re.compile(r"""<include\s+filename\s*=\s*["']([^"']+)["']""")
+_DEFAULT = re.compile(r"""<default\s+name\s*=\s*["'](\w+)["']\s+value\s*=\s*["']([^"']*)["']""")
+
+
+def file_digest(path: Path, text: str, params: dict) -> str:
+    """A hash of an XML scene's text, its ``$`` parameters and every file it names
+    (``filename`` values and ``<include>``s, with ``$name`` filled from ``params`` or the
+    scene's ``<default>``, relative to the XML's folder), 16 hex digits."""
+    h = hashlib.sha256(text.encode())
+    h.update(repr(sorted(params.items())).encode())
+    values = {**dict(_DEFAULT.findall(text)), **params}
+    names = _FILENAME.findall(text) + _INCLUDE.findall(text)
+    for name in sorted(set(names)):
+        filled = re.sub(r"\$(\w+)", lambda m: values.get(m.group(1), m.group(0)), name)
+        target = Path(filled) if Path(filled).is_absolute() else path.parent / filled
+        h.update(name.encode() + (_file_sha(target).encode() if target.is_file() else b"-"))
+    return h.hexdigest()[:16]
 
 
 def _to_mitsuba(obj: Any) -> Any:
@@ -142,6 +205,7 @@ def load_scene_file(
     except Exception as exc:  # Mitsuba raises RuntimeError (parse) or others (plugins)
         raise ParameterError(f"scene file {str(path)!r} does not load: {exc}") from exc
     desc = _describe_loaded(loaded, path)
+    desc.source_digest = file_digest(path, text, kwargs)
     if "<sensor" in text:
         warnings.warn(
             f"the <sensor> of {path.name} is not used: pacam renders through its own camera "

@@ -18,9 +18,11 @@ import contextlib
 import logging
 import os
 import uuid
+import warnings
 from collections.abc import Callable, Iterator, Sequence
 
 from ..errors import ParameterError
+from ..limits import PacamWarning, available_bytes
 
 CONNECT_TIMEOUT_S = 10.0
 """How long to wait for a ``--scheduler`` to answer, s."""
@@ -38,15 +40,33 @@ def threads_per_worker(workers: int) -> int:
     return max(1, (os.cpu_count() or 1) // max(1, workers))
 
 
+WORKER_BYTES = 1 << 30
+"""Memory a worker process needs (Mitsuba, Dr.Jit and one capture's arrays): about 1 GiB."""
+
+
 def check_workers(workers: int | None, n_tasks: int | None = None) -> int:
-    """``--workers``: an integer >= 0 (0: serial). By default one per core, no more than there
-    are tasks, and 0 (no cluster to start) for a single task."""
+    """``workers``: an integer >= 0 (0: serial). By default one per core, no more than there
+    are tasks, and 0 (no cluster to start) for a single task. More than there are tasks,
+    cores, or memory for (:data:`WORKER_BYTES` each) is clamped to that, with a note, before
+    any process starts: more processes only compete for the same cores."""
     if workers is None:
         if n_tasks is not None and n_tasks <= 1:
             return 0
         return min(default_workers(), n_tasks or default_workers())
     if isinstance(workers, bool) or not isinstance(workers, int) or workers < 0:
-        raise ParameterError(f"--workers must be an integer >= 0 (0: serial), got {workers!r}")
+        raise ParameterError(f"workers must be an integer >= 0 (0: serial), got {workers!r}")
+    limits = {"cores": default_workers(), "memory": max(1, available_bytes() // WORKER_BYTES)}
+    if n_tasks is not None:
+        limits["tasks"] = max(1, n_tasks)
+    bound = min(limits.values())
+    if workers > bound:
+        why = ", ".join(f"{v} {k}" for k, v in limits.items())
+        warnings.warn(
+            f"workers {workers} is more than this run can use ({why}): using {bound}",
+            PacamWarning,
+            stacklevel=2,
+        )
+        return bound
     return workers
 
 

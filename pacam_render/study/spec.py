@@ -104,10 +104,13 @@ class StudySpec:
     """Score kernel-restored points three more ways (:mod:`.plateau`)."""
 
     def key(self) -> str:
-        """A hash of everything that changes results: a results folder belongs to one key."""
+        """A hash of everything that changes results, the contents of every file the points
+        name (scene XMLs and what they read, schedules, sensor presets) included: a results
+        folder belongs to one key, and a file rewritten between runs is another study."""
         blob = {"render": self.render, "points": [asdict(p) for p in self.points]}
         if self.decompose:
             blob["decompose"] = True
+        blob["files"] = input_digests(self.points)
         return hashlib.sha256(json.dumps(blob, sort_keys=True).encode()).hexdigest()[:16]
 
     def groups(self) -> list[tuple[Point, ...]]:
@@ -116,6 +119,30 @@ class StudySpec:
         for p in self.points:
             out.setdefault(p.render_key(), []).append(p)
         return [tuple(g) for g in out.values()]
+
+
+def input_digests(points) -> dict[str, str]:
+    """{path: digest} of every file the points name: scene XMLs (with their motion JSON and
+    every file they read), ``schedule=PATH`` designs and sensor preset files."""
+    from ..scenes.description import file_digest
+
+    out = {}
+    for p in points:
+        paths = [p.scene, p.sensor]
+        if str(p.design).startswith("schedule="):
+            paths.append(str(p.design)[len("schedule=") :])
+        for name in paths:
+            path = Path(name)
+            if name in out or not path.is_file():
+                continue
+            text = path.read_text(errors="replace")
+            digest = file_digest(path, text, {}) if path.suffix.lower() == ".xml" else ""
+            motion = path.with_name(path.stem + ".motion.json")
+            extra = (
+                motion.read_bytes() if path.suffix.lower() == ".xml" and motion.is_file() else b""
+            )
+            out[name] = hashlib.sha256(path.read_bytes() + digest.encode() + extra).hexdigest()[:16]
+    return out
 
 
 def builtin_studies() -> list[str]:
