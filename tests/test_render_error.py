@@ -303,6 +303,26 @@ def test_a_targeted_capture_resumes_to_the_same_bits(tmp_path):
 
 
 @pytest.mark.render
+def test_a_pilot_resumed_past_its_pilot_renders_nothing(tmp_path):
+    """A study's pilot stage on a render interrupted in its main passes (a re-run after Ctrl-C)
+    only predicts the rest: it must not render a main pass before the budget check."""
+    spec = CaptureSpec(scene="train", mode="coded", seed=3, **TRAIN_WINDOW)
+    goal = AbsoluteTarget(2.5e-4)
+    part = tmp_path / "c" / ".partial"
+    with pytest.raises(integ.CaptureInterrupted):
+        render_capture(
+            spec, partial_dir=part, progress=False, truth=False, target=goal, stop_after_steps=80
+        )
+    before = json.loads((part / "state.json").read_text())["state"]
+    pilot = render_capture(
+        spec, partial_dir=part, progress=False, truth=False, target=goal, pilot_only=True
+    )
+    after = json.loads((part / "state.json").read_text())["state"]
+    assert after["steps_done"] == before["steps_done"] == 80
+    assert pilot.record.render_error["predicted_seconds"] > 0
+
+
+@pytest.mark.render
 def test_a_render_that_mitsuba_cut_short_is_never_used(tmp_path, monkeypatch):
     """On SIGINT during mi.render Mitsuba's own handler cancels the render and returns a
     partial image, and Python's handler never runs. The integrator's should_stop() tells it:

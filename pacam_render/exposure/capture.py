@@ -493,7 +493,8 @@ def _render(spec: CaptureSpec, description, run: Run, truth: bool, target, keep:
     store = Checkpoint(None if run.partial_dir is None else Path(run.partial_dir), parts)
     prog = integrate(exp, spec, run, store, target, record, f"{spec.mode} {spec.scene}")
     render_s = time.perf_counter() - t_start
-    _note_samples(spec, exp, prog, target)
+    if not run.pilot_only:  # a pilot stops short of its target by design
+        _note_samples(spec, exp, prog, target)
     if exp.moving:  # back to t = 0 for the ground truth
         sensor.configure(time_window=None)
         exp.animator.set_time(0.0)

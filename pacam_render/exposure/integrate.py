@@ -164,6 +164,9 @@ def integrate(exp: Exposure, spec, run: Run, store, target=None, record=None, de
         sched = fixed_schedule(spec, exp) if target is None else pilot_schedule(exp, max_spp)
         prog = Progress(sched, group_stats(sched, {}))
     prog.resumed_from = prog.steps_done
+    if run.pilot_only and prog.sched.phase != "pilot":  # resumed past its pilot: only predict
+        prog.predicted_s = predict_seconds(exp, prog, spec)
+        return prog
     bar = tqdm(total=prog.sched.planned * n_steps, initial=prog.steps_done, unit="step",
                disable=not run.progress, desc=desc, leave=False)  # fmt: skip
     with bar:
