@@ -170,6 +170,27 @@ def _non_negative(name: str, value: Any, unit: str) -> float:
     return v
 
 
+PHYSICAL_RANGES: dict[str, tuple[float, float, str]] = {
+    "full_well_e": (1.0, 1e9, "e-"),
+    "K": (1e-6, 1e6, "DN/e-"),
+    "read_noise_e": (0.0, 1e6, "e-"),
+    "dsnu_e": (0.0, 1e6, "e-"),
+    "dark_current_e_per_s": (0.0, 1e9, "e-/s"),
+}
+"""Ranges (lo, hi, unit) that any real sensor lies well inside. Far outside them the chain's
+arithmetic overflows or underflows (1 / K**2, float32 noise), and a capture would fail only
+after its render; so a model outside them is refused when it is made."""
+
+
+def _physical(name: str, value: float) -> float:
+    lo, hi, unit = PHYSICAL_RANGES[name]
+    if not lo <= value <= hi:
+        raise ParameterError(
+            f"{name} must be in [{lo:g}, {hi:g}] {unit} (a physical sensor's range), got {value!r}"
+        )
+    return value
+
+
 def _integer(name: str, value: Any, lo: int, hi: int | None) -> int:
     ok = isinstance(value, (int, np.integer)) and not isinstance(value, (bool, np.bool_))
     rng = f"{lo}..{hi}" if hi is not None else f">= {lo}"
@@ -183,18 +204,20 @@ class SensorModel:
     """Photons to DN, with EMVA 1288 parameters (see the module docstring for the chain).
 
     The defaults are an ideal 16-bit photon counter: qe = 1, shot noise and quantisation only.
-    All parameters are validated; bad ones raise :class:`ParameterError` naming the valid range.
+    All parameters are validated, against :data:`PHYSICAL_RANGES` too; bad ones raise
+    :class:`ParameterError` naming the valid range.
 
     Attributes:
         qe: quantum efficiency, e-/photon, in (0, 1].
-        dark_current_e_per_s: mean dark current, e-/s, >= 0.
-        read_noise_e: temporal read noise (EMVA sigma_d without dark-current shot noise), e-.
-        full_well_e: full-well capacity, e-, > 0.
-        K: overall system gain, DN/e-, > 0.
+        dark_current_e_per_s: mean dark current, e-/s, in [0, 1e9].
+        read_noise_e: temporal read noise (EMVA sigma_d without dark-current shot noise), e-,
+            in [0, 1e6].
+        full_well_e: full-well capacity, e-, in [1, 1e9].
+        K: overall system gain, DN/e-, in [1e-6, 1e6].
         black_offset_dn: black level added before the ADC, DN, in [0, 2**bit_depth - 1].
         bit_depth: ADC bits, integer 1..32.
         prnu: photo-response non-uniformity, std/mean of the pixel gain (0.01 = 1 %), [0, 1].
-        dsnu_e: dark-signal non-uniformity, std of a per-pixel offset, e-, >= 0.
+        dsnu_e: dark-signal non-uniformity, std of a per-pixel offset, e-, in [0, 1e6].
         bayer: None, or a 2x2 colour-filter tile ("RGGB", "BGGR", "GRBG", "GBRG").
         shot_noise: False only for idealised models such as the ``paper`` preset.
         seed: seed of the fixed pattern (PRNU, DSNU), integer >= 0.
@@ -241,16 +264,22 @@ class SensorModel:
             raise ParameterError(f"name must be a string, got {self.name!r}")
         return {
             "qe": qe,
-            "dark_current_e_per_s": _non_negative(
-                "dark_current_e_per_s", self.dark_current_e_per_s, "e-/s"
+            "dark_current_e_per_s": _physical(
+                "dark_current_e_per_s",
+                _non_negative("dark_current_e_per_s", self.dark_current_e_per_s, "e-/s"),
             ),
-            "read_noise_e": _non_negative("read_noise_e", self.read_noise_e, "e-"),
-            "full_well_e": check_positive("full_well_e", _number("full_well_e", self.full_well_e)),
-            "K": check_positive("K", _number("K", self.K), "DN/e-"),
+            "read_noise_e": _physical(
+                "read_noise_e", _non_negative("read_noise_e", self.read_noise_e, "e-")
+            ),
+            "full_well_e": _physical(
+                "full_well_e",
+                check_positive("full_well_e", _number("full_well_e", self.full_well_e)),
+            ),
+            "K": _physical("K", check_positive("K", _number("K", self.K), "DN/e-")),
             "black_offset_dn": offset,
             "bit_depth": bits,
             "prnu": prnu,
-            "dsnu_e": _non_negative("dsnu_e", self.dsnu_e, "e-"),
+            "dsnu_e": _physical("dsnu_e", _non_negative("dsnu_e", self.dsnu_e, "e-")),
             "bayer": None if self.bayer is None else _bayer.check_pattern(self.bayer),
             "shot_noise": bool(self.shot_noise),
             "seed": _integer("seed", self.seed, 0, None),
