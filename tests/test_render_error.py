@@ -59,6 +59,26 @@ def test_pass_groups_variance_is_that_of_the_weighted_mean():
     assert np.mean(estimates) == pytest.approx(exact, rel=0.06)
 
 
+def test_a_single_main_pass_borrows_the_pilots_variance_per_sample():
+    """A checkpoint after the first main pass (one pass of 32 spp over two of 4): that pass's
+    variance is the pilot's scaled by spp (1 / spp per pass), so Var(mean) stays unbiased."""
+    rng = np.random.default_rng(1)
+    total = 2 * 4 + 32
+    exact = (4**2 * 2 / 4 + 32**2 * 1 / 32) / total**2
+    estimates = []
+    for _ in range(4000):
+        stats = PassStats([PassGroup(spp=4), PassGroup(spp=32)])
+        for g, s, n in ((0, 4, 2), (1, 32, 1)):
+            for _ in range(n):
+                stats.add(g, 5.0 + rng.normal(size=(1,)) / np.sqrt(s))
+        estimates.append(stats.variance()[0])
+    assert np.mean(estimates) == pytest.approx(exact, rel=0.06)
+    lone = PassStats([PassGroup(spp=4)])
+    lone.add(0, np.ones(1))
+    with pytest.raises(ValueError, match="two passes"):
+        lone.variance()
+
+
 def test_main_pass_size_follows_the_pilot_and_the_sample_limit():
     stats = PassStats([PassGroup(spp=16)])
     for v in (1.0, 3.0):

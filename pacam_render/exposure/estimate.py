@@ -81,7 +81,18 @@ class PassStats:
     def variance(self) -> np.ndarray:
         """Per-pixel variance of :meth:`mean` (the module docstring's Var(mean))."""
         total = self.spp
-        return sum(g.spp**2 * g.n * g.variance() for g in self.groups if g.n) / total**2
+        return sum(g.spp**2 * g.n * self._pass_variance(g) for g in self.groups if g.n) / total**2
+
+    def _pass_variance(self, g: PassGroup) -> np.ndarray:
+        """One pass's variance; for a group of one pass (a checkpoint after the first main pass)
+        that of a group of two or more, scaled by spp (a pass's variance goes as 1/spp)."""
+        if g.n >= 2:
+            return g.variance()
+        known = [h for h in self.groups if h.n >= 2]
+        if not known:
+            raise ValueError("no pass group has two passes: the variance is not known yet")
+        h = max(known, key=lambda h: h.spp * h.n)
+        return h.variance() * (h.spp / g.spp)
 
     def sigma_px(self) -> np.ndarray:
         """Per-pixel Monte Carlo sigma of the capture, its own units."""
