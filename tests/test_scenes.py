@@ -6,6 +6,7 @@ from __future__ import annotations
 import hashlib
 import json
 import math
+import warnings
 
 import numpy as np
 import pytest
@@ -268,3 +269,61 @@ def test_committed_scene_files_match_and_load(name, cache, mi):
     assert loaded.moving_ids == desc.moving_ids
     for sid in desc.moving_ids:
         assert np.allclose(loaded.motions[sid].matrix_at(3.0), desc.motions[sid].matrix_at(3.0))
+
+
+# --- user scenes fail loudly (issue 27, trap 3) --------------------------------------------------
+def _user_scene(folder, motion: dict | None = None, scale: float = 1.0):
+    """A ball and a wall of a user's file, in metres (scale 1: the ball's front 0.5 units from
+    the camera) or in mm (scale 1000); its motion file if ``motion`` is given."""
+    xml = folder / "mine.xml"
+    xml.write_text(
+        "<scene version='3.0.0'>"
+        f"<shape type='sphere' id='ball'><point name='center' x='0' y='0' z='{1.0 * scale}'/>"
+        f"<float name='radius' value='{0.5 * scale}'/></shape>"
+        "<shape type='rectangle' id='wall'><transform name='to_world'>"
+        f"<scale value='{2.0 * scale}'/><translate z='{3.0 * scale}'/></transform></shape>"
+        "<emitter type='constant'/></scene>"
+    )
+    if motion is not None:
+        (folder / "mine.motion.json").write_text(json.dumps(motion))
+    return xml
+
+
+def test_motion_file_keys_are_checked(tmp_path):
+    cases = [  # (motion file, what the message names)
+        ({"shapes": {"ball": {"velocity": [0.3, 0, 0]}}}, "'velocity'.*velocity_mm_per_ms"),
+        ({"shape": {"ball": {}}}, "'shape'.*valid keys: shapes, depths_mm"),
+        ({"shapes": {"bal": {}}}, "'bal'.*no shape of the scene.*shape ids: ball, wall"),
+        ({"shapes": {}, "depths_mm": {"ball": "500"}}, "depths_mm of 'ball' must be a number"),
+        ({"shapes": {"ball": {"keyframes": [{"t": 0, "matrix": []}]}}}, "'t'.*t_ms, matrix"),
+        ({"depths_mm": {}}, "lacks the key 'shapes'"),
+        ({"shapes": {"ball": [0.3, 0, 0]}}, "shape 'ball' must be a JSON object"),
+    ]
+    for motion, message in cases:
+        xml = _user_scene(tmp_path, motion)
+        with pytest.raises(ParameterError, match=message):
+            S.load_scene(str(xml))
+    good = {"shapes": {"ball": {"velocity_mm_per_ms": [0.3, 0, 0]}}, "depths_mm": {"ball": 0.5}}
+    assert S.load_scene(str(_user_scene(tmp_path, good))).moving_ids == ["ball"]
+
+
+def test_cli_render_refuses_a_misspelt_motion_key(tmp_path, capsys):
+    from pacam_render.cli import main
+
+    xml = _user_scene(tmp_path, {"shapes": {"ball": {"velocity": [0.3, 0, 0]}}}, 1000.0)
+    args = ["render", str(xml), "--width", "16", "--height", "12", "--spp", "4", "--quiet"]
+    assert main([*args, "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "Traceback" not in err
+    assert "unknown key 'velocity'" in err and "velocity_mm_per_ms" in err
+    assert not (tmp_path / "out" / "capture.exr").exists()
+
+
+def test_a_scene_file_without_motion_is_noted_static(tmp_path):
+    from pacam_render.limits import PacamWarning
+
+    with pytest.warns(PacamWarning, match=r"mine.xml is static: no mine.motion.json .*README"):
+        S.load_scene(str(_user_scene(tmp_path, scale=1000.0)))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", PacamWarning)  # a motion file, even a still one: no note
+        S.load_scene(str(_user_scene(tmp_path, {"shapes": {}}, 1000.0)))

@@ -10,6 +10,7 @@ refers to.
 
 from __future__ import annotations
 
+import difflib
 import hashlib
 import json
 import os
@@ -21,10 +22,10 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import ParameterError
+from ..errors import ParameterError, check_finite
 from ..limits import PacamWarning
 from . import assets as sa
-from .motion import Motion, SceneAnimator, _mi
+from .motion import Motion, SceneAnimator, _mi, check_keys
 
 
 @dataclass
@@ -216,6 +217,8 @@ def load_scene_file(
     mpath = _motion_file(path)
     if mpath.is_file():
         _apply_motion_file(desc, mpath)
+    else:
+        _note_static(path)
     return desc
 
 
@@ -241,18 +244,58 @@ def _describe_loaded(loaded, path: Path) -> SceneDescription:
     )
 
 
+MOTION_FILE_KEYS = ("shapes", "depths_mm", "info", "units")
+"""The top-level keys of a ``<stem>.motion.json`` (``shapes`` required)."""
+
+
 def _apply_motion_file(desc: SceneDescription, mpath: Path) -> None:
+    """Motions and depths from ``mpath``; every key is checked, for a misspelt one would
+    leave a shape still with no word."""
     try:
         data = json.loads(mpath.read_text())
-        shapes = data["shapes"]
-    except (OSError, ValueError, KeyError, TypeError) as exc:
-        raise ParameterError(f"motion file {str(mpath)!r} is not valid: {exc}") from exc
+    except (OSError, ValueError) as exc:
+        raise ParameterError(f"motion file {str(mpath)!r} is not valid JSON: {exc}") from exc
+    what = f"motion file {str(mpath)!r}"
+    check_keys(what, data, MOTION_FILE_KEYS, required=("shapes",))
+    ids = sorted(desc.bboxes_mm)
+    shapes = _shape_entries(f"{what}, 'shapes'", data["shapes"], ids)
     for sid, m in shapes.items():
-        if sid not in desc.scene_dict:
+        desc.motions[sid] = Motion.from_json(m, f"{what}, shape {sid!r}")
+    depths = data.get("depths_mm", {})  # nominal depths, of shapes or of groups ("walker")
+    if not isinstance(depths, dict):
+        raise ParameterError(f"{what}, 'depths_mm' must be a JSON object, got {depths!r}")
+    for sid, z in depths.items():
+        name = f"{what}, depths_mm of {sid!r}"
+        if isinstance(z, bool) or not isinstance(z, (int, float)):
+            raise ParameterError(f"{name} must be a number (mm), got {z!r}")
+        desc.depths_mm[sid] = check_finite(name, z)
+    info = data.get("info", {})
+    if not isinstance(info, dict):
+        raise ParameterError(f"{what}, 'info' must be a JSON object, got {info!r}")
+    desc.info.update(info)
+
+
+def _shape_entries(what: str, d: Any, ids: list[str]) -> dict:
+    """``d``, a JSON object keyed by shape ids, or an error naming a key that is no shape."""
+    if not isinstance(d, dict):
+        raise ParameterError(f"{what} must be a JSON object keyed by shape ids, got {d!r}")
+    for sid in d:
+        if sid not in ids:
+            close = difflib.get_close_matches(str(sid), ids, n=1, cutoff=0.6)
+            hint = f" (did you mean {close[0]!r}?)" if close else ""
             raise ParameterError(
-                f"motion file {str(mpath)!r} moves {sid!r}, which the scene does not have; "
-                f"shape ids: {', '.join(k for k in desc.scene_dict if k != 'type')}"
+                f"{what} names {sid!r}, which is no shape of the scene{hint}; "
+                f"shape ids: {', '.join(ids)}"
             )
-        desc.motions[sid] = Motion.from_json(m)
-    desc.depths_mm.update(data.get("depths_mm", {}))
-    desc.info.update(data.get("info", {}))
+    return d
+
+
+def _note_static(path: Path) -> None:
+    """A scene file without a motion file renders still: say so, and how to move a shape."""
+    warnings.warn(
+        f"{path.name} is static: no {_motion_file(path).name} beside it; to move a shape, "
+        'write one: {"shapes": {"<shape id>": {"velocity_mm_per_ms": [vx, vy, vz]}}} '
+        "(scenes/README.md, 'Scene files of your own')",
+        PacamWarning,
+        stacklevel=4,
+    )

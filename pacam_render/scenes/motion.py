@@ -20,6 +20,7 @@ A :class:`Motion` is a velocity in mm/ms, optionally with keyframed transforms a
 
 from __future__ import annotations
 
+import difflib
 import math
 from dataclasses import dataclass
 from functools import cached_property
@@ -180,18 +181,60 @@ class Motion:
         return out
 
     @classmethod
-    def from_json(cls, d: dict) -> Motion:
+    def from_json(cls, d: dict, what: str = "motion description") -> Motion:
+        """The motion of a JSON entry, checking its keys: a misspelt key would otherwise leave
+        the shape still (``what`` names the entry in messages)."""
+        check_keys(what, d, MOTION_KEYS)
         try:
-            kf = tuple((k["t_ms"], k["matrix"]) for k in d.get("keyframes", ()))
+            kf = []
+            for k, frame in enumerate(d.get("keyframes", ())):
+                check_keys(f"{what}, keyframe {k}", frame, KEYFRAME_KEYS, KEYFRAME_KEYS)
+                kf.append((frame["t_ms"], frame["matrix"]))
             return cls(
                 tuple(d.get("velocity_mm_per_ms", (0, 0, 0))),
-                kf,
+                tuple(kf),
                 tuple(d.get("pivot_mm", (0, 0, 0))),
             )
         except (KeyError, TypeError, ValueError) as exc:
             if isinstance(exc, ParameterError):
                 raise
-            raise ParameterError(f"invalid motion description {d!r}: {exc}") from exc
+            raise ParameterError(f"{what} is not valid ({exc}): {d!r}") from exc
+
+
+MOTION_KEYS = ("velocity_mm_per_ms", "pivot_mm", "keyframes")
+"""The keys of one shape's motion in a ``<stem>.motion.json`` (all optional)."""
+KEYFRAME_KEYS = ("t_ms", "matrix")
+"""The keys of one keyframe (both required)."""
+
+
+def check_keys(what: str, d: Any, valid: tuple[str, ...], required: tuple[str, ...] = ()) -> None:
+    """Refuse a JSON object with a key outside ``valid`` or without one of ``required``.
+
+    Parameters
+    ----------
+    what : str
+        The object's name in messages, e.g. ``"motion file 'a.motion.json', shape 'ball'"``.
+    d : Any
+        The parsed JSON value.
+    valid, required : tuple of str
+        The keys allowed, and those that must be present.
+
+    Raises
+    ------
+    ParameterError
+        Naming the key at fault (and the nearest valid one) and listing the valid keys.
+    """
+    listed = f"valid keys: {', '.join(valid)}"
+    if not isinstance(d, dict):
+        raise ParameterError(f"{what} must be a JSON object ({listed}), got {d!r}")
+    for key in d:
+        if key not in valid:
+            close = difflib.get_close_matches(str(key), valid, n=1, cutoff=0.4)
+            hint = f" (did you mean {close[0]!r}?)" if close else ""
+            raise ParameterError(f"{what} has an unknown key {key!r}{hint}; {listed}")
+    missing = [k for k in required if k not in d]
+    if missing:
+        raise ParameterError(f"{what} lacks the key {missing[0]!r}; {listed}")
 
 
 class SceneAnimator:
