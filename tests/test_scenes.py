@@ -327,3 +327,32 @@ def test_a_scene_file_without_motion_is_noted_static(tmp_path):
     with warnings.catch_warnings():
         warnings.simplefilter("error", PacamWarning)  # a motion file, even a still one: no note
         S.load_scene(str(_user_scene(tmp_path, {"shapes": {}}, 1000.0)))
+
+
+@pytest.mark.render
+def test_a_scene_in_metres_gets_a_note_naming_millimetres(tmp_path, capsys):
+    from pacam_render.cli import main
+
+    xml = _user_scene(tmp_path, {"shapes": {}})
+    args = ["render", str(xml), "--width", "16", "--height", "12", "--spp", "4", "--quiet"]
+    assert main([*args, "--mode", "normal", "--out", str(tmp_path / "out")]) == 0
+    notes = json.loads((tmp_path / "out" / "capture.json").read_text())["notes"]
+    (note,) = [n for n in notes if "metres" in n]
+    assert note.startswith("the nearest surface is 0.5 mm from the camera")
+    assert "pacam scenes are in mm" in note and "4 mm across" in note
+    assert f"note: {note}" in capsys.readouterr().err
+
+
+@pytest.mark.render
+def test_units_check_spares_scenes_in_mm(tmp_path, cache, mi):
+    from pacam_render.exposure.capture import CaptureSpec, capture_design
+    from pacam_render.scenes.units import units_note
+
+    design = capture_design(CaptureSpec(width=W, height=H))
+    user = S.load_scene(str(_user_scene(tmp_path, {"shapes": {}}, 1000.0)))
+    (tmp_path / "m").mkdir()
+    metres = S.load_scene(str(_user_scene(tmp_path / "m", {"shapes": {}})))
+    scenes = [S.load_scene(n, cache_dir=cache) for n in ("train", "soccer", "walker")]
+    for desc in [*scenes, S.psf_scene(500.0), user]:
+        assert units_note(desc.load(), design) is None, desc.name
+    assert "in metres?" in units_note(metres.load(), design)

@@ -473,6 +473,7 @@ def check_budget(
 def _render(spec: CaptureSpec, description, run: Run, truth: bool, target, keep: bool) -> Capture:
     from ..render.backend import select_variant
     from ..scenes import load_scene
+    from ..scenes.units import check_units
     from .checkpoint import Checkpoint, resume_parts
     from .integrate import integrate
 
@@ -485,6 +486,7 @@ def _render(spec: CaptureSpec, description, run: Run, truth: bool, target, keep:
     t_start = time.perf_counter()
     scene = desc.load(sensor=sensor_entry(spec, cam, params, cam.exposure_ms))
     sensor = scene.sensors()[0]
+    check_units(scene, design)  # a scene in metres renders near-black with no other word
     run.check_signal()
     exp, speed = _exposure(scene, sensor, desc, design, cam, spec, run)
     record = _record(spec, design, cam, params, sensor, variant, 0.0, {})

@@ -8,6 +8,7 @@ looking down +z.
 * :mod:`.builtin`: the built-in train set, soccer ball and walker, and a PSF generator.
 * :mod:`.files`: XML and motion JSON export of the built-in scenes.
 * :mod:`.assets`: the meshes and textures the built-in scenes use.
+* :mod:`.units`: the check, before a capture renders, that a scene is in mm, not metres.
 
 Importing this package does not import Mitsuba; functions that need it import it when called.
 """
@@ -34,6 +35,7 @@ from .motion import (
     look_at,
     project_px,
 )
+from .units import check_units
 
 __all__ = [
     "BUILTIN_SCENES",
@@ -44,6 +46,7 @@ __all__ = [
     "Motion",
     "SceneAnimator",
     "SceneDescription",
+    "check_units",
     "default_camera_to_world",
     "fastest_image_speed_px_per_ms",
     "image_to_scene_velocity",
