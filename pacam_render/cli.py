@@ -357,9 +357,10 @@ def _cmd_reproduce(args: argparse.Namespace) -> int:
     names = list(reproduce.FIGURES) if args.figure == "all" else [args.figure]
     if not 0 <= args.seed < 2**31:
         raise ParameterError(f"--seed must be an integer in [0, 2^31), got {args.seed}")
-    from .study.engine import check_workers
+    from .study.engine import check_workers, probe_scheduler
 
     workers = check_workers(args.workers, len(names))
+    probe_scheduler(args.scheduler)  # before any work: Dask's own handshake has no time limit
     out = writable_dir(args.out)
     for fig in reproduce.run(
         names, out, args.quick, args.force, args.seed, workers, args.scheduler
@@ -563,10 +564,11 @@ def _new_folder(out: Path):
 
 def _cmd_validate_psf(args: argparse.Namespace) -> int:
     from .experiments import validate_psf as validate
-    from .study.engine import check_workers
+    from .study.engine import check_workers, probe_scheduler
 
     grid = validate.QUICK if args.quick else validate.FULL
     workers = check_workers(args.workers, len(grid.depths_mm) * len(grid.f_numbers))
+    probe_scheduler(args.scheduler)  # before any work: Dask's own handshake has no time limit
     s = validate.run(
         grid, args.out, args.force, not args.quiet, workers=workers, scheduler=args.scheduler
     )
@@ -615,11 +617,12 @@ def _cmd_validate_scene(args: argparse.Namespace) -> int:
 
 def _cmd_study(args: argparse.Namespace) -> int:
     from .study import load_study, run_study
-    from .study.engine import check_scheduler, check_workers
+    from .study.engine import check_scheduler, check_workers, probe_scheduler
 
     check_scheduler(args.scheduler)
     spec = load_study(args.spec, quick=args.quick)  # every key checked before any work
     workers = check_workers(args.workers, len(spec.groups()))
+    probe_scheduler(args.scheduler)  # before any work: Dask's own handshake has no time limit
     where = args.scheduler or (f"{workers} local workers" if workers else "serially, in-process")
     groups = len(spec.groups())
     print(f"study {spec.name}: {len(spec.points)} points in {groups} renders, {where}")

@@ -3,13 +3,17 @@ refused before any work, with an error naming the parameter or flag and its rang
 
 from __future__ import annotations
 
+import http.server
 import json
+import socketserver
+import threading
 
 import pytest
 
 from pacam_render.cli import main
 from pacam_render.errors import ParameterError
 from pacam_render.sensor.model import SensorModel
+from pacam_render.study import engine
 
 
 def _no_render(monkeypatch):
@@ -47,4 +51,69 @@ def test_an_extreme_preset_file_is_refused_before_the_render(tmp_path, capsys, m
     assert main([*argv, "--sensor", str(preset), "--out", str(out)]) == 2
     err = capsys.readouterr().err
     assert f"preset file {preset}: K must be in [1e-06, 1e+06] DN/e-" in err
+    assert not out.exists()
+
+
+# --- 8. a --scheduler that is not Dask -----------------------------------------------------------
+class _HttpAnswer(socketserver.BaseRequestHandler):
+    """Answers any request at once with an HTTP error, and keeps the connection open."""
+
+    def handle(self):
+        self.request.recv(4096)
+        self.request.sendall(b"HTTP/1.0 400 Bad Request\r\nContent-Length: 0\r\n\r\n")
+        self.request.recv(4096)  # until the client hangs up
+
+
+@pytest.fixture(params=["http.server", "answers-http"])
+def not_dask(request):
+    """A loopback service that is not a Dask scheduler: Python's http.server (it waits for a
+    request line that never comes) or one that answers in HTTP at once (old: MemoryError)."""
+    if request.param == "http.server":
+        server = http.server.ThreadingHTTPServer(
+            ("127.0.0.1", 0), http.server.BaseHTTPRequestHandler
+        )
+    else:
+        server = socketserver.ThreadingTCPServer(("127.0.0.1", 0), _HttpAnswer)
+    server.daemon_threads = True
+    threading.Thread(target=server.serve_forever, daemon=True).start()
+    yield f"tcp://127.0.0.1:{server.server_address[1]}"
+    server.shutdown()
+    server.server_close()
+
+
+def _bounded(fn, limit_s: float = 60.0):
+    """``fn()``'s exception, or a failure if it takes more than ``limit_s`` (a hang)."""
+    caught: list[BaseException] = []
+
+    def call():
+        try:
+            fn()
+        except BaseException as exc:  # noqa: BLE001 - handed to the test
+            caught.append(exc)
+
+    thread = threading.Thread(target=call, daemon=True)
+    thread.start()
+    thread.join(limit_s)
+    assert not thread.is_alive(), f"still waiting after {limit_s} s"
+    return caught[0] if caught else None
+
+
+def test_a_scheduler_that_is_not_dask_is_a_clear_error(not_dask, monkeypatch):
+    monkeypatch.setattr(engine, "CONNECT_TIMEOUT_S", 1.0)
+    exc = _bounded(lambda: engine.run_tasks(abs, [1, 2], lambda t, r: None, scheduler=not_dask))
+    assert isinstance(exc, ParameterError), repr(exc)
+    assert str(exc).startswith(f"--scheduler {not_dask}: no Dask scheduler answered within 1 s")
+
+
+@pytest.mark.parametrize("not_dask", ["answers-http"], indirect=True)  # main() needs the main
+def test_study_refuses_a_scheduler_that_is_not_dask_before_any_work(  # thread: no hang test
+    not_dask, tmp_path, capsys, monkeypatch
+):
+    monkeypatch.setattr(engine, "CONNECT_TIMEOUT_S", 1.0)
+    out = tmp_path / "out"
+    argv = ["study", "crossover", "--quick", "--scheduler", not_dask, "--out", str(out)]
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith(f"pacam study: error: --scheduler {not_dask}: no Dask scheduler")
+    assert "\n" not in err and "Traceback" not in err
     assert not out.exists()

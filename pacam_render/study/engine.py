@@ -88,6 +88,72 @@ def check_scheduler(address: str | None) -> str | None:
     return address
 
 
+def probe_scheduler(address: str | None, timeout: float | None = None) -> None:
+    """Refuse ``address`` unless a Dask scheduler answers there within ``timeout`` seconds.
+
+    Dask's own handshake has no time limit and trusts the first bytes it reads: a web server
+    there makes it wait for ever, or read "HTTP/1.0" as the length of an exabyte frame
+    (MemoryError). So a bounded exchange asks the service who it is first.
+
+    Parameters
+    ----------
+    address : str or None
+        The scheduler's address, e.g. ``tcp://host:8786``; None (no scheduler) passes.
+    timeout : float, optional
+        Seconds for the whole exchange (default :data:`CONNECT_TIMEOUT_S`).
+
+    Raises
+    ------
+    ParameterError
+        If nothing answers in time, or what answers is not a Dask scheduler.
+    """
+    import asyncio
+    from concurrent.futures import ThreadPoolExecutor
+
+    if check_scheduler(address) is None:
+        return
+    limit = CONNECT_TIMEOUT_S if timeout is None else timeout
+    # its own thread and event loop: the caller may be running one (a notebook)
+    with ThreadPoolExecutor(1, thread_name_prefix="pacam-probe") as pool:
+        job = pool.submit(asyncio.run, _ask_identity(address, limit))
+        try:
+            kind = job.result()
+        except TimeoutError:
+            kind = "nothing answered in Dask's protocol"
+        except OSError as exc:
+            kind = f"{type(exc).__name__}: {exc}"
+        except (MemoryError, Exception) as exc:  # bytes of another protocol read as frames
+            kind = f"it answers in another protocol: {type(exc).__name__} reading its reply"
+    if kind != "Scheduler":
+        raise ParameterError(
+            f"--scheduler {address}: no Dask scheduler answered within {limit:g} s ({kind})"
+        )
+
+
+async def _ask_identity(address: str, limit: float) -> str:
+    """The ``type`` that the Dask server at ``address`` gives for itself (``Scheduler``)."""
+    import asyncio
+
+    from distributed.comm import connect
+
+    async def ask() -> str:
+        comm = await connect(address, timeout=limit)
+        try:
+            await comm.write({"op": "identity", "reply": True})
+            reply = await comm.read()
+        finally:
+            comm.abort()
+        kind = reply.get("type") if isinstance(reply, dict) else None
+        if kind == "Scheduler":
+            return kind
+        return f"a Dask {kind} answered" if kind else f"it answered {str(reply)[:60]!r}"
+
+    try:
+        return await asyncio.wait_for(ask(), limit)
+    except asyncio.TimeoutError:
+        raise TimeoutError from None
+
+
 def run_tasks(
     fn: Callable,
     tasks: Sequence,
@@ -164,10 +230,10 @@ def _client(workers: int, scheduler: str | None) -> Iterator:
     from distributed import Client, LocalCluster
 
     if scheduler is not None:
-        check_scheduler(scheduler)  # a malformed address is not a timeout
+        probe_scheduler(scheduler)  # bounded: Dask's own handshake can wait for ever
         try:
             client = Client(scheduler, timeout=CONNECT_TIMEOUT_S)
-        except (OSError, TimeoutError, ValueError) as exc:
+        except (OSError, TimeoutError, ValueError, MemoryError) as exc:
             raise ParameterError(
                 f"--scheduler {scheduler}: no Dask scheduler answered within "
                 f"{CONNECT_TIMEOUT_S:g} s ({type(exc).__name__}: {exc})"
