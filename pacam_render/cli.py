@@ -92,18 +92,16 @@ def _cmd_psf(args: argparse.Namespace) -> int:
         _odd_size(args.size)
     seed = 0 if args.seed is None else args.seed
     if args.render:  # check everything before computing or writing anything
-        from .exposure.psf_render import check_request, plan_render, render_psf
-        from .restore.metrics import rel_l1
+        from .exposure.psf_render import check_request
 
         check_request(cam, args.spp, seed, args.film)
+        check_positive("--max-samples", args.max_samples)
     elif args.spp is not None or args.seed is not None:
         raise ParameterError("--spp and --seed need --render")
     out = prepare_out_dir(args.out, args.force)
     k = _checked_psf(cam, args)
-    if args.render:
-        plan_render(
-            cam, args.mode, args.velocity, k.shape, args.spp, seed, args.film, origin=args.origin
-        )
+    r = _rendered_psf(cam, k, seed, args) if args.render else None
+    # nothing is written before the render ends: an interrupt leaves no half set of files
     write_exr(out / "psf_analytic.exr", {"psf": k}, force=args.force)
     write_png(out / "psf_analytic.png", srgb8(k), force=args.force)
     meta = {
@@ -117,18 +115,9 @@ def _cmd_psf(args: argparse.Namespace) -> int:
         else "centre pixel = where a pinhole at the lens centre images the point at t = 0",
     }
     written = "psf_analytic.exr, psf_analytic.png"
-    if args.render:
-        r = render_psf(
-            cam,
-            args.mode,
-            args.velocity,
-            size=k.shape,
-            spp=args.spp,
-            seed=seed,
-            film=args.film,
-            origin=args.origin,
-            progress=not args.quiet,
-        )
+    if r is not None:
+        from .restore.metrics import rel_l1
+
         write_exr(out / "psf_rendered.exr", {"psf": r.kernel}, force=args.force)
         write_png(out / "psf_rendered.png", srgb8(r.kernel), force=args.force)
         meta["rendered"] = {**r.to_json(), "l1_vs_analytic": rel_l1(r.kernel, k)}
@@ -141,6 +130,16 @@ def _cmd_psf(args: argparse.Namespace) -> int:
     write_json(out / "psf.json", meta, force=args.force)
     print(f"wrote {out}/: {written}, psf.json ({k.shape[0]}x{k.shape[1]} px)")
     return 0
+
+
+def _rendered_psf(cam: CameraDesign, k: np.ndarray, seed: int, args: argparse.Namespace):
+    """The ray-traced kernel; refused beyond --max-samples before any rendering."""
+    from .exposure.psf_render import render_psf
+
+    return render_psf(
+        cam, args.mode, args.velocity, size=k.shape, spp=args.spp, seed=seed, film=args.film,
+        origin=args.origin, model=k, max_samples=args.max_samples, progress=not args.quiet,
+    )  # fmt: skip
 
 
 def _psf_geometry(args: argparse.Namespace) -> tuple[CameraDesign, dict | None]:
@@ -172,9 +171,18 @@ def _psf_geometry(args: argparse.Namespace) -> tuple[CameraDesign, dict | None]:
 
 def _checked_psf(cam: CameraDesign, args: argparse.Namespace) -> np.ndarray:
     """The analytic kernel, refused if more than MAX_LOST_FRACTION of it falls outside."""
-    from .psf.analytic import MAX_LOST_FRACTION, PSFTruncationWarning
+    from .psf.analytic import MAX_LOST_FRACTION, PSFTruncationWarning, least_lost_fraction
 
     size = None if args.size is None else _odd_size(args.size)
+    # a bound first: the kernel of a huge defocus takes minutes to compute, then is refused
+    least, (h, w), r = least_lost_fraction(cam, args.mode, args.velocity, size, args.origin)
+    if least > MAX_LOST_FRACTION:
+        raise ParameterError(
+            f"at least {least:.3%} of the PSF falls outside the {h}x{w} kernel (its defocus "
+            f"radius is {r:.4g} px on a {cam.width_px}x{cam.height_px} px sensor), more than "
+            f"the {MAX_LOST_FRACTION:.0%} allowed; lower --width/--height (px quantities grow "
+            "with them) or give a larger --size (the automatic size stops at 2049 px)"
+        )
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", PSFTruncationWarning)
         k = design_psf(cam, args.mode, args.velocity, size, origin=args.origin)
@@ -738,6 +746,14 @@ def _add_psf(sub) -> None:
         "particles per window)",
     )
     p.add_argument("--seed", type=int, metavar="S", help="with --render: seed (default 0)")
+    p.add_argument(
+        "--max-samples",
+        type=int,
+        default=DEFAULT_MAX_SAMPLES,
+        metavar="N",
+        help=f"with --render: refuse more than N = spp x film px x windows particles (default "
+        f"2^35 = {DEFAULT_MAX_SAMPLES})",
+    )
     p.add_argument(
         "--film",
         default="window",

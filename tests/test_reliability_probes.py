@@ -26,6 +26,15 @@ def _no_render(monkeypatch):
     monkeypatch.setattr(capture, "render_capture", refuse)
 
 
+def _refuse(why: str):
+    """A stand-in for a long computation that the refusals below must come before."""
+
+    def refuse(*args, **kwargs):
+        raise AssertionError(why)
+
+    return refuse
+
+
 # --- 7. extreme sensor presets -------------------------------------------------------------------
 @pytest.mark.parametrize(
     ("key", "value", "match"),
@@ -117,3 +126,63 @@ def test_study_refuses_a_scheduler_that_is_not_dask_before_any_work(  # thread: 
     assert err.startswith(f"pacam study: error: --scheduler {not_dask}: no Dask scheduler")
     assert "\n" not in err and "Traceback" not in err
     assert not out.exists()
+
+
+# --- 9. pacam psf bounds its work ----------------------------------------------------------------
+PSF = ["psf", "--depth", "500", "--velocity", "0.1"]
+
+
+def test_psf_render_beyond_the_sample_limit_is_refused_naming_the_flag(
+    tmp_path, capsys, monkeypatch
+):
+    import pacam_render.exposure.psf_render as psf_render
+
+    renderer = psf_render.PSFRenderer
+    monkeypatch.setattr(renderer, "_render_passes", _refuse("rendered before refusing"))
+    out = tmp_path / "out"
+    argv = [*PSF, "--render", "--film", "crop", "--spp", "1000000", "--out", str(out)]
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert "above the limit of 34359738368 (--max-samples raises it)" in err
+    assert "whole 1280x960 film" in err and not out.exists()
+
+
+def test_psf_of_a_huge_sensor_is_refused_before_computing_the_kernel(tmp_path, capsys, monkeypatch):
+    import pacam_render.cli as cli
+
+    monkeypatch.setattr(cli, "design_psf", _refuse("computed the kernel before refusing"))
+    out = tmp_path / "out"
+    assert main([*PSF, "--width", "100000000", "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "falls outside the 2049x2049 kernel" in err and "lower --width/--height" in err
+    assert not out.exists()
+
+
+@pytest.mark.render
+@pytest.mark.parametrize("how", ["signal", "wrapped"])
+def test_psf_interrupted_while_rendering_writes_nothing(how, tmp_path, capsys, monkeypatch):
+    """SIGINT after the second render call (Python's handler), or a KeyboardInterrupt that
+    Dr.Jit wrapped in a RuntimeError (a Ctrl-C inside the render): exit 130, one line."""
+    import os
+    import signal
+
+    import mitsuba as mi
+
+    real, calls = mi.render, []
+
+    def render(*args, **kwargs):
+        calls.append(1)
+        if len(calls) == 2 and how == "wrapped":
+            raise RuntimeError("drjit.custom(...): error") from KeyboardInterrupt()
+        image = real(*args, **kwargs)
+        if len(calls) == 2:
+            os.kill(os.getpid(), signal.SIGINT)
+        return image
+
+    monkeypatch.setattr(mi, "render", render)
+    out = tmp_path / "out"
+    argv = [*PSF, "--render", "--spp", "16", "--quiet", "--out", str(out)]
+    assert main(argv) == 130
+    assert len(calls) == 2
+    assert capsys.readouterr().err.strip() == "pacam psf: interrupted"
+    assert not out.exists() or not any(out.iterdir())

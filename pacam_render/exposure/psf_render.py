@@ -79,6 +79,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import ParameterError, check_finite, check_positive
+from ..limits import DEFAULT_MAX_SAMPLES, check_count
 from ..model import schedule as sch
 from ..model.camera import MIN_FOCUS_MM, CameraDesign
 from ..model.modes import (
@@ -93,6 +94,7 @@ from ..model.modes import (
 from ..render.registry import PSF_PLUGIN_NAME, ensure_registered, sensor_dict
 from ..restore.metrics import fit_acceleration, kernel_centroid, rel_l1
 from ..scenes import image_to_scene_velocity, psf_scene
+from .checkpoint import deferred_signals
 
 DEFAULT_SOURCE_RADIUS_PX = 0.02
 """Radius of the emitter's image, px: small enough that it does not show (see source_blur_l1)."""
@@ -601,6 +603,50 @@ def plan_render(
     return RenderRequest(setup, model, shape, centre, filmset, spp, seed, velocity)
 
 
+def check_render_budget(
+    req: RenderRequest,
+    integrator: str = "ptracer",
+    per_window: bool = True,
+    max_samples: int = DEFAULT_MAX_SAMPLES,
+) -> int:
+    """Refuse a render of more than ``max_samples`` particles (or camera rays), before any.
+
+    Parameters
+    ----------
+    req : RenderRequest
+        What :func:`plan_render` returned.
+    integrator : str
+        ``ptracer`` traces spp x the *whole* film's pixels, even for a crop.
+    per_window : bool
+        Whether each open window is rendered apart (spp each) or the exposure at once.
+    max_samples : int
+        The limit (``--max-samples``).
+
+    Returns
+    -------
+    int
+        The render's samples.
+
+    Raises
+    ------
+    ParameterError
+        Naming ``max_samples``, if the render needs more.
+    """
+    pixels = req.film.sample_pixels(integrator)
+    windows = int(req.setup.open.sum()) if per_window else 1
+    hint = ""
+    if req.film.mode == "crop" and integrator == "ptracer":
+        hint = f"; ptracer traces the whole {req.film.width}x{req.film.height} film for a crop"
+    check_count(
+        f"samples of this PSF render (spp {req.spp} x {pixels} film px x {windows} windows)",
+        req.spp * pixels * windows,
+        max_samples,
+        "max_samples",
+        hint,
+    )
+    return req.spp * pixels * windows
+
+
 class PSFRenderer:
     """Renders PSFs, reusing loaded scenes (and so Dr.Jit's compiled kernels) across calls.
 
@@ -670,6 +716,7 @@ class PSFRenderer:
         origin: str = "t0",
         model: np.ndarray | None = None,
         progress: bool = False,
+        max_samples: int = DEFAULT_MAX_SAMPLES,
     ) -> RenderedPSF:
         """Render ``design_psf(design, mode, velocity, size)`` (see the module docstring).
 
@@ -683,8 +730,12 @@ class PSFRenderer:
         current count. ``origin``: what the kernel's centre pixel stands for, as in
         :func:`~pacam_render.psf.design_psf`: ``"t0"`` (the t = 0 image) or ``"pinhole"``.
         ``model``: that analytic kernel, if already computed (saves its computation).
+        ``max_samples``: refuse a render of more particles (:func:`check_render_budget`).
+        A SIGINT or SIGTERM during the render raises KeyboardInterrupt after the render call
+        under way; its partial image is never used.
         """
         req = plan_render(design, mode, velocity, size, spp, seed, film, integrator, origin, model)
+        check_render_budget(req, integrator, per_window, max_samples)
         scene, params = self._scene(design, req.setup, req.film, integrator)
         sensor = self._place(design, req.setup, req.film, req.velocity, scene, params)
         windows, is_open = _windows(req.setup, per_window)
@@ -714,15 +765,20 @@ class PSFRenderer:
 
             bar = tqdm(total=len(plan), desc=desc, unit="pass", leave=False)
         current = None
+        integ = scene.integrator()
         try:
-            for k, p, n in plan:
-                if current != k:
-                    sensor.configure(time_window=None if not per_window else windows[k])
-                    current = k
-                img = mi.render(scene, spp=n, seed=_seed(req.seed, k, p))
-                images[k] += np.array(img, dtype=np.float64).reshape(h, w) * (n / req.spp)
-                if bar is not None:
-                    bar.update()
+            with deferred_signals() as flag:
+                for k, p, n in plan:
+                    if current != k:
+                        sensor.configure(time_window=None if not per_window else windows[k])
+                        current = k
+                    img = _render_call(mi, scene, n, _seed(req.seed, k, p))
+                    # Mitsuba's own SIGINT handler cuts a render short and returns it: unusable
+                    if flag["signal"] is not None or integ.should_stop():
+                        raise KeyboardInterrupt
+                    images[k] += np.array(img, dtype=np.float64).reshape(h, w) * (n / req.spp)
+                    if bar is not None:
+                        bar.update()
         finally:
             if bar is not None:
                 bar.close()
@@ -774,6 +830,17 @@ class PSFRenderer:
             window_kernels=[im / raw for im in images] if keep_windows else None,
             model=req.model,
         )
+
+
+def _render_call(mi, scene, spp: int, seed: int):
+    """``mi.render``; a KeyboardInterrupt that Dr.Jit wrapped in a RuntimeError (a second
+    Ctrl-C inside the render) is raised as itself."""
+    try:
+        return mi.render(scene, spp=spp, seed=seed)
+    except RuntimeError as exc:
+        if isinstance(exc.__cause__, KeyboardInterrupt):
+            raise KeyboardInterrupt from None
+        raise
 
 
 def _windows(setup: ModeSetup, per_window: bool):

@@ -361,6 +361,39 @@ def design_trajectory(design, mode: str = "coded", s: float = 0.0, origin: str =
     return MODE_TRAJECTORIES[m.psf](design, s, x0)
 
 
+def least_lost_fraction(
+    design, mode: str = "coded", s: float = 0.0, size=None, origin: str = "t0"
+) -> tuple[float, tuple[int, int], float]:
+    """A lower bound on the mass that :func:`design_psf` would lose outside its kernel, without
+    computing the kernel (whose cost grows with the defocus radius: minutes at r ~ 1e5 px).
+
+    Every point of the path spreads over a disc of radius r, and an h x w window holds at most
+    min(1, 2h / (pi r), 2w / (pi r), h w / (pi r^2)) of one disc.
+
+    Parameters
+    ----------
+    design, mode, s, size, origin
+        As for :func:`design_psf`.
+
+    Returns
+    -------
+    lost : float
+        The bound, a fraction of the PSF's mass in [0, 1).
+    shape : (int, int)
+        The kernel's (h, w): ``size``, or the automatic size (at most :data:`MAX_AUTO_SIZE`).
+    r_px : float
+        The defocus radius, px.
+    """
+    segments, r = design_trajectory(design, mode, s, origin)
+    lo, hi = extent(segments)
+    y_max = max(abs(seg.y) for seg in segments)
+    h, w = _shape(size, lo - y_max, hi + y_max, r)
+    if r < R_DELTA_PX:
+        return 0.0, (h, w), r
+    inside = min(1.0, 2 * h / (math.pi * r), 2 * w / (math.pi * r), h * w / (math.pi * r * r))
+    return 1.0 - inside, (h, w), r
+
+
 def design_psf(
     design, mode: str = "coded", s: float = 0.0, size=None, origin: str = "t0", v_px_per_ms=0.0
 ):
