@@ -36,3 +36,11 @@ def check_range(name: str, value: float, lo: float, hi: float, unit: str = "") -
         u = f" {unit}" if unit else ""
         raise ParameterError(f"{name} must be in [{lo:g}, {hi:g}]{u}, got {value!r}")
     return v
+
+
+def did_you_mean(word: object, valid, cutoff: float = 0.6) -> str:
+    """`` (did you mean 'x'?)`` for the entry of ``valid`` nearest ``word``, or ``""``."""
+    import difflib
+
+    close = difflib.get_close_matches(str(word), list(valid), n=1, cutoff=cutoff)
+    return f" (did you mean {close[0]!r}?)" if close else ""

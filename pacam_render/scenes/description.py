@@ -10,7 +10,6 @@ refers to.
 
 from __future__ import annotations
 
-import difflib
 import hashlib
 import json
 import os
@@ -22,7 +21,7 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import ParameterError, check_finite
+from ..errors import ParameterError, check_finite, did_you_mean
 from ..limits import PacamWarning
 from . import assets as sa
 from .motion import Motion, SceneAnimator, _mi, check_keys
@@ -281,10 +280,8 @@ def _shape_entries(what: str, d: Any, ids: list[str]) -> dict:
         raise ParameterError(f"{what} must be a JSON object keyed by shape ids, got {d!r}")
     for sid in d:
         if sid not in ids:
-            close = difflib.get_close_matches(str(sid), ids, n=1, cutoff=0.6)
-            hint = f" (did you mean {close[0]!r}?)" if close else ""
             raise ParameterError(
-                f"{what} names {sid!r}, which is no shape of the scene{hint}; "
+                f"{what} names {sid!r}, which is no shape of the scene{did_you_mean(sid, ids)}; "
                 f"shape ids: {', '.join(ids)}"
             )
     return d

@@ -20,7 +20,6 @@ A :class:`Motion` is a velocity in mm/ms, optionally with keyframed transforms a
 
 from __future__ import annotations
 
-import difflib
 import math
 from dataclasses import dataclass
 from functools import cached_property
@@ -28,7 +27,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from ..errors import ParameterError, check_finite, check_positive
+from ..errors import ParameterError, check_finite, check_positive, did_you_mean
 from ..model.camera import CameraDesign
 
 if TYPE_CHECKING:
@@ -229,8 +228,7 @@ def check_keys(what: str, d: Any, valid: tuple[str, ...], required: tuple[str, .
         raise ParameterError(f"{what} must be a JSON object ({listed}), got {d!r}")
     for key in d:
         if key not in valid:
-            close = difflib.get_close_matches(str(key), valid, n=1, cutoff=0.4)
-            hint = f" (did you mean {close[0]!r}?)" if close else ""
+            hint = did_you_mean(key, valid, cutoff=0.4)
             raise ParameterError(f"{what} has an unknown key {key!r}{hint}; {listed}")
     missing = [k for k in required if k not in d]
     if missing:
