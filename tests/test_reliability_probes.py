@@ -5,13 +5,17 @@ from __future__ import annotations
 
 import http.server
 import json
+import re
 import socketserver
 import threading
+import warnings
 
+import numpy as np
 import pytest
 
 from pacam_render.cli import main
 from pacam_render.errors import ParameterError
+from pacam_render.limits import PacamWarning
 from pacam_render.sensor.model import SensorModel
 from pacam_render.study import engine
 
@@ -186,3 +190,43 @@ def test_psf_interrupted_while_rendering_writes_nothing(how, tmp_path, capsys, m
     assert len(calls) == 2
     assert capsys.readouterr().err.strip() == "pacam psf: interrupted"
     assert not out.exists() or not any(out.iterdir())
+
+
+# --- 10. a --schedule that the mode does not show -------------------------------------------------
+def _schedule(path):
+    doc = {
+        "centres_mm": [[x, 0.0] for x in np.linspace(-1.5, 1.5, 16)],
+        "radius_mm": 1.0,
+        "focus_distance_mm": 750.0,
+        "n_patterns": 16,
+    }
+    path.write_text(json.dumps(doc))
+    return str(path)
+
+
+@pytest.mark.render
+@pytest.mark.parametrize(
+    ("mode", "match"),
+    [
+        (
+            "normal",
+            "openings and focus are not used in normal mode .*: only its exposure and radius",
+        ),
+        ("reference", "openings, focus, radius and exposure are not used in .*: it has no effect"),
+        ("coded", None),
+    ],
+)
+def test_a_schedule_the_mode_does_not_show_is_noted_and_recorded_unused(mode, match, tmp_path):
+    from pacam_render.exposure.capture import CaptureSpec, render_capture
+
+    spec = CaptureSpec(mode=mode, width=32, height=24, spp=4, schedule=_schedule(tmp_path / "s"))
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", PacamWarning)
+        rec = render_capture(spec, progress=False, truth=False).record.to_json()
+    notes = [str(w.message) for w in caught if "--schedule" in str(w.message)]
+    if match is None:  # coded shows the schedule: no note, and its camera has the openings
+        assert not notes and rec["optics"]["schedule"] == "designed"
+        return
+    assert len(notes) == 1 and re.search(match, notes[0]) and notes[0] in rec["notes"]
+    assert rec["camera"]["pattern_centres_mm"] is None and rec["optics"]["schedule"] != "designed"
+    assert rec["camera"]["name"].endswith("not used")

@@ -39,8 +39,8 @@ from ..limits import (
 )
 from ..model import paper
 from ..model.camera import CameraDesign, preset
+from ..model.modes import DESIGNED_REFUSED, capture_camera, mode, sensor_params
 from ..model.modes import MODES as MODE_TABLE
-from ..model.modes import capture_camera, mode, sensor_params
 from ..render.samplers import DEFAULT_SAMPLER, check_sampler, quantum, sampler_dict
 from .checkpoint import deferred_signals
 from .estimate import check_passes
@@ -227,8 +227,30 @@ def mode_camera(design: CameraDesign, mode: str) -> tuple[CameraDesign, dict]:
         If ``mode`` is unknown (the message lists the valid ones), or a mode with a moving
         aperture gets a design without parallax (beta = 0).
     """
+    unused = _schedule_unused(mode) if design.designed else []
+    if "openings" in unused:  # the mode shows none of them: its camera leaves them out
+        text = f"{design.name}, its {_words(unused)} not used"
+        design = design.with_(pattern_centres_mm=None, name=text)
     cam = capture_camera(design, mode)
     return cam, sensor_params(cam, mode)
+
+
+def _schedule_unused(name: str) -> list[str]:
+    """The parts of a designed schedule that a ``name`` capture does not use."""
+    m = mode(name)
+    if name in DESIGNED_REFUSED:  # refused where the design is made
+        return []
+    if m.schedule is None:  # the pinhole reference
+        return ["openings", "focus", "radius", "exposure"]
+    unused = [] if m.needs_parallax else ["openings"]
+    unused += ["focus"] if m.refocus else []
+    unused += ["radius"] if m.full_opening else []
+    return unused + (["exposure"] if m.exposure_ms is not None else [])
+
+
+def _words(items: list[str]) -> str:
+    """``a, b and c``."""
+    return " and ".join(items) if len(items) < 3 else f"{', '.join(items[:-1])} and {items[-1]}"
 
 
 def sensor_entry(spec: CaptureSpec, design: CameraDesign, params: dict, exposure_ms: float):
@@ -632,6 +654,14 @@ def _note_ignored_options(spec: CaptureSpec) -> None:
         _note(
             f"--cover has no effect in {spec.mode} mode: it focuses on the object, so the "
             "solved defocus is not used (it applies to coded, coded_continuous and levin)"
+        )
+    unused = _schedule_unused(spec.mode) if spec.schedule is not None else []
+    if unused:  # recorded in the capture's notes; its camera leaves the openings out
+        used = {"radius", "exposure"} - set(unused)
+        _note(
+            f"--schedule's {_words(unused)} are not used in {spec.mode} mode ("
+            f"{MODE_TABLE[spec.mode].summary}): "
+            + (f"only its {_words(sorted(used))} are" if used else "it has no effect")
         )
 
 
