@@ -1164,6 +1164,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     with warnings.catch_warnings(), _terminate_as_interrupt():
         warnings.showwarning = _note_printer(name)
         try:
+            _check_common(args)
             return args.func(args)
         except ParameterError as exc:
             print(f"{name}: error: {_user_words(str(exc))}", file=sys.stderr)
@@ -1181,6 +1182,18 @@ def main(argv: Sequence[str] | None = None) -> int:
         except OSError as exc:  # a disk full, a file gone: one line, not a traceback
             print(f"{name}: error: {exc}", file=sys.stderr)
             return 1
+
+
+def _check_common(args: argparse.Namespace) -> None:
+    """Flags that several commands share, refused before any work: a size of 0 px would
+    quietly become the default (``args.width or ...``), an empty --out the current folder."""
+    for flag in ("width", "height"):
+        value = getattr(args, flag, None)
+        if value is not None and value < 1:
+            raise ParameterError(f"--{flag} must be a positive number of px, got {value}")
+    out = getattr(args, "out", None)
+    if out is not None and not str(out).strip():
+        raise ParameterError(f"--out must name a folder or file, got {out!r}")
 
 
 _FLAGS = {

@@ -230,3 +230,45 @@ def test_a_schedule_the_mode_does_not_show_is_noted_and_recorded_unused(mode, ma
     assert len(notes) == 1 and re.search(match, notes[0]) and notes[0] in rec["notes"]
     assert rec["camera"]["pattern_centres_mm"] is None and rec["optics"]["schedule"] != "designed"
     assert rec["camera"]["name"].endswith("not used")
+
+
+# --- 12. flags checked before any work (and the "Low" sizes and --out) ---------------------------
+@pytest.mark.parametrize(
+    ("argv", "match"),
+    [
+        (["demo", "--height", "100"], "--width and --height go together"),
+        (["demo", "--width", "320"], "--width and --height go together"),
+        (
+            ["validate-scene", "train", "--crop", "0,0,10,10"],
+            "--crop window must be at least 32x32",
+        ),
+        (["validate-scene", "train", "--quantum", "1e-9"], r"--quantum must be in \[0.05, 4\] px"),
+        (["render", "train", "--width", "0"], "--width must be a positive number of px, got 0"),
+        (["psf", *PSF[1:], "--height", "0"], "--height must be a positive number of px, got 0"),
+        (["validate-scene", "train", "--width", "0"], "--width must be a positive number"),
+    ],
+)
+def test_flags_are_refused_before_any_work(argv, match, tmp_path, capsys, monkeypatch):
+    import pacam_render.experiments.demo as demo
+    import pacam_render.experiments.validate_scene as vs
+
+    _no_render(monkeypatch)
+    monkeypatch.setattr(demo, "run_demo", _refuse("the demo ran before refusing"))
+    monkeypatch.setattr(vs, "run", _refuse("validate-scene ran before refusing"))
+    out = tmp_path / "out"
+    assert main([*argv, "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert re.search(match, err) and "Traceback" not in err
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("argv", [["render", "train"], PSF, ["validate-psf", "--quick"]])
+def test_an_empty_out_is_refused(argv, tmp_path, capsys, monkeypatch):
+    import pacam_render.experiments.validate_psf as validate_psf
+
+    monkeypatch.chdir(tmp_path)  # the old code wrote here
+    _no_render(monkeypatch)
+    monkeypatch.setattr(validate_psf, "run", _refuse("validate-psf ran before refusing"))
+    assert main([*argv, "--out", ""]) == 2
+    assert "--out must name a folder or file, got ''" in capsys.readouterr().err
+    assert not any(tmp_path.iterdir())

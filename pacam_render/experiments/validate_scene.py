@@ -25,13 +25,18 @@ from dataclasses import asdict, dataclass, replace
 
 import numpy as np
 
-from ..errors import ParameterError, check_positive
+from ..errors import ParameterError, check_range
 from ..psf.scene import MODEL_MODES, QUANTUM_PX, beta_px_per_mm, convolution_model
 from .scene_regions import REGIONS, moving_edge_distance, region_map
 
 QUICK_WINDOW_PX = (160, 128)
 """The ``--quick`` window (w, h), px, centred on the fastest object's leading edge."""
 QUICK_SPP = 16
+MIN_WINDOW_SIDE_PX = 32
+"""The smallest --crop side, px: regions away from the moving edges need room."""
+QUANTUM_RANGE_PX = (0.05, 4.0)
+"""The model's cell quantum, px: finer only multiplies the cells (a PSF convolution each: 1e-9
+ran for minutes) below the pixel-integrated kernel's resolution; coarser is no model."""
 MAX_WINDOW_PX = 1280 * 720
 """The most pixels a default window (around the moving objects) may have."""
 QUANTA_PX = (1.0, 0.5, 0.25, 0.125)
@@ -64,7 +69,13 @@ class SceneCheck:
     def __post_init__(self) -> None:
         if self.mode not in MODEL_MODES:
             raise ParameterError(f"mode must be one of {', '.join(MODEL_MODES)}, got {self.mode!r}")
-        check_positive("quantum_px", self.quantum_px, "px")
+        check_range("quantum_px", self.quantum_px, *QUANTUM_RANGE_PX, "px")
+        if self.crop is not None and min(self.crop[2:]) < MIN_WINDOW_SIDE_PX:
+            raise ParameterError(
+                f"--crop window must be at least {MIN_WINDOW_SIDE_PX}x{MIN_WINDOW_SIDE_PX} px "
+                f"for validate-scene (regions away from the moving edges need room), got "
+                f"{self.crop[2]}x{self.crop[3]}"
+            )
 
 
 @dataclass
