@@ -55,7 +55,7 @@ def streak_length_px(row: np.ndarray) -> float:
 
 
 def test_moving_emitter_streak_matches_velocity_times_exposure():
-    spec = CaptureSpec(scene="psf", mode="normal", width=96, height=16, spp=256)
+    spec = CaptureSpec(scene="psf", mode="normal", width=96, height=16, spp=1024)
     cam = capture_design(spec)
     v = 1.2  # px/ms in this film's pixels
     desc = psf_scene(500.0, v, camera=cam.with_(focus_distance_mm=500.0), radius_mm=0.05)

@@ -207,7 +207,7 @@ def test_coarse_time_steps_are_unbiased_and_counted_in_the_error(monkeypatch):
     """Steps of 6 px of motion, against a 0.2 px reference: the stratified random times agree
     with it within the recorded sigma (which now holds the time steps' noise), while the
     midpoint rule on the same steps is off by many sigma (its bias is never counted)."""
-    fine = _streak(0.2, 1024, 4)
+    fine = _streak(0.2, 2048, 4)
     coarse = _streak(6.0, 256, 8, seed=1)
     assert coarse.record.n_steps == 10 and fine.record.n_steps > 250  # 1.3 x 45 / 6 -> 10
 
@@ -220,6 +220,36 @@ def test_coarse_time_steps_are_unbiased_and_counted_in_the_error(monkeypatch):
     monkeypatch.setattr(integ, "step_time", lambda t0, t1, u: 0.5 * (t0 + t1))
     midpoint = _streak(6.0, 256, 8, seed=1)
     assert z_rms(midpoint) > 10  # measured 54
+
+
+@pytest.mark.render
+def test_a_pass_of_fewer_samples_than_steps_honours_its_spp():
+    """293 steps of 0.2 px, 8 spp per pass: the pass joins neighbouring steps into 8 (their
+    times drawn over the whole span), takes exactly the spp asked, and agrees with the fine
+    reference within the sigma it records."""
+    fine = _streak(0.2, 2048, 4)
+    low = _streak(0.2, 64, 8, seed=1)
+    assert low.record.effective_spp == 64 and low.record.n_steps == 8
+    assert not any("were asked" in n for n in low.record.notes)
+    on = fine.image.sum(-1) > 0
+    diff, var = (low.image - fine.image)[on], (low.mc_sigma**2 + fine.mc_sigma**2)[on]
+    assert 0.7 < float(np.sqrt(np.mean(diff**2) / np.mean(var))) < 1.6
+
+
+def test_merged_windows_keep_patterns_and_cover_the_exposure():
+    """Joined steps never straddle a pattern, cover every window once, and number at most
+    max(units, patterns)."""
+    from pacam_render.exposure.steps import merge_windows
+
+    edges = np.linspace(0.0, 45.0, 17)
+    cuts = [np.linspace(a, b, 10) for a, b in zip(edges[:-1], edges[1:])]
+    windows = [(k, c[i], c[i + 1]) for k, c in enumerate(cuts) for i in range(9)]
+    for units in (1, 16, 40, 100, 144, 500):
+        merged = merge_windows(windows, units)
+        assert len(merged) <= max(units, 16) and len(merged) >= min(16, len(windows))
+        assert sum(b - a for _, a, b in merged) == pytest.approx(45.0)
+        for k, a, b in merged:
+            assert edges[k] - 1e-12 <= a < b <= edges[k + 1] + 1e-12
 
 
 # --- targets -------------------------------------------------------------------------------------

@@ -41,8 +41,8 @@ CASES = {
     f"train_{m}": CaptureSpec(scene="train", mode=m, **SIZE)
     for m in ("normal", "coded", "short", "levin", "flutter", "reference")
 }
-CASES["psf_coded"] = CaptureSpec(
-    scene="psf", mode="coded", width=64, height=24, spp=1024, passes=16
+CASES["psf_coded"] = CaptureSpec(  # 16 passes of 72 steps x 4 spp: what was blessed
+    scene="psf", mode="coded", width=64, height=24, spp=4608, passes=16
 )
 PASS_VARIANCE = 8
 """Cases of at least this many passes are compared with their own per-pixel variance."""

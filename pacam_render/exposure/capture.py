@@ -530,7 +530,7 @@ def _render(spec: CaptureSpec, description, run: Run, truth: bool, target, keep:
     if spec.mode == "reference" and truth:
         layers["sharp"], sharp = image, prog.stats
     steps = {
-        "n_steps": len(exp.windows) or 1,
+        "n_steps": exp.steps_per_pass(prog.sched.groups[-1][0]),
         "n_geometry_updates": exp.animator.n_updates if exp.moving else 0,
         "effective_spp": prog.stats.spp,
         "resumed_from_step": prog.resumed_from if exp.moving else None,
@@ -578,7 +578,7 @@ def _note_samples(spec: CaptureSpec, exp, prog, target) -> None:
         _note(
             f"{spec.passes} passes of at least {exp.quantum} spp per {per} ({spec.sampler}) take "
             f"{prog.stats.spp} spp where {spec.spp} were asked"
-            + ("; raise max_step_px for fewer steps" if exp.moving else "")
+            + ("; each pattern needs one step" if exp.moving else "")
         )
     if target is not None and not sched.met:
         from .estimate import rms
@@ -626,7 +626,7 @@ def _render_error(prog, exp, spec, seconds, objects, ids, record, sharp) -> dict
     lf = record.light_factor
     out["mc_sigma_white_units"] = out["mc_sigma"] / lf if lf > 0 else None
     out.update(sampler=spec.sampler, seconds=round(seconds, 3))
-    out["time_steps_per_pass"] = len(exp.windows)
+    out["time_steps_per_pass"] = exp.steps_per_pass(prog.sched.groups[-1][0]) if exp.moving else 0
     out["time_step_bias"] = 0.0
     out["time_sampling"] = (
         "stratified random times, one per step and pass: unbiased, their noise is in mc_sigma"

@@ -164,6 +164,7 @@ def integrate(exp: Exposure, spec, run: Run, store, target=None, record=None, de
         sched = fixed_schedule(spec, exp) if target is None else pilot_schedule(exp, max_spp)
         prog = Progress(sched, group_stats(sched, {}))
     prog.resumed_from = prog.steps_done
+    n_steps = exp.steps_per_pass(prog.sched.groups[-1][0])  # a fixed or a main pass
     if run.pilot_only and prog.sched.phase != "pilot":  # resumed past its pilot: only predict
         prog.predicted_s = predict_seconds(exp, prog, spec)
         return prog

@@ -15,7 +15,10 @@ step.
 
 A pass of N samples per pixel shares them among its steps in proportion to their duration,
 each step a multiple of the sampler's smallest render (:mod:`~..render.samplers`) and at least
-one of them. Every step of every pass has its own seeds.
+one of them. A pass of fewer such renders than steps joins each pattern's neighbouring steps
+(:func:`merge_windows`, down to one step per pattern), so a low spp is honoured: the joined
+steps draw their time over their whole span, which adds noise and no bias. Every step of
+every pass has its own seeds.
 """
 
 from __future__ import annotations
@@ -106,6 +109,28 @@ def share_spp(durations, spp: int, quantum: int = 1) -> list[int]:
     return [int(v) * quantum for v in n]
 
 
+def merge_windows(windows: list, units: int) -> list:
+    """At most ``units`` steps (never fewer than one per pattern): each pattern's consecutive
+    windows joined into as many steps as its share of ``units``.
+
+    A pass of fewer samples than steps honours its spp this way instead of giving every step
+    the sampler's smallest render. A joined step is still unbiased, since its time is drawn
+    over its whole span; it only adds noise (larger poses apart), which the passes measure.
+    """
+    if units >= len(windows):
+        return windows
+    by_pattern: dict[int, list] = {}
+    for w in windows:
+        by_pattern.setdefault(w[0], []).append(w)
+    total = sum(b - a for _, a, b in windows)
+    out = []
+    for k, ws in by_pattern.items():
+        share = units * sum(b - a for _, a, b in ws) / total
+        cuts = np.linspace(0, len(ws), min(len(ws), max(1, int(share))) + 1).round().astype(int)
+        out += [(k, ws[i][1], ws[j - 1][2]) for i, j in zip(cuts[:-1], cuts[1:])]
+    return out
+
+
 def plan_steps(
     edges: np.ndarray,
     is_open: np.ndarray,
@@ -171,5 +196,10 @@ class Exposure:
         """The steps of a pass of ``spp`` samples per pixel (one step for a static pass)."""
         if not self.moving:
             return [Step(0, 0.0, 0.0, max(self.quantum, -(-spp // self.quantum) * self.quantum))]
-        shares = share_spp([b - a for _, a, b in self.windows], spp, self.quantum)
-        return [Step(k, a, b, n) for (k, a, b), n in zip(self.windows, shares)]
+        windows = merge_windows(self.windows, -(-spp // self.quantum))
+        shares = share_spp([b - a for _, a, b in windows], spp, self.quantum)
+        return [Step(k, a, b, n) for (k, a, b), n in zip(windows, shares)]
+
+    def steps_per_pass(self, spp: int) -> int:
+        """How many renders a pass of ``spp`` samples per pixel takes."""
+        return len(self.steps(spp)) if self.moving else 1
