@@ -17,10 +17,14 @@
    against the noise target of a study (0.2 x the ICX285's noise at 300 and 10^4
    photons/px/ms), and what each depth costs.
 4. Error against seconds for a capture of the train window: the Monte Carlo sigma of the
-   default and of ``independent`` at 256 to 4096 spp, and the midpoint rule's total error,
+   default and of ``independent`` at 1024 to 4096 spp (1024 is the default's smallest capture
+   here: 2 passes of 4 spp in each of 128 steps), and the midpoint rule's total error,
    plotted to ``benchmarks/figures/render_error_vs_seconds.png`` (and docs/render_error.png).
 
-    python benchmarks/bench_render_error.py [--full] [--part 1 2 3 4]
+5. The steps' times as one stream: one uniform draw per pass shared by every step (a randomly
+   shifted grid of times, still unbiased) against an independent draw per step.
+
+    python benchmarks/bench_render_error.py [--full] [--quick] [--part 1 2 3 4 5]
 """
 
 from __future__ import annotations
@@ -111,7 +115,7 @@ def _streak(step_px: float, spp: int, seed: int, passes: int = 4):
     return capture(spec, psf_scene(500.0, 1.3, camera=cam, radius_mm=0.05))
 
 
-def _train(step_px: float, spp: int, seed: int, passes: int = 4):
+def _train(step_px: float, spp: int, seed: int, passes: int = 2):
     spec = CaptureSpec(
         scene="train", mode="coded", spp=spp, seed=seed, max_step_px=step_px, passes=passes,
         **WINDOW,
@@ -122,9 +126,11 @@ def _train(step_px: float, spp: int, seed: int, passes: int = 4):
 def time_step_rows(full: bool) -> list[dict]:
     """Error of each rule and step against a fine stratified reference (noise removed)."""
     rows = []
+    # spp per pass at least one sampler render per step (4 spp x 512 steps for the train's
+    # 0.125 px reference): below that a pass joins steps (merge_windows), not what is measured
     cases = [
-        ("moving point", _streak, 0.05, 4096, (0.25, 0.5, 1.0, 2.0, 6.0), 512),
-        ("train window", _train, 0.125, 8192 if full else 4096, (0.25, 0.5, 1.0, 2.0), 1024),
+        ("moving point", _streak, 0.05, 8192, (0.25, 0.5, 1.0, 2.0, 6.0), 1024),
+        ("train window", _train, 0.125, 16384 if full else 8192, (0.25, 0.5, 1.0, 2.0), 2048),
     ]
     for name, make, fine_px, fine_spp, steps, spp in cases:
         ref = make(fine_px, fine_spp, 100)
@@ -149,6 +155,53 @@ def time_step_rows(full: bool) -> list[dict]:
                         "error not in sigma": uncounted,
                         "seconds": t,
                         "1/(error^2 t)": 1.0 / (max(err2, 1e-30) * t),
+                    }
+                )
+                print(rows[-1], flush=True)
+    return rows
+
+
+@contextlib.contextmanager
+def shifted_grid():
+    """One time draw per pass, shared by its steps: a randomly shifted grid of times (the
+    steps' times one stream), instead of an independent draw per step."""
+    jittered = integrate.step_draws
+
+    def shared(seed, j, k):
+        return jittered(seed, j, k)[0], jittered(seed, j, 2**31)[1]
+
+    integrate.step_draws = shared
+    try:
+        yield
+    finally:
+        integrate.step_draws = jittered
+
+
+def shifted_rows() -> list[dict]:
+    """Jittered times against a shifted grid, two seeds each, against a fine reference."""
+    rows = []
+    cases = [
+        ("moving point", _streak, (0.05, 8192, 100), ((0.5, 1024), (1.0, 1024), (2.0, 1024))),
+        ("train window", _train, (0.125, 8192, 100), ((0.5, 2048), (1.0, 2048), (2.0, 2048))),
+    ]
+    for name, make, ref_args, runs in cases:
+        ref = make(*ref_args)
+        ref_var = float(np.mean(ref.mc_sigma**2))
+        for rule in ("jittered", "shifted grid"):
+            for step, spp in runs:
+                with shifted_grid() if rule == "shifted grid" else contextlib.nullcontext():
+                    caps = [make(step, spp, seed) for seed in (0, 1)]
+                err2 = [float(np.mean((c.image - ref.image) ** 2)) - ref_var for c in caps]
+                rows.append(
+                    {
+                        "case": name,
+                        "times": rule,
+                        "max_step_px": step,
+                        "spp": spp,
+                        "RMS error (2 seeds)": float(np.sqrt(max(np.mean(err2), 0.0))),
+                        "recorded sigma (2 seeds)": float(
+                            np.sqrt(np.mean([c.record.render_error["mc_sigma"] ** 2 for c in caps]))
+                        ),
                     }
                 )
                 print(rows[-1], flush=True)
@@ -211,17 +264,17 @@ def bounce_rows(full: bool) -> list[dict]:
     return rows
 
 
-def seconds_rows() -> list[dict]:
+def seconds_rows(ref_spp: int, spps: tuple[int, ...]) -> list[dict]:
     """Monte Carlo sigma against seconds on the train window, and the midpoint's error."""
     rows = []
-    ref = _train(0.125, 8192, 100)
+    ref = _train(0.125, ref_spp, 100)
     ref_var = float(np.mean(ref.mc_sigma**2))
     for label, sampler, rule in (
         (f"{DEFAULT_SAMPLER} (default)", DEFAULT_SAMPLER, "stratified"),
         ("independent", "independent", "stratified"),
         ("independent, midpoint rule", "independent", "midpoint"),
     ):
-        for spp in (256, 1024, 4096):
+        for spp in spps:
             spec = CaptureSpec(scene="train", mode="coded", spp=spp, sampler=sampler, **WINDOW)
             with midpoint_rule() if rule == "midpoint" else contextlib.nullcontext():
                 cap = capture(spec)
@@ -266,37 +319,50 @@ def _plot_seconds(rows: list[dict], lf: float) -> None:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--full", action="store_true", help="more spp (slower)")
-    ap.add_argument("--part", type=int, nargs="*", default=[1, 2, 3, 4])
+    ap.add_argument("--quick", action="store_true", help="fewer spp: about a third of the time")
+    ap.add_argument("--note", default="", help="appended to each table's caption")
+    ap.add_argument("--part", type=int, nargs="*", default=[1, 2, 3, 4, 5])
     args = ap.parse_args()
     t0 = time.perf_counter()
+    note = f"; {args.note}" if args.note else ""
+    ref_spp = 4096 if args.quick else 8192
     if 1 in args.part:
         record(
             "Render error: samplers at equal spp (issue 25)",
-            sampler_rows((1024, 4096) if args.full else (1024, 4096)),
+            sampler_rows((1024,) if args.quick else (1024, 4096)),
             "coded train, 200x120 window at (200, 560) of the 1280x960 sensor, 0.5 px steps "
             "(128 per pass), 2 passes; sigma from two seeds, t = render_seconds; bias: the "
-            "mean difference from independent in standard errors",
+            "mean difference from independent in standard errors" + note,
         )
     if 2 in args.part:
         record(
             "Render error: time steps, stratified random times against the midpoint rule",
             time_step_rows(args.full),
-            "error against a fine stratified reference (moving point: 0.05 px, 4096 spp; "
-            "train: 0.125 px), its noise removed; 'error not in sigma' is the part the recorded "
-            "Monte Carlo sigma does not cover (the bias)",
+            "error against a fine stratified reference (moving point: 0.05 px, 8192 spp; "
+            "train: 0.125 px, 8192 spp, 16384 with --full), its noise removed; 'error not in "
+            "sigma' is the part the recorded Monte Carlo sigma does not cover (the bias)" + note,
         )
     if 3 in args.part:
         record(
             "Render error: light past each path depth, against a study's noise target",
             bounce_rows(args.full),
             "reference camera, full pixel scale; white = 1; the RMS is E[d1 d2] of two seeds "
-            "(noise-free); targets: 0.2 x the ICX285's noise at the scene's mean level",
+            "(noise-free); targets: 0.2 x the ICX285's noise at the scene's mean level" + note,
         )
     if 4 in args.part:
         record(
             "Render error against seconds: a coded capture of the train window",
-            seconds_rows(),
-            "error against an 8192 spp, 0.125 px reference (its noise removed); capture units",
+            seconds_rows(ref_spp, (1024, 2048) if args.quick else (1024, 2048, 4096)),
+            f"error against a {ref_spp} spp, 0.125 px reference (its noise removed); capture "
+            "units" + note,
+        )
+    if 5 in args.part:
+        record(
+            "Render error: one time draw per pass (a shifted grid) against jittered step times",
+            shifted_rows(),
+            "error against a fine jittered reference (noise removed), mean square over two "
+            "seeds; the recorded sigma is the captures' own (4 passes for the point, 2 for the "
+            "train)" + note,
         )
     print(f"{time.perf_counter() - t0:.0f} s")
 
