@@ -25,7 +25,7 @@ _EXPORTS = {
     ".errors": ["ParameterError"],
     ".exposure.capture": ["Capture", "CaptureSpec", "render_capture", "write_capture"],
     ".exposure.estimate": ["AbsoluteTarget"],
-    ".exposure.record": ["CaptureRecord", "analytic_psf"],
+    ".exposure.record": ["CaptureFile", "CaptureRecord", "analytic_psf", "read_capture"],
     ".model.camera": ["CameraDesign", "preset", "prototype"],
     ".model.design": [("solve_design", "solve")],
     ".model.modes": ["MODES", "Mode", "capture_camera", "mode"],

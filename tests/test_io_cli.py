@@ -230,3 +230,59 @@ def test_cli_deconvolve_psf_file_beside_a_json_without_camera(tmp_path, capsys):
     assert np.isfinite(exrio.read_exr(out)["deconvolved"]).all()
     bad = ["deconvolve", str(cap), "--psf", "analytic", "--out", str(tmp_path / "e.exr")]
     assert main(bad) == 2
+
+
+def test_read_capture_divides_the_capture_layers_by_the_light_factor(tmp_path):
+    """A hand-made capture: exactly its capture-unit layers are divided, and nothing else."""
+    from pacam_render import read_capture
+    from pacam_render.exposure.record import LAYER_UNITS, WHITE_UNIT
+
+    rng = np.random.default_rng(2)
+    img = rng.random((4, 5, 3)).astype(np.float32)
+    layers = {"capture": img, "noisy": img, "sub03": img, "sharp": img, "raw": img}
+    exrio.write_exr(tmp_path / "capture.exr", {**layers, "depth": img[..., 0]})
+    meta = {"camera": prototype().inputs(), "mode": "coded", "light_factor": 0.25}
+    (tmp_path / "capture.json").write_text(json.dumps(meta))
+    got = read_capture(tmp_path)  # the folder works as well as the file
+    for name in ("capture", "noisy", "sub03"):
+        assert np.allclose(got.layers[name], img * 4, rtol=1e-6) and got.units[name] == WHITE_UNIT
+    for name in ("sharp", "raw"):
+        assert np.array_equal(got.layers[name], img)
+    assert got.units["raw"] == LAYER_UNITS["raw"] and got.units["sharp"] == WHITE_UNIT
+    assert np.array_equal(got.layers["depth"], img[..., 0]) and got.record.light_factor == 0.25
+    (tmp_path / "capture.json").write_text(json.dumps({**meta, "light_factor": 0.0}))
+    with pytest.raises(ParameterError, match="light_factor"):
+        read_capture(tmp_path / "capture.exr")
+    (tmp_path / "capture.json").unlink()
+    with pytest.raises(ParameterError, match="capture.json"):
+        read_capture(tmp_path / "capture.exr")
+
+
+@pytest.fixture(scope="module")
+def coded_capture(tmp_path_factory):
+    """A small coded capture of the train with its ground truth (rendered once, 3-6 s)."""
+    out = tmp_path_factory.mktemp("coded") / "cap"
+    args = ["render", "train", "--mode", "coded", "--width", "160", "--height", "120"]
+    assert main([*args, "--spp", "16", "--out", str(out), "--quiet"]) == 0
+    return out / "capture.exr"
+
+
+@pytest.mark.render
+def test_a_capture_records_its_units_and_reads_back_on_one_scale(coded_capture):
+    """capture.json names each layer's unit; read_capture puts capture and sharp on one scale:
+    the coded capture and the pinhole image collect the same light over the frame (their means
+    agree within 2 %), where the file's layers differ by light_factor (0.08)."""
+    from pacam_render import read_capture
+
+    meta = json.loads(coded_capture.with_suffix(".json").read_text())
+    raw = exrio.read_exr(coded_capture)
+    assert set(meta["units"]) == set(raw)
+    assert meta["units"]["capture"].startswith("radiance x light_factor")
+    assert meta["units"]["sharp"].startswith("radiance (")
+    lf = meta["light_factor"]
+    assert raw["capture"].mean() / raw["sharp"].mean() == pytest.approx(lf, rel=0.02)
+    got = read_capture(coded_capture)
+    assert got.layers["capture"].mean() == pytest.approx(got.layers["sharp"].mean(), rel=0.02)
+    assert np.allclose(got.layers["capture"], raw["capture"] / lf, rtol=1e-6)
+    assert np.array_equal(got.layers["velocity"], raw["velocity"])
+    assert set(got.units.values()) >= {meta["units"]["sharp"]}

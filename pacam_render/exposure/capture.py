@@ -45,7 +45,7 @@ from ..render.samplers import DEFAULT_SAMPLER, check_sampler, quantum, sampler_d
 from .checkpoint import deferred_signals
 from .estimate import check_passes
 from .integrate import CaptureInterrupted, Run
-from .record import CaptureRecord
+from .record import CaptureRecord, layer_unit
 from .truth import TRUTH_LAYERS
 
 MODES = tuple(MODE_TABLE)
@@ -756,8 +756,9 @@ def write_capture(cap: Capture, out: Path, force: bool, error_layer: bool = Fals
     of :mod:`~pacam_render.exposure.truth`, and ``raw`` and ``noisy`` after the sensor) and
     ``subNN`` per pattern image. The preview shows the
     ``noisy`` layer when there is one (else the image), exposed by 1 / ``light_factor``
-    (auto-exposed when that is 0); capture.json is the record. Each file is
-    written to a temporary file and renamed.
+    (auto-exposed when that is 0); capture.json is the record, with each layer's unit
+    (``units``; :func:`~pacam_render.exposure.record.read_capture` reads them on one scale).
+    Each file is written to a temporary file and renamed.
     """
     from ..io.exr import write_exr
     from ..io.preview import srgb8, write_png
@@ -767,6 +768,7 @@ def write_capture(cap: Capture, out: Path, force: bool, error_layer: bool = Fals
         layers["mc_sigma"] = cap.mc_sigma
     for k, img in sorted(cap.patterns.items()):
         layers[f"sub{k:02d}"] = img
+    cap.record.units = {name: layer_unit(name) for name in layers}
     lf = cap.record.light_factor
     exposure = 1.0 / lf if lf > 0 else None
     shown = cap.extra_layers.get("noisy", cap.image)  # what the camera delivers, with --sensor

@@ -11,13 +11,42 @@ the demo's older sensor block (``light_level`` for ``light_level_photons_per_px_
 
 from __future__ import annotations
 
+import os
+import re
 from dataclasses import asdict, dataclass, field, fields
-from typing import Any
+from pathlib import Path
+from typing import Any, NamedTuple
+
+import numpy as np
 
 from ..errors import ParameterError
 from ..model import paper
 
 PIXEL_UNIT = "radiance x (open area / full aperture) x (exposure / 45 ms)"
+
+CAPTURE_UNIT = "radiance x light_factor (a white diffuse surface reads light_factor)"
+"""The unit of the layers a capture collects through its aperture and exposure."""
+WHITE_UNIT = "radiance (a white diffuse surface reads 1)"
+"""The unit of ``sharp``, and of every layer that :func:`read_capture` returns scaled."""
+LAYER_UNITS = {
+    "capture": CAPTURE_UNIT,
+    "noisy": CAPTURE_UNIT,
+    "mc_sigma": CAPTURE_UNIT + ", the capture's Monte Carlo sigma",
+    "raw": "DN (the sensor's digital numbers)",
+    "sharp": WHITE_UNIT,
+    "depth": "mm (0: no surface)",
+    "object_id": "1 + shape index ('objects' names it; 0: no surface)",
+    "velocity": "px/ms of the capture's pixels (u right, v down)",
+}
+"""The unit of each layer a ``capture.exr`` may hold; ``subNN`` (one pattern's image) has
+``capture``'s. Layers in :data:`CAPTURE_UNIT` are divided by ``light_factor`` to be compared
+with ``sharp``: :func:`read_capture` does it."""
+_PATTERN_LAYER = re.compile(r"sub\d+")
+
+
+def layer_unit(name: str) -> str | None:
+    """The unit of capture layer ``name`` (:data:`LAYER_UNITS`), or None for an unknown one."""
+    return LAYER_UNITS["capture"] if _PATTERN_LAYER.fullmatch(name) else LAYER_UNITS.get(name)
 
 
 @dataclass
@@ -87,6 +116,8 @@ class CaptureRecord:
     """The window of the sensor rendered: x, y, width, height and the sensor's size, px."""
     objects: dict | None = None
     """The ``object_id`` layer's legend: id (a string) to shape id; 0 is no surface."""
+    units: dict | None = None
+    """Each layer of ``capture.exr`` to its unit (:data:`LAYER_UNITS`), written with the file."""
     render_error: dict | None = None
     """The render's own error and its cost (:mod:`~pacam_render.exposure.estimate`):
     ``mc_sigma`` (RMS over the window, the capture's units), ``mc_sigma_white_units``,
@@ -101,7 +132,7 @@ class CaptureRecord:
         """The JSON-ready dict; optional fields that are unset are left out."""
         out = {k: v for k, v in asdict(self).items() if k not in ("extra", "sensor")}
         optional = ("resumed_from_step", "fastest_image_speed_px_per_ms", "noise_sigma")
-        for key in (*optional, "crop", "objects", "render_error"):
+        for key in (*optional, "crop", "objects", "units", "render_error"):
             if out[key] is None:
                 del out[key]
         if self.sensor is not None:
@@ -164,3 +195,63 @@ def robust_psf(record: CaptureRecord, size=None):
 
     cam = CameraDesign.from_inputs(record.camera)
     return speed_robust_psf(cam, record.mode, size=size, origin="pinhole")
+
+
+class CaptureFile(NamedTuple):
+    """A capture read by :func:`read_capture`: its layers on one scale, and its record."""
+
+    layers: dict[str, np.ndarray]
+    """Every layer of ``capture.exr``; those in :data:`CAPTURE_UNIT` divided by
+    ``light_factor``, so they and ``sharp`` are all in :data:`WHITE_UNIT`."""
+    record: CaptureRecord
+    units: dict[str, str]
+    """Each returned layer to its unit (None for a layer this version does not know)."""
+
+
+def read_capture(path: str | os.PathLike) -> CaptureFile:
+    """Read a capture (``capture.exr`` and its JSON) with every image layer on the white scale.
+
+    A capture's own layers (``capture``, ``noisy``, ``subNN``, ``mc_sigma``) are radiance x
+    ``light_factor``, its ground truth ``sharp`` plain radiance; this divides the former by
+    ``light_factor``, so that e.g. a PSNR of ``noisy`` against ``sharp`` means what it says.
+
+    Parameters
+    ----------
+    path : path-like
+        The ``capture.exr`` file, or the folder that holds it; ``capture.json`` (the same
+        name, ``.json``) must be beside it.
+
+    Returns
+    -------
+    CaptureFile
+        ``layers`` (float32, white = 1; ``raw`` stays in DN, ``depth`` in mm, ...), ``record``
+        (the :class:`CaptureRecord`, unchanged: ``light_factor`` still says the file's scale)
+        and ``units`` (each returned layer's unit).
+
+    Raises
+    ------
+    ParameterError
+        If a file is missing or unreadable, or ``light_factor`` is not > 0.
+    """
+    import json
+
+    from ..errors import check_positive
+    from ..io.exr import read_exr
+
+    exr = Path(path)
+    exr = exr / "capture.exr" if exr.is_dir() else exr
+    sidecar = exr.with_suffix(".json")
+    if not sidecar.is_file():
+        raise ParameterError(f"{exr} has no {sidecar.name} beside it: its scale is not known")
+    try:
+        record = CaptureRecord.from_json(json.loads(sidecar.read_text()), where=str(sidecar))
+    except json.JSONDecodeError as exc:
+        raise ParameterError(f"{sidecar} is not valid JSON ({exc})") from None
+    lf = check_positive(f"light_factor in {sidecar}", record.light_factor)
+    layers, units = {}, {}
+    for name, arr in read_exr(exr).items():
+        unit = layer_unit(name)
+        scaled = unit is not None and unit.startswith(CAPTURE_UNIT)
+        layers[name] = (arr / np.float32(lf)) if scaled else arr
+        units[name] = unit.replace(CAPTURE_UNIT, WHITE_UNIT) if scaled else unit
+    return CaptureFile(layers, record, units)
