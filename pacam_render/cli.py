@@ -12,6 +12,7 @@ import sys
 import warnings
 from collections.abc import Sequence
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 
@@ -27,6 +28,7 @@ from .model.design import solve
 from .model.modes import MODES, MODES_WITH_PSF
 from .model.report import design_report
 from .psf.analytic import design_psf
+from .psf.origin import origin_record, to_pinhole
 from .render.samplers import DEFAULT_SAMPLER, SAMPLERS
 from .restore.deconvolve import BM3D_LICENCE, METHODS, deconvolve
 from .sensor.apply import layer_noise
@@ -84,6 +86,8 @@ def _cmd_demo(args: argparse.Namespace) -> int:
 
 
 def _cmd_psf(args: argparse.Namespace) -> int:
+    if args.origin is None:  # a kernel made for a capture is centred as deconvolve centres it
+        args.origin = "pinhole" if args.like is not None else "t0"
     check_positive("--depth", args.depth, "mm")
     check_finite("--velocity", args.velocity)
     cam, crop = _psf_geometry(args)
@@ -110,6 +114,7 @@ def _cmd_psf(args: argparse.Namespace) -> int:
         "velocity_px_per_ms": args.velocity,
         "size_px": list(k.shape),
         **({"crop": crop} if crop else {}),
+        **origin_record(cam, args.mode, args.origin),
         "psf_origin": "centre pixel = where the point images at mid-exposure (t = 0)"
         if args.origin == "t0"
         else "centre pixel = where a pinhole at the lens centre images the point at t = 0",
@@ -225,12 +230,22 @@ def _capture_record(capture: Path, required: bool) -> CaptureRecord | None:
         return None
 
 
-def _load_psf(spec: str, capture: Path, record: CaptureRecord | None) -> np.ndarray:
+class _PSF(NamedTuple):
+    """A kernel to deblur with, where it came from, and what its centre pixel stands for."""
+
+    kernel: np.ndarray
+    file: Path | None
+    origin: str
+    t0_offset_px: float
+
+
+def _load_psf(spec: str, capture: Path, record: CaptureRecord | None) -> _PSF:
     if spec in ("analytic", "robust"):
         if record is None:
             path = capture.with_suffix(".json")
             raise ParameterError(f"--psf {spec} needs the capture's parameters in {path}")
-        return analytic_psf(record) if spec == "analytic" else robust_psf(record)
+        k = analytic_psf(record) if spec == "analytic" else robust_psf(record)
+        return _PSF(k, None, "pinhole", 0.0)
     path = capture.parent / "psf_rendered.exr" if spec == "rendered" else Path(spec)
     if spec == "rendered" and not path.is_file():
         raise ParameterError(
@@ -238,26 +253,53 @@ def _load_psf(spec: str, capture: Path, record: CaptureRecord | None) -> np.ndar
             f"--render --out {capture.parent} ...` at the capture's depth and mode, or use "
             "--psf analytic"
         )
-    _check_psf_scale(path, capture, record)
+    meta = _psf_sidecar(path)
+    _check_psf_scale(path, meta, capture, record)
+    origin, offset = _psf_origin(path, meta)
     if path.suffix == ".npy":
-        return _load_npy_psf(path)
+        return _PSF(_load_npy_psf(path), path, origin, offset)
     layers = read_exr(path)
     if "psf" in layers:
-        return layers["psf"]
+        return _PSF(layers["psf"], path, origin, offset)
     if len(layers) == 1:
-        return next(iter(layers.values()))
+        return _PSF(next(iter(layers.values())), path, origin, offset)
     raise ParameterError(f"{path} has no 'psf' layer; it has: {', '.join(sorted(layers))}")
 
 
-def _check_psf_scale(path: Path, capture: Path, record: CaptureRecord | None) -> None:
+def _psf_sidecar(path: Path) -> dict | None:
+    """The ``psf.json`` that ``pacam psf`` wrote beside an EXR kernel, or None."""
+    sidecar = path.parent / "psf.json"
+    if path.suffix == ".npy" or not sidecar.is_file():
+        return None
+    try:
+        meta = json.loads(sidecar.read_text())
+    except json.JSONDecodeError:
+        return None
+    return meta if isinstance(meta, dict) else None
+
+
+def _psf_origin(path: Path, meta: dict | None) -> tuple[str, float]:
+    """The kernel's origin and t = 0 offset (px) from its psf.json. A kernel without one is
+    taken as centred like the capture (the pinhole image); an older t0 file, which lacks the
+    offset, is used as it is, with a note."""
+    from .psf.origin import recorded_origin
+
+    origin, offset = recorded_origin(meta or {})
+    if origin == "t0" and offset is None:
+        warnings.warn(
+            f"{path} is centred on the t = 0 image but its psf.json (from an older pacam) does "
+            "not record how far that lies from the pinhole image, so the result is not moved "
+            "onto the capture's registration; remake it with pacam psf --like CAPTURE.exr",
+            PacamWarning,
+            stacklevel=2,
+        )
+        return "pinhole", 0.0
+    return origin or "pinhole", offset or 0.0
+
+
+def _check_psf_scale(path: Path, meta, capture: Path, record: CaptureRecord | None) -> None:
     """Refuse a kernel made for another sensor size than the capture's (px scale differs)."""
     sidecar = path.parent / "psf.json"
-    meta = None
-    if path.suffix != ".npy" and sidecar.is_file():
-        try:
-            meta = json.loads(sidecar.read_text())
-        except json.JSONDecodeError:
-            meta = None
     if not isinstance(meta, dict) or "width_px" not in meta:
         warnings.warn(
             f"{path} records no sensor size: make sure it was made at the capture's scale "
@@ -303,15 +345,27 @@ def _deconvolve_layer(layers: list[str], layer: str | None) -> str:
     return "noisy" if "noisy" in layers else "capture"
 
 
-def _noise_sigma(args, layer: str, layers: list[str], record) -> float | None:
-    """--noise-sigma, else the noise the capture recorded, else None (the deconvolver
-    estimates it). A sensor capture's recorded noise belongs to its ``noisy`` layer; its
-    other layers are noiseless."""
+def _noise(args, kw: dict, how: str | None, image, layer: str, layers, record) -> dict:
+    """The noise the deconvolver is told, and where it came from; sets ``noise_sigma`` in
+    ``kw`` for the methods that take one. --noise-sigma, else the noise the capture recorded
+    (a sensor capture's belongs to its ``noisy`` layer; its other layers are noiseless), else
+    the layer's wavelet estimate (what the deconvolver would estimate itself)."""
+    from .restore.deconvolve import estimate_noise_sigma
+
+    if "noise" in kw:  # hl/tv on the sensor's own layer: its Poisson-Gaussian model
+        return {"sigma": record.known_noise_sigma, "source": how}
+    if args.method not in ("wiener", "hl", "tv", "bm3d"):
+        return {"sigma": None, "source": f"not used by {args.method}"}
+    known = record is not None and (layer == "noisy" or "noisy" not in layers)
     if args.noise_sigma is not None:
-        return args.noise_sigma
-    if record is not None and (layer == "noisy" or "noisy" not in layers):
-        return record.known_noise_sigma
-    return None
+        sigma, source = args.noise_sigma, "--noise-sigma"
+    elif known and record.known_noise_sigma is not None:
+        sigma, source = record.known_noise_sigma, "the capture's JSON (noise_sigma)"
+    else:
+        sigma = estimate_noise_sigma(np.asarray(image, float))
+        source = "estimated from the layer (wavelet MAD)"
+    kw["noise_sigma"] = sigma
+    return {"sigma": sigma, "source": source}
 
 
 def _sparse_options(args, layer: str, record) -> tuple[dict, str | None]:
@@ -329,34 +383,141 @@ def _sparse_options(args, layer: str, record) -> tuple[dict, str | None]:
     return kw, None
 
 
-def _cmd_deconvolve(args: argparse.Namespace) -> int:
+_FILE_SUFFIXES = {".txt", ".json", ".npy", ".tif", ".tiff", ".jpg", ".jpeg", ".hdr", ".pfm"}
+"""An --out with one of these is a mistyped file name, not a folder."""
+
+
+def _deconvolve_out(args: argparse.Namespace, inputs: list[Path]) -> tuple[Path, bool]:
+    """The output folder, or (``file`` True) the single .exr/.png file of older versions;
+    refused if it would replace an input or, without --force, an existing result."""
     out = Path(args.out)
-    if out.suffix not in (".exr", ".png"):
-        raise ParameterError(f"--out must end in .exr or .png, got {out}")
-    check_writable(out, args.force, "--out")
+    if any(out.resolve() == p.resolve() for p in inputs):
+        raise ParameterError(f"--out {out} is an input of this command; give another path")
+    if out.suffix in (".exr", ".png"):
+        print(
+            f"note: --out {out} writes the image only; --out DIR writes deconvolved.exr, "
+            ".png and .json (method, PSF, noise and the score against sharp)",
+            file=sys.stderr,
+        )
+        return check_writable(out, args.force, "--out"), True
+    if out.suffix.lower() in _FILE_SUFFIXES and not out.is_dir():
+        raise ParameterError(
+            f"--out {out} names a file; give a folder (or a file ending in .exr or .png)"
+        )
+    return prepare_out_dir(out, args.force), False
+
+
+def _deconvolve_score(est, layers: dict, layer: str, record) -> dict:
+    """PSNR and SSIM against ``sharp`` as a study scores (:func:`.study.score.score_capture`),
+    on the white scale; empty without the truth layers (``--no-truth``) or for a layer that is
+    not the image."""
+    from .study.score import score_capture
+
+    truth = {"sharp", "object_id", "velocity"}
+    if record is None or layer not in ("capture", "noisy") or not truth <= set(layers):
+        return {}
+    if record.light_factor <= 0 or est.shape != layers["sharp"].shape:
+        return {}
+    out = score_capture(est / record.light_factor, layers, record)
+    return {**out, "psnr_by_object": json.loads(out["psnr_by_object"])}
+
+
+def _score_line(sc: dict) -> str:
+    moving = sc["psnr_moving_db"]
+    still = f"still {sc['psnr_static_db']:.2f} dB" + (
+        f", moving {moving:.2f} dB (each at its best shift)" if np.isfinite(moving) else ""
+    )
+    return f"score against sharp: PSNR {sc['psnr_db']:.2f} dB, SSIM {sc['ssim']:.3f}; {still}"
+
+
+def _cmd_deconvolve(args: argparse.Namespace) -> int:
+    import time
+
     capture = Path(args.capture)
+    psf_file = capture.parent / "psf_rendered.exr" if args.psf == "rendered" else Path(args.psf)
+    inputs = [capture] if args.psf in ("analytic", "robust") else [capture, psf_file]
+    out, single_file = _deconvolve_out(args, inputs)
     layers = read_exr(capture)
     layer = _deconvolve_layer(list(layers), args.layer)
     image = pick_layer(layers, layer, capture)
     record = _capture_record(capture, required=args.psf in ("analytic", "robust"))
     kw, how = _sparse_options(args, layer, record)
-    k = _load_psf(args.psf, capture, record)
-    sigma = None if "noise" in kw else _noise_sigma(args, layer, list(layers), record)
-    if args.method in ("wiener", "hl", "tv", "bm3d") and "noise" not in kw:
-        kw["noise_sigma"] = sigma
+    psf = _load_psf(args.psf, capture, record)
+    noise = _noise(args, kw, how, image, layer, layers, record)
     if args.method == "bm3d":
         print(f"note: {BM3D_LICENCE}", file=sys.stderr)
-    est = deconvolve(image, k, args.method, **kw)
-    if out.suffix == ".exr":
-        write_exr(out, {"deconvolved": est}, force=args.force)
+    start = time.perf_counter()
+    est = deconvolve(image, psf.kernel, args.method, **kw)
+    est = to_pinhole(est, psf.origin, psf.t0_offset_px)  # the capture's registration
+    seconds = time.perf_counter() - start
+    sc = _deconvolve_score(est, layers, layer, record)
+    if single_file:
+        _write_deconvolved_file(out, est, args.force)
     else:
-        write_png(out, srgb8(est), force=args.force)
-    how = how or ("estimated" if sigma is None else f"sigma {sigma:.4g}")
+        info = {"capture": str(capture), "layer": layer, "method": args.method, "seconds": seconds}
+        _write_deconvolved(out, est, record, {**info, **_psf_json(args, psf), **sc}, noise)
     print(
-        f"wrote {out} ({args.method}, layer {layer}, noise {how}, "
-        f"PSF {k.shape[0]}x{k.shape[1]} px from {args.psf})"
+        f"wrote {out} ({args.method}, layer {layer}, noise {_noise_words(noise, how)}, "
+        f"PSF {psf.kernel.shape[0]}x{psf.kernel.shape[1]} px from {args.psf}, {seconds:.2g} s)"
     )
+    if sc:
+        print(_score_line(sc))
     return 0
+
+
+def _noise_words(noise: dict, model: str | None) -> str:
+    """The noise for the summary line: the sensor's model, a sigma and its source, or not
+    used."""
+    sigma = noise["sigma"]
+    if model is not None or sigma is None:
+        return model or noise["source"]
+    if noise["source"].startswith("estimated"):
+        return f"estimated, sigma {sigma:.4g}"
+    return f"sigma {sigma:.4g} ({noise['source']})"
+
+
+def _psf_json(args, psf: _PSF) -> dict:
+    """The PSF's entry in deconvolved.json."""
+    shift = -psf.t0_offset_px if psf.origin == "t0" else 0.0
+    return {
+        "psf": {
+            "source": args.psf,
+            "file": None if psf.file is None else str(psf.file),
+            "size_px": list(psf.kernel.shape[:2]),
+            "origin": psf.origin,
+            "result_shifted_px": shift,  # onto the pinhole image, the capture's registration
+        }
+    }
+
+
+def _write_deconvolved_file(out: Path, est, force: bool) -> None:
+    if out.suffix == ".exr":
+        write_exr(out, {"deconvolved": est}, force=force)
+    else:
+        write_png(out, srgb8(est), force=force)
+
+
+def _write_deconvolved(out: Path, est, record, info: dict, noise: dict) -> None:
+    """deconvolved.exr (the layer's units), .png (exposed like capture.png) and .json."""
+    from .exposure.record import layer_unit
+
+    lf = None if record is None else record.light_factor
+    exposure = 1.0 / lf if lf else None
+    meta = {
+        **info,
+        "noise_sigma": noise["sigma"],
+        "noise_sigma_source": noise["source"],
+        "light_factor": lf,
+        "units": {"deconvolved": layer_unit(info["layer"])},
+    }
+    if "psnr_db" in info:
+        meta["score_note"] = (
+            "against the capture's sharp layer, deconvolved / light_factor, as pacam study "
+            "scores (PSNR and SSIM over the window; per object PSNR dB and best shift px)"
+        )
+    write_exr(out / "deconvolved.exr", {"deconvolved": est}, force=True)
+    write_png(out / "deconvolved.png", srgb8(est, exposure), force=True)
+    write_json(out / "deconvolved.json", meta, force=True)
 
 
 def _cmd_reproduce(args: argparse.Namespace) -> int:
@@ -763,10 +924,10 @@ def _add_psf(sub) -> None:
     )
     p.add_argument(
         "--origin",
-        default="t0",
         choices=("t0", "pinhole"),
         help="what the centre pixel stands for: the t = 0 image (default) or the pinhole image "
-        "(as 'deconvolve --psf analytic' registers captures)",
+        "(as 'deconvolve --psf analytic' registers captures; the default with --like). "
+        "psf.json records it, and deconvolve moves a t0 kernel's result onto the pinhole image",
     )
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.add_argument("--out", required=True, metavar="DIR")
@@ -807,8 +968,14 @@ def _add_deconvolve(sub) -> None:
         help="noise std in the layer's units (default: the sensor's, recorded in the capture's "
         "JSON, for the noisy layer; otherwise estimated)",
     )
-    p.add_argument("--out", required=True, metavar="FILE", help=".exr (float) or .png (preview)")
-    p.add_argument("--force", action="store_true", help="overwrite an existing FILE")
+    p.add_argument(
+        "--out",
+        required=True,
+        metavar="DIR",
+        help="folder for deconvolved.exr, .png and .json (method, PSF, noise, seconds and the "
+        "score against sharp); a path ending in .exr or .png writes that one file, as before",
+    )
+    p.add_argument("--force", action="store_true", help="overwrite existing results")
     p.set_defaults(func=_cmd_deconvolve)
 
 

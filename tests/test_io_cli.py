@@ -286,3 +286,140 @@ def test_a_capture_records_its_units_and_reads_back_on_one_scale(coded_capture):
     assert np.allclose(got.layers["capture"], raw["capture"] / lf, rtol=1e-6)
     assert np.array_equal(got.layers["velocity"], raw["velocity"])
     assert set(got.units.values()) >= {meta["units"]["sharp"]}
+
+
+def _blurred_camera_capture(folder, sigma=0.01):
+    """The camera photograph blurred by the prototype's coded PSF, registered on the pinhole
+    image as a rendered capture is, with white noise of ``sigma``; returns (capture, truth)."""
+    cam = prototype()
+    x = data.camera()[::4, ::4] / 255.0
+    k = psf.design_psf(cam, "coded", 0.0, origin="pinhole")
+    pad = k.shape[1]
+    y = fftconvolve(np.pad(x, pad, mode="reflect"), k, mode="same")[pad:-pad, pad:-pad]
+    y = y + np.random.default_rng(0).normal(0, sigma, y.shape)
+    cap = folder / "capture.exr"
+    exrio.write_exr(cap, {"capture": y})
+    meta = {"camera": cam.inputs(), "mode": "coded", "noise_sigma": sigma}
+    (folder / "capture.json").write_text(json.dumps(meta))
+    return cap, x
+
+
+def _best_shift(est, truth, reach=8):
+    """The whole-pixel horizontal shift d that best aligns est[:, c + d] with truth[:, c]."""
+    m = reach + 12
+    inner = truth[m:-m, m:-m]
+    errs = [
+        np.mean((est[m:-m, m + d : est.shape[1] - m + d] - inner) ** 2)
+        for d in range(-reach, reach + 1)
+    ]
+    return int(np.argmin(errs)) - reach
+
+
+@pytest.mark.parametrize("method", ["wiener", "hl"])
+def test_a_t0_psf_file_is_moved_onto_the_capture_registration(tmp_path, method):
+    """pacam psf centres its kernel on the t = 0 image by default, 5 px (-a_i T^2 / 4) from the
+    pinhole image a capture is registered on. psf.json records both; deconvolve moves the
+    result back, so it lands where --psf analytic lands (best shift 0 against the truth, not
+    5) and the two images agree within 2 % (mean absolute difference over the mean)."""
+    cap, truth = _blurred_camera_capture(tmp_path)
+    assert main(["psf", "--depth", "500", "--velocity", "0", "--out", str(tmp_path / "P")]) == 0
+    meta = json.loads((tmp_path / "P" / "psf.json").read_text())
+    closed_form = -0.25 * meta["a_i_px_per_ms2"] * meta["T_ms"] ** 2
+    assert meta["origin"] == "t0" and meta["t0_offset_px"] == pytest.approx(closed_form)
+    assert 4.5 < closed_form < 5.5
+    kernel = tmp_path / "P" / "psf_analytic.exr"
+    runs = {"file": ["--psf", str(kernel)], "analytic": ["--psf", "analytic"]}
+    est = {}
+    for name, flags in runs.items():
+        out = tmp_path / name
+        assert main(["deconvolve", str(cap), *flags, "--method", method, "--out", str(out)]) == 0
+        est[name] = exrio.read_layer(out / "deconvolved.exr", "deconvolved")
+    assert json.loads((tmp_path / "file" / "deconvolved.json").read_text())["psf"]["origin"] == "t0"
+    from pacam_render.restore.deconvolve import deconvolve
+
+    as_is = deconvolve(exrio.read_layer(cap, "capture"), exrio.read_layer(kernel, "psf"), method,
+                       noise_sigma=0.01)  # fmt: skip
+    assert _best_shift(as_is, truth) == 5  # what deconvolve did before it read the origin
+    assert _best_shift(est["file"], truth) == _best_shift(est["analytic"], truth) == 0
+    mad = np.abs(est["file"] - est["analytic"]).mean() / np.abs(est["analytic"]).mean()
+    assert mad < 0.02
+
+
+def test_to_pinhole_moves_by_minus_the_offset():
+    """A t0 result moves by -t0_offset_px (a whole-pixel move is exact); pinhole stays."""
+    from pacam_render.psf.origin import to_pinhole
+
+    img = np.random.default_rng(4).random((9, 20, 3))
+    moved = to_pinhole(img, "t0", 3.0)
+    assert np.allclose(moved[:, :-3], img[:, 3:])
+    assert to_pinhole(img, "pinhole", 3.0) is img
+    with pytest.raises(ParameterError, match="origin must be one of t0, pinhole"):
+        to_pinhole(img, "centre", 3.0)
+
+
+@pytest.mark.render
+def test_psf_like_a_capture_deconvolves_as_the_analytic_psf(coded_capture, tmp_path, capsys):
+    """The README's path (pacam psf --like, then deconvolve --psf that file) gives the image of
+    --psf analytic (issue 27: it was 5 px off at full scale, 14 % apart here)."""
+    kernel = tmp_path / "P"
+    like = ["psf", "--like", str(coded_capture), "--depth", "500", "--velocity", "0"]
+    assert main([*like, "--out", str(kernel)]) == 0
+    assert json.loads((kernel / "psf.json").read_text())["origin"] == "pinhole"
+    est = {}
+    for name, spec in (("X", str(kernel / "psf_analytic.exr")), ("A", "analytic")):
+        cmd = ["deconvolve", str(coded_capture), "--psf", spec, "--method", "wiener"]
+        assert main([*cmd, "--out", str(tmp_path / name)]) == 0
+        est[name] = exrio.read_layer(tmp_path / name / "deconvolved.exr", "deconvolved")
+    mad = np.abs(est["X"] - est["A"]).mean() / np.abs(est["A"]).mean()
+    assert mad < 0.02
+    meta = json.loads((tmp_path / "X" / "deconvolved.json").read_text())
+    assert np.isfinite(meta["psnr_db"]) and "score against sharp: PSNR" in capsys.readouterr().out
+
+
+@pytest.mark.render
+def test_deconvolve_out_dir_records_and_scores(coded_capture, tmp_path, capsys):
+    """--out DIR writes deconvolved.exr, .png (exposed like capture.png) and .json; the score
+    is the deconvolved image / light_factor against sharp: its still-background PSNR matches
+    one computed here from the layers (no shift), and it beats the blurred capture's."""
+    out = tmp_path / "X"
+    cmd = ["deconvolve", str(coded_capture), "--psf", "analytic", "--method", "wiener"]
+    assert main([*cmd, "--out", str(out)]) == 0
+    assert "score against sharp" in capsys.readouterr().out
+    assert sorted(p.name for p in out.iterdir()) == [
+        "deconvolved.exr",
+        "deconvolved.json",
+        "deconvolved.png",
+    ]
+    meta = json.loads((out / "deconvolved.json").read_text())
+    assert meta["method"] == "wiener" and meta["psf"]["source"] == "analytic"
+    assert meta["psf"]["origin"] == "pinhole" and meta["seconds"] > 0
+    assert meta["noise_sigma"] > 0 and meta["noise_sigma_source"].startswith("estimated")
+    assert meta["units"]["deconvolved"].startswith("radiance x light_factor")
+    layers = exrio.read_exr(coded_capture)
+    est = exrio.read_layer(out / "deconvolved.exr", "deconvolved") / meta["light_factor"]
+    ids, speed = layers["object_id"], np.abs(layers["velocity"]).max(axis=-1)
+    moving = np.isin(ids, np.unique(ids[speed > 0]))
+    m = 4  # the shift search at 160 px; its columns at each side are left out
+    still = ~moving
+    still[:, :m] = still[:, -m:] = False
+
+    def still_psnr(img):
+        return 10 * np.log10(1 / np.mean((img[still] - layers["sharp"][still]) ** 2))
+
+    assert meta["psnr_static_db"] == pytest.approx(still_psnr(est), abs=1e-3)
+    assert meta["psnr_static_db"] > still_psnr(layers["capture"] / meta["light_factor"])
+    assert set(meta["psnr_by_object"]) >= {"near_train", "backdrop"} and 0 < meta["ssim"] < 1
+    import imageio.v3 as iio
+
+    shown = [
+        iio.imread(p).mean() for p in (out / "deconvolved.png", coded_capture.with_suffix(".png"))
+    ]
+    assert shown[0] == pytest.approx(shown[1], rel=0.05)
+    # never overwritten without --force, never onto the input; a file path still works
+    assert main([*cmd, "--out", str(out)]) == 2
+    assert "already holds results" in capsys.readouterr().err
+    assert main([*cmd, "--out", str(out), "--force"]) == 0
+    assert main([*cmd, "--out", str(coded_capture), "--force"]) == 2
+    assert "is an input" in capsys.readouterr().err
+    assert main([*cmd, "--out", str(tmp_path / "d.exr")]) == 0
+    assert "writes the image only" in capsys.readouterr().err

@@ -243,10 +243,10 @@ def _evaluate(cap, desc, p: Point, task: Task, info: dict) -> dict:
 
 
 def _edge_px(cap) -> int:
-    """How far a moving object's blur reaches past its t = 0 outline, px: its whole travel
-    over the exposure (the fastest pixel's speed x 2T) and the defocus disc's diameter."""
-    u = float(np.abs(cap.extra_layers["velocity"][..., 0]).max())
-    return int(np.ceil(u * cap.record.exposure_ms + 2 * cap.record.optics["r_px"]))
+    """How far a moving object's blur reaches past its outline, px (:func:`.score.edge_px`)."""
+    from .score import edge_px
+
+    return edge_px(cap.extra_layers["velocity"], cap.record.exposure_ms, cap.record.optics["r_px"])
 
 
 def _deconvolve(cap, noisy, sigma: float, method: str) -> np.ndarray:

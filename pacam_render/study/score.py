@@ -113,3 +113,46 @@ def _interior(mask: np.ndarray, edge_px: int) -> np.ndarray:
     if edge_px <= 0:
         return mask
     return binary_erosion(mask, structure=np.ones((1, 2 * int(edge_px) + 1), bool))
+
+
+def edge_px(velocity: np.ndarray, exposure_ms: float, r_px: float) -> int:
+    """How far a moving object's blur reaches past its t = 0 outline, px: its whole travel
+    over the exposure (the fastest pixel's speed in ``velocity``, px/ms, times the exposure)
+    and the defocus disc's diameter."""
+    u = float(np.abs(velocity[..., 0]).max())
+    return int(np.ceil(u * exposure_ms + 2 * r_px))
+
+
+def moving_shapes(layers: dict, objects: dict) -> set[str]:
+    """The shape ids of ``objects`` whose pixels move in the ``velocity`` layer."""
+    speed = np.abs(layers["velocity"]).max(axis=-1)
+    ids = layers["object_id"]
+    return {name for key, name in objects.items() if np.any(speed[ids == int(key)] > 0)}
+
+
+def score_capture(est, layers: dict, record) -> dict:
+    """:func:`score` of ``est`` against a capture's ground truth, aligned as a study aligns.
+
+    Parameters
+    ----------
+    est : ndarray
+        (H, W, 3) estimate, white = 1 (a capture's layer divided by its ``light_factor``).
+    layers : dict
+        The capture's ``sharp``, ``object_id`` and ``velocity`` layers.
+    record : CaptureRecord
+        The capture's record: its ``objects``, sensor width, exposure and defocus radius give
+        the moving shapes, the shift search and the edge (:func:`edge_px`).
+
+    Returns
+    -------
+    dict
+        As :func:`score`.
+    """
+    from ..restore.metrics import shift_search_px
+
+    width = record.spec.get("width") or record.camera.get("width_px")
+    objects = record.objects or {}
+    r_px = record.optics.get("r_px", 0.0)
+    edge = edge_px(layers["velocity"], record.exposure_ms, r_px)
+    moving = moving_shapes(layers, objects)
+    return score(est, layers, objects, moving, shift_search_px(width), edge)
