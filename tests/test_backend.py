@@ -11,7 +11,8 @@ import pytest
 SNIPPET = """
 import warnings
 warnings.simplefilter("always")
-from pacam_render.render.backend import BackendWarning, select_variant
+from pacam_render.render.backend import select_variant
+from pacam_render.render.variant import BackendWarning
 with warnings.catch_warnings(record=True) as caught:
     v = select_variant(mono={mono})
     select_variant(mono={mono})  # a second request must not warn again
@@ -47,7 +48,7 @@ def test_mono_request_on_scalar_uses_rgb():
 
 
 def test_mono_request_gives_mono_variant():
-    from pacam_render.render.backend import llvm_status
+    from pacam_render.render.variant import llvm_status
 
     if not llvm_status()[0]:
         pytest.skip("LLVM backend not available here")
@@ -86,7 +87,7 @@ def test_bad_override_is_a_clear_error():
 
 
 def test_llvm_is_chosen_when_it_works():
-    from pacam_render.render.backend import llvm_status
+    from pacam_render.render.variant import llvm_status
 
     ok, why = llvm_status()
     if not ok:

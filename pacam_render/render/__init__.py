@@ -3,10 +3,11 @@
 ``plan`` (numpy, no Mitsuba) resolves the plugin's parameters; ``sensor`` is the
 ``programmable_aperture`` Mitsuba sensor and ``psf_camera`` its moving-scene extension, both
 imported on first use for the active variant by ``registry``; ``masks`` builds LCoS bitmaps;
-``backend`` picks the variant. Importing this package imports neither Mitsuba nor Dr.Jit.
+``variant`` chooses the Mitsuba variant and ``backend`` activates it. Importing this package
+imports neither Mitsuba nor Dr.Jit.
 """
 
-from .backend import BackendWarning, select_variant
+from .backend import select_variant
 from .plan import SCHEDULES, AperturePlan, build_plan
 from .registry import (
     PLUGIN_NAME,
@@ -17,6 +18,7 @@ from .registry import (
     sensor_class,
     sensor_dict,
 )
+from .variant import BackendWarning
 
 __all__ = [
     "PLUGIN_NAME",

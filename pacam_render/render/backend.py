@@ -1,156 +1,20 @@
 """Mitsuba variant selection: the one place that decides which backend renders.
 
-Order: ``PACAM_VARIANT`` if set; else ``cuda_ad_*`` when a GPU is asked for and present; else
-``llvm_ad_*`` when drjit's LLVM backend works; else ``scalar_*`` with one warning (a Python
-sensor runs about 13x slower there). ``mono=True`` picks the single-channel variant, for grey
-experiments that need no RGB.
+:func:`select_variant` activates the variant :mod:`.variant` chooses (``PACAM_VARIANT``, else
+CUDA when asked for and present, else LLVM when drjit's libLLVM works, else scalar with one
+warning) and installs our sensor plugins for it (:mod:`.registry`).
 
 drjit 1.5 needs libLLVM >= 16: with Debian 12's default libLLVM-15 the variant loads but the
-first render aborts the whole process. That is why the version is checked before it is used,
-and why ``python -m pacam_render.backend --check`` does a real render (run it in a subprocess).
+first render aborts the whole process. That is why ``python -m pacam_render.render.backend
+--check`` does a real render (run it in a subprocess).
 """
 
 from __future__ import annotations
 
-import os
 import sys
-import warnings
 
-from ..errors import ParameterError
-
-MIN_LLVM = (16, 0, 0)
-LLVM_FIX = "apt-get install -y libllvm19"
-
-
-class BackendWarning(UserWarning):
-    """Rendering falls back to a slower backend."""
-
-
-_chosen: dict[tuple[bool, bool], str] = {}
-_warned = False
-
-
-def llvm_status() -> tuple[bool, str]:
-    """Whether drjit's LLVM backend can render here, and why not.
-
-    Returns
-    -------
-    ok : bool
-        True if the ``llvm_ad_rgb`` variant loads and drjit's libLLVM is at least
-        :data:`MIN_LLVM` (16).
-    reason : str
-        The libLLVM version found, or why the backend cannot render.
-
-    Notes
-    -----
-    Imports Mitsuba and drjit, and probes by activating ``llvm_ad_rgb``: that variant stays
-    active if it loads.
-    """
-    import drjit as dr
-    import mitsuba as mi
-
-    try:
-        mi.set_variant("llvm_ad_rgb")
-    except (ImportError, AttributeError, RuntimeError) as exc:
-        return False, f"drjit found no libLLVM ({exc})"
-    version = tuple(dr.detail.llvm_version())
-    if version < MIN_LLVM:
-        found = ".".join(map(str, version))
-        return False, f"libLLVM {found} is too old (drjit needs >= 16; renders abort)"
-    return True, "libLLVM " + ".".join(map(str, version))
-
-
-def cuda_available() -> bool:
-    """Whether the CUDA variant loads (a GPU and driver are present).
-
-    Returns
-    -------
-    bool
-        True if ``cuda_ad_rgb`` could be activated.
-
-    Notes
-    -----
-    Imports Mitsuba and probes by activating ``cuda_ad_rgb``: that variant stays active if it
-    loads.
-    """
-    import mitsuba as mi
-
-    try:
-        mi.set_variant("cuda_ad_rgb")
-    except (ImportError, AttributeError, RuntimeError):
-        return False
-    return True
-
-
-def _variant_name(kind: str, mono: bool) -> str:
-    if kind == "scalar":  # the Mitsuba wheel ships no scalar_mono: grey renders use rgb there
-        return "scalar_rgb"
-    return f"{kind}_ad_{'mono' if mono else 'rgb'}"
-
-
-def _override() -> str | None:
-    import mitsuba as mi
-
-    name = os.environ.get("PACAM_VARIANT", "").strip()
-    if not name:
-        return None
-    if name not in mi.variants():
-        raise ParameterError(
-            f"PACAM_VARIANT={name!r} is not a Mitsuba variant; valid: {', '.join(mi.variants())}"
-        )
-    if name.startswith("llvm"):
-        ok, why = llvm_status()
-        if not ok:
-            raise ParameterError(f"PACAM_VARIANT={name!r} cannot render: {why}. Fix: {LLVM_FIX}")
-    return name
-
-
-def _warn_fallback(reason: str) -> None:
-    global _warned
-    if not _warned:
-        warnings.warn(
-            f"drjit's LLVM backend is unavailable ({reason}); rendering with the scalar variant, "
-            f"about 10x slower. Fix: {LLVM_FIX}",
-            BackendWarning,
-            stacklevel=3,
-        )
-        _warned = True
-
-
-def choose_variant(gpu: bool = False, mono: bool = False) -> str:
-    """Name of the variant to use, without activating it (beyond probing).
-
-    Parameters
-    ----------
-    gpu : bool, optional
-        Prefer the CUDA variant when a GPU is present.
-    mono : bool, optional
-        Pick the single-channel variant (``*_mono``), for grey experiments; there is no
-        ``scalar_mono``, so the scalar fallback is ``scalar_rgb`` either way.
-
-    Returns
-    -------
-    str
-        ``PACAM_VARIANT`` if set; else ``cuda_ad_*`` when ``gpu`` and CUDA loads; else
-        ``llvm_ad_*`` when drjit's LLVM backend works (:func:`llvm_status`); else
-        ``scalar_rgb``, with one :class:`BackendWarning` per process.
-
-    Raises
-    ------
-    ParameterError
-        If ``PACAM_VARIANT`` is not a Mitsuba variant, or names an LLVM variant that cannot
-        render here.
-    """
-    override = _override()
-    if override:
-        return override
-    if gpu and cuda_available():
-        return _variant_name("cuda", mono)
-    ok, why = llvm_status()
-    if ok:
-        return _variant_name("llvm", mono)
-    _warn_fallback(why)
-    return _variant_name("scalar", mono)
+from .registry import install
+from .variant import activate_variant, choose_variant, llvm_status
 
 
 def select_variant(gpu: bool = False, mono: bool = False) -> str:
@@ -159,7 +23,7 @@ def select_variant(gpu: bool = False, mono: bool = False) -> str:
     Parameters
     ----------
     gpu : bool, optional
-        Prefer the CUDA variant when a GPU is present (see :func:`choose_variant`).
+        Prefer the CUDA variant when a GPU is present (see :func:`~.variant.choose_variant`).
     mono : bool, optional
         Pick the single-channel variant.
 
@@ -172,23 +36,16 @@ def select_variant(gpu: bool = False, mono: bool = False) -> str:
     Raises
     ------
     ParameterError
-        As :func:`choose_variant`.
+        As :func:`~.variant.choose_variant`.
 
     Notes
     -----
     Also installs the sensor plugins (:func:`~pacam_render.render.registry.install`): they are
     registered for this variant and again after every later variant switch.
     """
-    import mitsuba as mi
-
-    key = (gpu, mono)
-    if key not in _chosen:
-        _chosen[key] = choose_variant(gpu, mono)
-    mi.set_variant(_chosen[key])
-    from .registry import install  # our sensors follow the variant from now on
-
-    install()
-    return _chosen[key]
+    variant = activate_variant(gpu, mono)
+    install()  # our sensors follow the variant from now on
+    return variant
 
 
 def _render_check() -> int:

@@ -18,6 +18,7 @@ import numpy as np
 
 from ..errors import ParameterError, check_positive
 from .plan import PROP_KEYS, build_plan
+from .variant import activate_variant
 
 PLUGIN_NAME = "programmable_aperture"
 PSF_PLUGIN_NAME = "pacam_psf_camera"
@@ -81,17 +82,18 @@ def register() -> str:
 
     Notes
     -----
-    With no variant active, :func:`~pacam_render.render.backend.select_variant` chooses and
-    activates one, and registers through :func:`install`.
+    With no variant active, :func:`~pacam_render.render.variant.activate_variant` chooses and
+    activates one (as :func:`~pacam_render.render.backend.select_variant` does), and
+    :func:`install` registers.
     """
     global _registered
     import mitsuba as mi
 
     variant = mi.variant()
     if variant is None:
-        from .backend import select_variant
-
-        return select_variant()  # which installs, and so registers
+        activate_variant()
+        install()  # which registers
+        return mi.variant()
     for name, cls_name, plugin in _MODULES:
         cls = getattr(_module(name, variant), cls_name)
         mi.register_sensor(plugin, lambda props, cls=cls: cls(props))
@@ -114,15 +116,14 @@ def ensure_registered() -> str:
 
     Notes
     -----
-    With no variant active, :func:`~pacam_render.render.backend.select_variant` chooses one;
-    otherwise :func:`install` registers the sensors if they are not yet registered for it.
+    With no variant active, :func:`~pacam_render.render.variant.activate_variant` chooses one
+    (as :func:`~pacam_render.render.backend.select_variant` does); then :func:`install`
+    registers the sensors if they are not yet registered for it.
     """
     import mitsuba as mi
 
     if mi.variant() is None:
-        from .backend import select_variant
-
-        return select_variant()
+        activate_variant()
     install()
     return mi.variant()
 
