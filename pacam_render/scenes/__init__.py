@@ -1,11 +1,12 @@
 """Scenes and their motion, in millimetres and milliseconds with the camera at the origin
 looking down +z.
 
-* :mod:`.motion`: the camera pose, pinhole projection, rigid motion (:class:`Motion`) and
-  moving a loaded scene's shapes in time (:class:`SceneAnimator`).
+* :mod:`.motion`: the camera pose, pinhole projection and rigid motion (:class:`Motion`).
 * :mod:`.description`: :class:`SceneDescription` (a sensor-free Mitsuba scene dict plus
-  motion) and loading by name or from a Mitsuba XML file (:func:`load_scene`).
-* :mod:`.builtin`: the built-in train set, soccer ball and walker, and a PSF generator.
+  motion), loading from a Mitsuba XML file (:func:`load_scene_file`) and moving a loaded
+  scene's shapes in time (:class:`SceneAnimator`).
+* :mod:`.builtin`: the built-in train set, soccer ball and walker, a PSF generator, and
+  :func:`load_scene`, by name or from a file.
 * :mod:`.files`: XML and motion JSON export of the built-in scenes.
 * :mod:`.assets`: the meshes and textures the built-in scenes use.
 * :mod:`.units`: the check, before a capture renders, that a scene is in mm, not metres.
@@ -19,18 +20,23 @@ from .builtin import (
     SOCCER_SPEED_PX_PER_MS,
     WALKER_SPEED_MM_PER_MS,
     WHITE_IRRADIANCE,
+    load_scene,
     psf_scene,
     soccer_scene,
     train_scene,
     walker_scene,
 )
-from .description import SceneDescription, is_static, load_scene, load_scene_file
+from .description import (
+    SceneAnimator,
+    SceneDescription,
+    fastest_image_speed_px_per_ms,
+    is_static,
+    load_scene_file,
+)
 from .files import motion_to_json, scene_to_xml, write_scene_files
 from .motion import (
     Motion,
-    SceneAnimator,
     default_camera_to_world,
-    fastest_image_speed_px_per_ms,
     image_to_scene_velocity,
     look_at,
     project_px,

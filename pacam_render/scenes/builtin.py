@@ -1,10 +1,12 @@
 """The built-in scenes: the paper's train set, a soccer ball and a walker (textured meshes
 from :mod:`.assets`, lit by square area lights), and a PSF generator (:func:`psf_scene`).
-:data:`BUILTIN_SCENES` maps their names to their builders."""
+:data:`BUILTIN_SCENES` maps their names to their builders; :func:`load_scene` loads a scene by
+name, or from a Mitsuba XML file (:func:`~.description.load_scene_file`)."""
 
 from __future__ import annotations
 
 import math
+import os
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -13,7 +15,7 @@ import numpy as np
 from ..errors import ParameterError, check_finite, check_positive
 from ..model.camera import CameraDesign, prototype
 from . import assets as sa
-from .description import SceneDescription
+from .description import SceneDescription, load_scene_file
 from .motion import Motion, image_to_scene_velocity, look_at
 
 SCENE_DIR = Path(__file__).resolve().parents[2] / "scenes"
@@ -267,3 +269,30 @@ def psf_scene(
 
 
 BUILTIN_SCENES = {"train": train_scene, "soccer": soccer_scene, "walker": walker_scene}
+
+
+def load_scene(
+    name_or_path: str | os.PathLike,
+    *,
+    cache_dir: str | Path | None = None,
+    params: dict | None = None,
+    **options,
+) -> SceneDescription:
+    """A built-in scene by name (``options`` go to its builder, e.g. ``far_speed_px_per_ms``)
+    or a Mitsuba XML scene file (``params`` fill its ``$name`` parameters; motion comes from a
+    ``<stem>.motion.json`` beside it, if any)."""
+    key = os.fspath(name_or_path)
+    if key in BUILTIN_SCENES:
+        try:
+            return BUILTIN_SCENES[key](cache_dir=cache_dir, **options)
+        except TypeError as exc:
+            raise ParameterError(f"invalid option for scene {key!r}: {exc}") from exc
+    path = Path(key)
+    if path.suffix.lower() != ".xml" and not path.exists():
+        raise ParameterError(
+            f"unknown scene {key!r}; valid names: {', '.join(sorted(BUILTIN_SCENES))}, "
+            "or a path to a Mitsuba .xml scene file"
+        )
+    if options:
+        raise ParameterError(f"options {sorted(options)} apply to built-in scenes only")
+    return load_scene_file(path, cache_dir=cache_dir, params=params)

@@ -1,7 +1,8 @@
-"""Scene descriptions and loading: :class:`SceneDescription` (a Mitsuba scene dict without
-a sensor, a suggested integrator, and a :class:`~.motion.Motion` per moving shape), and
-:func:`load_scene` for built-in scenes by name or Mitsuba XML files with their
-``<stem>.motion.json``.
+"""Scene descriptions: :class:`SceneDescription` (a Mitsuba scene dict without a sensor, a
+suggested integrator, and a :class:`~.motion.Motion` per moving shape), :func:`load_scene_file`
+for Mitsuba XML files with their ``<stem>.motion.json`` (:func:`~.builtin.load_scene` loads
+built-in scenes by name too), :class:`SceneAnimator`, which moves a loaded scene's shapes in
+time, and :func:`fastest_image_speed_px_per_ms`.
 
 Load a description with :meth:`SceneDescription.load`: it turns Mitsuba's mesh merging off,
 which would otherwise merge meshes that share a material and lose the shape ids that motion
@@ -23,8 +24,9 @@ import numpy as np
 
 from ..errors import ParameterError, check_finite, did_you_mean
 from ..limits import PacamWarning
+from ..model.camera import CameraDesign
 from . import assets as sa
-from .motion import Motion, SceneAnimator, _mi, check_keys
+from .motion import Motion, _bbox_corners, _mi, check_keys, project_px
 
 
 @dataclass
@@ -149,35 +151,6 @@ def is_static(scene: SceneDescription) -> bool:
     return scene.is_static
 
 
-def load_scene(
-    name_or_path: str | os.PathLike,
-    *,
-    cache_dir: str | Path | None = None,
-    params: dict | None = None,
-    **options,
-) -> SceneDescription:
-    """A built-in scene by name (``options`` go to its builder, e.g. ``far_speed_px_per_ms``)
-    or a Mitsuba XML scene file (``params`` fill its ``$name`` parameters; motion comes from a
-    ``<stem>.motion.json`` beside it, if any)."""
-    from .builtin import BUILTIN_SCENES  # lazy: the built-in scenes import this module
-
-    key = os.fspath(name_or_path)
-    if key in BUILTIN_SCENES:
-        try:
-            return BUILTIN_SCENES[key](cache_dir=cache_dir, **options)
-        except TypeError as exc:
-            raise ParameterError(f"invalid option for scene {key!r}: {exc}") from exc
-    path = Path(key)
-    if path.suffix.lower() != ".xml" and not path.exists():
-        raise ParameterError(
-            f"unknown scene {key!r}; valid names: {', '.join(sorted(BUILTIN_SCENES))}, "
-            "or a path to a Mitsuba .xml scene file"
-        )
-    if options:
-        raise ParameterError(f"options {sorted(options)} apply to built-in scenes only")
-    return load_scene_file(path, cache_dir=cache_dir, params=params)
-
-
 def _motion_file(path: Path) -> Path:
     return path.with_name(path.stem + ".motion.json")
 
@@ -296,3 +269,94 @@ def _note_static(path: Path) -> None:
         PacamWarning,
         stacklevel=4,
     )
+
+
+class SceneAnimator:
+    """Moves the shapes of a loaded scene to time t (ms) via ``mi.traverse``.
+
+    Meshes are moved through ``<id>.vertex_positions`` (from a copy of the t = 0 vertices, so
+    no error accumulates), other shapes through ``<id>.to_world``. A static scene never
+    touches the parameters; ``n_updates`` counts ``params.update()`` calls (each rebuilds the
+    BVH). The scene starts at t = 0.
+    """
+
+    def __init__(self, scene, description: SceneDescription):
+        self.motions = {k: description.motions[k] for k in description.moving_ids}
+        self.n_updates = 0
+        self.t_ms = 0.0
+        self.params = None
+        self._keys: dict[str, str] = {}
+        self._rest: dict[str, np.ndarray] = {}
+        if self.motions:
+            self._bind(scene)
+
+    def _bind(self, scene) -> None:
+        mi = _mi()
+        params = mi.traverse(scene)
+        for sid in self.motions:
+            key = next(
+                (f"{sid}.{s}" for s in ("vertex_positions", "to_world") if f"{sid}.{s}" in params),
+                None,
+            )
+            if key is None:
+                raise ParameterError(
+                    f"moving shape {sid!r} is not among the scene's parameters; was it merged "
+                    "with another mesh? Load scenes with SceneDescription.load()"
+                )
+            self._keys[sid] = key
+        params.keep(list(self._keys.values()))
+        for sid, key in self._keys.items():
+            if key.endswith("vertex_positions"):
+                self._rest[sid] = np.array(params[key], dtype=np.float64).reshape(-1, 3)
+            else:
+                self._rest[sid] = np.array(params[key].matrix, dtype=np.float64).reshape(4, 4)
+        self.params = params
+
+    def set_time(self, t_ms: float) -> bool:
+        """Move every moving shape to ``t_ms``; returns whether the geometry was updated."""
+        t = check_finite("t_ms", t_ms)
+        if not self.motions or t == self.t_ms:
+            return False
+        mi = _mi()
+        for sid, key in self._keys.items():
+            m = self.motions[sid].matrix_at(t)
+            rest = self._rest[sid]
+            if key.endswith("vertex_positions"):
+                p = rest @ m[:3, :3].T + m[:3, 3]
+                self.params[key] = mi.Float(p.astype(np.float32).ravel())
+            else:
+                self.params[key] = type(self.params[key])((m @ rest).tolist())
+        self.params.update()
+        self.n_updates += 1
+        self.t_ms = t
+        return True
+
+
+def fastest_image_speed_px_per_ms(
+    scene: SceneDescription,
+    camera: CameraDesign,
+    t_range_ms: tuple[float, float] | None = None,
+    n_samples: int = 65,
+) -> float:
+    """Largest image speed (px/ms, in ``camera``'s pixels) of any moving shape over
+    ``t_range_ms`` (default the camera's exposure [-T, T]), for choosing time steps.
+
+    Tracks the 8 corners of each shape's t = 0 bounding box through its motion and projects
+    them with the pinhole model: exact for translations; for rotations the corners lie at least
+    as far from the pivot as the geometry, so the estimate errs high (the safe side).
+    """
+    if scene.is_static:
+        return 0.0
+    t0, t1 = t_range_ms if t_range_ms is not None else (-camera.T_ms, camera.T_ms)
+    if not t1 > t0:
+        raise ParameterError(f"t_range_ms must be increasing, got {t_range_ms!r}")
+    ts = np.linspace(t0, t1, max(int(n_samples), 2))
+    best = 0.0
+    for sid in scene.moving_ids:
+        if sid not in scene.bboxes_mm:
+            raise ParameterError(f"no bounding box known for moving shape {sid!r}")
+        corners = _bbox_corners(*scene.bboxes_mm[sid])
+        uv = np.stack([project_px(scene.motions[sid].apply(corners, t), camera) for t in ts])
+        speed = np.linalg.norm(np.diff(uv, axis=0), axis=-1) / np.diff(ts)[:, None]
+        best = max(best, float(speed.max()))
+    return best

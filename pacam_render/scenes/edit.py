@@ -9,8 +9,8 @@ import numpy as np
 
 from ..errors import ParameterError, check_positive
 from ..model.camera import CameraDesign
-from .description import SceneDescription
-from .motion import Motion, fastest_image_speed_px_per_ms
+from .description import SceneDescription, fastest_image_speed_px_per_ms
+from .motion import Motion
 
 SPEED_WINDOW_MS = (-0.5, 0.5)
 """Where a scene's speed is measured: about t = 0, ms."""
@@ -30,7 +30,7 @@ def shape_speed_px_per_ms(desc: SceneDescription, sid: str, camera: CameraDesign
     A translation of a shape of known depth Z moves f_px |(v_x, v_y)| / Z (the speed the
     built-in scenes are specified by, on their reference surface); otherwise the fastest
     corner of its bounding box about t = 0
-    (:func:`~pacam_render.scenes.motion.fastest_image_speed_px_per_ms`).
+    (:func:`~pacam_render.scenes.description.fastest_image_speed_px_per_ms`).
     """
     m, z = desc.motions[sid], desc.depths_mm.get(sid)
     if m.is_static:

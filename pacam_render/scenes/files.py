@@ -11,8 +11,8 @@ import numpy as np
 
 from ..errors import ParameterError
 from . import assets as sa
-from .builtin import BUILTIN_SCENES, SCENE_DIR
-from .description import SceneDescription, load_scene
+from .builtin import BUILTIN_SCENES, SCENE_DIR, load_scene
+from .description import SceneDescription
 
 _TAGS = {
     "shape": ("ply", "obj", "rectangle", "disk", "sphere", "cube", "cylinder"),

@@ -1,5 +1,6 @@
-"""Projection and motion: the camera pose every scene assumes, pinhole projection, rigid
-motion of shapes (:class:`Motion`) and moving the shapes of a loaded scene (:class:`SceneAnimator`).
+"""Projection and motion: the camera pose every scene assumes, pinhole projection and rigid
+motion of shapes (:class:`Motion`); :class:`~.description.SceneAnimator` moves the shapes of a
+loaded scene with them.
 
 Geometry conventions
 --------------------
@@ -14,8 +15,6 @@ Geometry conventions
   geometry is the pose at t = 0; motion moves shapes relative to it.
 
 A :class:`Motion` is a velocity in mm/ms, optionally with keyframed transforms about a pivot.
-:class:`SceneAnimator` moves the shapes of a loaded scene to time t with ``mi.traverse`` /
-``params.update()``.
 """
 
 from __future__ import annotations
@@ -23,15 +22,12 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from functools import cached_property
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
 from ..errors import ParameterError, check_finite, check_positive, did_you_mean
 from ..model.camera import CameraDesign
-
-if TYPE_CHECKING:
-    from .description import SceneDescription
 
 
 def _mi():
@@ -235,101 +231,10 @@ def check_keys(what: str, d: Any, valid: tuple[str, ...], required: tuple[str, .
         raise ParameterError(f"{what} lacks the key {missing[0]!r}; {listed}")
 
 
-class SceneAnimator:
-    """Moves the shapes of a loaded scene to time t (ms) via ``mi.traverse``.
-
-    Meshes are moved through ``<id>.vertex_positions`` (from a copy of the t = 0 vertices, so
-    no error accumulates), other shapes through ``<id>.to_world``. A static scene never
-    touches the parameters; ``n_updates`` counts ``params.update()`` calls (each rebuilds the
-    BVH). The scene starts at t = 0.
-    """
-
-    def __init__(self, scene, description: SceneDescription):
-        self.motions = {k: description.motions[k] for k in description.moving_ids}
-        self.n_updates = 0
-        self.t_ms = 0.0
-        self.params = None
-        self._keys: dict[str, str] = {}
-        self._rest: dict[str, np.ndarray] = {}
-        if self.motions:
-            self._bind(scene)
-
-    def _bind(self, scene) -> None:
-        mi = _mi()
-        params = mi.traverse(scene)
-        for sid in self.motions:
-            key = next(
-                (f"{sid}.{s}" for s in ("vertex_positions", "to_world") if f"{sid}.{s}" in params),
-                None,
-            )
-            if key is None:
-                raise ParameterError(
-                    f"moving shape {sid!r} is not among the scene's parameters; was it merged "
-                    "with another mesh? Load scenes with SceneDescription.load()"
-                )
-            self._keys[sid] = key
-        params.keep(list(self._keys.values()))
-        for sid, key in self._keys.items():
-            if key.endswith("vertex_positions"):
-                self._rest[sid] = np.array(params[key], dtype=np.float64).reshape(-1, 3)
-            else:
-                self._rest[sid] = np.array(params[key].matrix, dtype=np.float64).reshape(4, 4)
-        self.params = params
-
-    def set_time(self, t_ms: float) -> bool:
-        """Move every moving shape to ``t_ms``; returns whether the geometry was updated."""
-        t = check_finite("t_ms", t_ms)
-        if not self.motions or t == self.t_ms:
-            return False
-        mi = _mi()
-        for sid, key in self._keys.items():
-            m = self.motions[sid].matrix_at(t)
-            rest = self._rest[sid]
-            if key.endswith("vertex_positions"):
-                p = rest @ m[:3, :3].T + m[:3, 3]
-                self.params[key] = mi.Float(p.astype(np.float32).ravel())
-            else:
-                self.params[key] = type(self.params[key])((m @ rest).tolist())
-        self.params.update()
-        self.n_updates += 1
-        self.t_ms = t
-        return True
-
-
 def _bbox_corners(lo, hi) -> np.ndarray:
     lo, hi = np.asarray(lo, float), np.asarray(hi, float)
     idx = np.array([[i >> 2 & 1, i >> 1 & 1, i & 1] for i in range(8)])
     return np.where(idx == 1, hi, lo)
-
-
-def fastest_image_speed_px_per_ms(
-    scene: SceneDescription,
-    camera: CameraDesign,
-    t_range_ms: tuple[float, float] | None = None,
-    n_samples: int = 65,
-) -> float:
-    """Largest image speed (px/ms, in ``camera``'s pixels) of any moving shape over
-    ``t_range_ms`` (default the camera's exposure [-T, T]), for choosing time steps.
-
-    Tracks the 8 corners of each shape's t = 0 bounding box through its motion and projects
-    them with the pinhole model: exact for translations; for rotations the corners lie at least
-    as far from the pivot as the geometry, so the estimate errs high (the safe side).
-    """
-    if scene.is_static:
-        return 0.0
-    t0, t1 = t_range_ms if t_range_ms is not None else (-camera.T_ms, camera.T_ms)
-    if not t1 > t0:
-        raise ParameterError(f"t_range_ms must be increasing, got {t_range_ms!r}")
-    ts = np.linspace(t0, t1, max(int(n_samples), 2))
-    best = 0.0
-    for sid in scene.moving_ids:
-        if sid not in scene.bboxes_mm:
-            raise ParameterError(f"no bounding box known for moving shape {sid!r}")
-        corners = _bbox_corners(*scene.bboxes_mm[sid])
-        uv = np.stack([project_px(scene.motions[sid].apply(corners, t), camera) for t in ts])
-        speed = np.linalg.norm(np.diff(uv, axis=0), axis=-1) / np.diff(ts)[:, None]
-        best = max(best, float(speed.max()))
-    return best
 
 
 def look_at(origin, target, up=(0.0, 1.0, 0.0)) -> np.ndarray:
