@@ -41,7 +41,8 @@ from ..model import paper
 from ..model.camera import CameraDesign, preset
 from ..model.modes import DESIGNED_REFUSED, capture_camera, mode, sensor_params
 from ..model.modes import MODES as MODE_TABLE
-from ..render.samplers import DEFAULT_SAMPLER, check_sampler, quantum, sampler_dict
+from ..render.registry import sensor_entry
+from ..render.samplers import DEFAULT_SAMPLER, check_sampler, quantum
 from .checkpoint import deferred_signals
 from .estimate import check_passes
 from .integrate import CaptureInterrupted, Run
@@ -251,68 +252,6 @@ def _schedule_unused(name: str) -> list[str]:
 def _words(items: list[str]) -> str:
     """``a, b and c``."""
     return " and ".join(items) if len(items) < 3 else f"{', '.join(items[:-1])} and {items[-1]}"
-
-
-def sensor_entry(spec: CaptureSpec, design: CameraDesign, params: dict, exposure_ms: float):
-    """The scene's sensor: programmable_aperture, or a pinhole for the reference.
-
-    Parameters
-    ----------
-    spec : CaptureSpec
-        Uses ``mode``, ``width`` and ``height`` (px) and ``spp``.
-    design : CameraDesign
-        The mode's camera (its field of view, deg).
-    params : dict
-        The sensor's schedule parameters (:func:`mode_camera`).
-    exposure_ms : float
-        The exposure 2T, ms: the shutter is open over [0, exposure_ms], and the paper's time is
-        t = shutter time - T.
-
-    Returns
-    -------
-    dict
-        A ``mi.load_dict`` entry with an RGB float32 ``hdrfilm`` of width x height px, a box
-        reconstruction filter (samples stay in their pixel, as the analytic PSFs assume) and the
-        spec's sampler (each render sets its own sample count). For ``reference`` it is a
-        ``perspective`` (pinhole) sensor; otherwise
-        :func:`~pacam_render.render.registry.sensor_dict` with pixel values scaled to the
-        :data:`REFERENCE_EXPOSURE_MS` exposure.
-
-    Raises
-    ------
-    ParameterError
-        If :func:`~pacam_render.render.registry.sensor_dict` rejects the parameters.
-
-    Notes
-    -----
-    Except for the reference, this activates a Mitsuba variant if none is active and registers
-    the sensor plugins.
-    """
-    from ..render.registry import sensor_dict
-
-    film = {
-        "type": "hdrfilm",
-        "width": spec.width,
-        "height": spec.height,
-        "rfilter": {"type": "box"},  # samples stay in their pixel, as the analytic PSFs assume
-        "pixel_format": "rgb",
-        "component_format": "float32",
-    }
-    if spec.crop is not None:
-        x, y, w, h = spec.crop
-        film.update(crop_offset_x=x, crop_offset_y=y, crop_width=w, crop_height=h)
-    sampler = sampler_dict(spec.sampler, quantum(spec.sampler))  # each render sets its count
-    if spec.mode == "reference":
-        return {"type": "perspective", "fov": design.fov_deg, "film": film, "sampler": sampler}
-    return sensor_dict(
-        fov=design.fov_deg,
-        shutter_open=0.0,
-        shutter_close=exposure_ms,
-        reference_exposure=REFERENCE_EXPOSURE_MS,
-        film=film,
-        sampler=sampler,
-        **params,
-    )
 
 
 @dataclass

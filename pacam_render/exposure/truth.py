@@ -28,6 +28,8 @@ from dataclasses import replace
 
 import numpy as np
 
+from ..render.registry import sensor_entry
+
 TRUTH_LAYERS = ("sharp", "depth", "object_id", "velocity")
 """The ground-truth layers, in the order they are written."""
 _DT_MS = 1e-3
@@ -72,8 +74,6 @@ def render_truth(
         On a signal during the sharp render.
     """
     import mitsuba as mi
-
-    from .capture import sensor_entry
 
     pinhole = sensor_entry(replace(spec, mode="reference"), design, {}, 0.0)
     layers, stats = {}, None

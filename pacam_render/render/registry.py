@@ -6,6 +6,9 @@ This module does the same for ours: :mod:`.sensor` and :mod:`.psf_camera` are im
 first :func:`register` (or :func:`~.backend.select_variant`, or render), and re-imported and
 registered again after every variant switch. Nothing here imports Mitsuba at import time, so
 ``import pacam_render`` stays light.
+
+:func:`sensor_dict` is the ``mi.load_dict`` entry of our sensor; :func:`sensor_entry` is a
+capture's whole camera: that sensor (or a pinhole for the reference) with its film and sampler.
 """
 
 from __future__ import annotations
@@ -17,7 +20,10 @@ import sys
 import numpy as np
 
 from ..errors import ParameterError, check_positive
+from ..model import paper
+from ..model.camera import CameraDesign
 from .plan import PROP_KEYS, build_plan
+from .samplers import quantum, sampler_dict
 from .variant import activate_variant
 
 PLUGIN_NAME = "programmable_aperture"
@@ -214,3 +220,64 @@ def sensor_dict(**params) -> dict:
             v = mi.TensorXf(np.asarray(v, dtype=np.float32))
         out[k] = v
     return out
+
+
+def sensor_entry(spec, design: CameraDesign, params: dict, exposure_ms: float) -> dict:
+    """The scene's sensor: programmable_aperture, or a pinhole for the reference.
+
+    Parameters
+    ----------
+    spec : CaptureSpec
+        The capture (:class:`~pacam_render.exposure.capture.CaptureSpec`): uses ``mode``,
+        ``width`` and ``height`` (px), ``crop`` and ``sampler``.
+    design : CameraDesign
+        The mode's camera (its field of view, deg).
+    params : dict
+        The sensor's schedule parameters
+        (:func:`~pacam_render.exposure.capture.mode_camera`).
+    exposure_ms : float
+        The exposure 2T, ms: the shutter is open over [0, exposure_ms], and the paper's time is
+        t = shutter time - T.
+
+    Returns
+    -------
+    dict
+        A ``mi.load_dict`` entry with an RGB float32 ``hdrfilm`` of width x height px, a box
+        reconstruction filter (samples stay in their pixel, as the analytic PSFs assume) and the
+        spec's sampler (each render sets its own sample count). For ``reference`` it is a
+        ``perspective`` (pinhole) sensor; otherwise :func:`sensor_dict` with pixel values
+        scaled to the paper's exposure (:data:`~pacam_render.model.paper.EXPOSURE_MS`).
+
+    Raises
+    ------
+    ParameterError
+        If :func:`sensor_dict` rejects the parameters.
+
+    Notes
+    -----
+    Except for the reference, this activates a Mitsuba variant if none is active and registers
+    the sensor plugins.
+    """
+    film = {
+        "type": "hdrfilm",
+        "width": spec.width,
+        "height": spec.height,
+        "rfilter": {"type": "box"},  # samples stay in their pixel, as the analytic PSFs assume
+        "pixel_format": "rgb",
+        "component_format": "float32",
+    }
+    if spec.crop is not None:
+        x, y, w, h = spec.crop
+        film.update(crop_offset_x=x, crop_offset_y=y, crop_width=w, crop_height=h)
+    sampler = sampler_dict(spec.sampler, quantum(spec.sampler))  # each render sets its count
+    if spec.mode == "reference":
+        return {"type": "perspective", "fov": design.fov_deg, "film": film, "sampler": sampler}
+    return sensor_dict(
+        fov=design.fov_deg,
+        shutter_open=0.0,
+        shutter_close=exposure_ms,
+        reference_exposure=paper.EXPOSURE_MS,
+        film=film,
+        sampler=sampler,
+        **params,
+    )
