@@ -15,6 +15,7 @@ import pytest
 
 from pacam_render.errors import ParameterError
 from pacam_render.experiments import validate_scene as vs
+from pacam_render.experiments.scene_error import _stats
 from pacam_render.experiments.scene_regions import REGIONS, region_map
 from pacam_render.model.camera import prototype
 from pacam_render.psf.analytic import design_psf, design_trajectory
@@ -62,9 +63,9 @@ def test_planar_kernel_refuses_bad_input():
 
 def test_a_region_without_noise_is_at_the_floor_only_if_exact():
     zero = np.zeros((4, 4, 3))
-    exact = vs._stats(zero, zero, 16)
+    exact = _stats(zero, zero, 16)
     assert exact["ratio"] == 1.0 and exact["at_floor"]
-    off = vs._stats(zero + 0.1, zero, 16)
+    off = _stats(zero + 0.1, zero, 16)
     assert off["ratio"] == float("inf") and not off["at_floor"]
 
 

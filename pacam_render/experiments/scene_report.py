@@ -16,8 +16,8 @@ import numpy as np
 
 from ..errors import ParameterError
 from ..io.outputs import csv_text, save_figure, write_json, write_text
+from .scene_error import PROFILE_RATIO, residuals
 from .scene_regions import REGIONS
-from .validate_scene import PROFILE_RATIO, residuals
 
 Z_SPAN = 5.0
 """The error maps show -5 to 5 noise sigmas."""
