@@ -47,7 +47,7 @@ from .checkpoint import deferred_signals
 from .estimate import check_passes
 from .integrate import CaptureInterrupted, Run
 from .record import CaptureRecord, layer_unit
-from .truth import TRUTH_LAYERS
+from .truth import TRUTH_LAYERS, render_truth
 
 MODES = tuple(MODE_TABLE)
 REFERENCE_EXPOSURE_MS = paper.EXPOSURE_MS
@@ -536,8 +536,6 @@ def _truth(scene, desc, spec, design, run: Run, prog, record, store, truth: bool
     units when it had one. The reference's own image is its ``sharp`` layer, so it is not
     rendered twice. The capture's passes are saved first, so that an interrupt here loses none.
     """
-    from .truth import render_truth
-
     if not truth:
         return {}, None, None
     goal = prog.sched.target_sigma
