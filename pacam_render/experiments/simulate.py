@@ -132,7 +132,7 @@ def gaussian_noise(sigma: float) -> NoiseFn:
 
 
 def sensor_noise(model, electrons_per_white: float, exposure_ms: float) -> NoiseFn:
-    """A physical capture through :class:`~pacam_render.sensor_model.SensorModel`.
+    """A physical capture through :class:`~pacam_render.sensor.model.SensorModel`.
 
     A [0, 1] image (1.0 = white) becomes ``electrons_per_white / qe`` photons per unit, is
     captured to DN, and is brought back to the same scale. The sigma handed to the deconvolver

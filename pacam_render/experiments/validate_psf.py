@@ -1,7 +1,7 @@
 """``pacam validate-psf``: ray-traced PSFs against the analytic model on a grid (issue 6).
 
 At every grid point (object depth, opening, object speed) the PSF is rendered twice with
-:mod:`pacam_render.psf_render` (``ptracer``, two seeds) and compared with the model:
+:mod:`pacam_render.exposure.psf_render` (``ptracer``, two seeds) and compared with the model:
 
 * **r** (Eq. 12): a static opening of radius R, centred, object still: the rendered disc is
   fitted with an exactly pixel-integrated pillbox (radius only, centre fixed by the

@@ -1,5 +1,5 @@
-"""Ray-traced PSFs of a :class:`~pacam_render.camera.CameraDesign`, registered with the analytic
-ones of :mod:`pacam_render.psf` (issue 6).
+"""Ray-traced PSFs of a :class:`~pacam_render.model.camera.CameraDesign`, registered with the
+analytic ones of :mod:`pacam_render.psf` (issue 6).
 
 What is rendered
 ----------------

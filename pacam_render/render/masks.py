@@ -3,7 +3,7 @@
 A *mask* is one greyscale image of the programmable aperture's LCoS display (the prototype's is
 1280x1024 pixels at a 13.62 um pitch); its grey level is the transmittance, 0 (black, closed)
 to 1 (white, open). A *mask stack* has shape ``(N, H, W)``: pattern ``k`` is shown during the
-k-th of N equal shares of the exposure (see :mod:`pacam_render.schedule`).
+k-th of N equal shares of the exposure (see :mod:`pacam_render.model.schedule`).
 
 Orientation (the one convention every function here and the camera plugin share): a mask is
 the display as seen from the sensor looking into the scene, in the same orientation as the

@@ -49,17 +49,17 @@ Conventions (see also PHYSICS.md)
   Film column u (px) grows to the image's right, i.e. along local -x.
 * With these, the paper's Eq. 8 holds with the paper's image x read as the film column u:
   an opening displaced by X_a shifts the image of a point at depth Z by ``-beta_px * X_a`` px,
-  beta_px = (1/Z_f - 1/Z) (W/2)/tan(fov/2) (:func:`pacam_render.optics.beta_px_per_mm`).
+  beta_px = (1/Z_f - 1/Z) (W/2)/tan(fov/2) (:func:`pacam_render.model.optics.beta_px_per_mm`).
   The parabolic schedule runs along the image's +u axis (local -x): its local centre is
   -(a_a t^2/2 - (R_max - R)), so the image accelerates by ``+beta_px * a_a`` in film columns:
   the a_i of Eq. 18 with its sign, as Eq. 10 states it in the upright image frame that
-  :mod:`pacam_render.optics` uses, and as :func:`pacam_render.psf.design_psf` draws it.
+  :mod:`pacam_render.model.optics` uses, and as :func:`pacam_render.psf.design_psf` draws it.
 * ``camera_parabolic`` (Levin et al. 2008): the camera body translates along its local +x axis
   by X_c(t) = a_c (t^2/2 - T^2/4) mm (centred like the aperture parabola), the aperture is a
   centred disc of radius R, and the lens stays focused at ``focus_distance``. A static point at
   depth Z then moves on the film by ``+f_px X_c(t) / Z`` px: image acceleration
   a_i(Z) = f_px a_c / Z, with f_px = (W/2)/tan(fov/2).
-* Masks (``bitmap``): see :mod:`pacam_render.aperture_masks` for their orientation (the display
+* Masks (``bitmap``): see :mod:`pacam_render.render.masks` for their orientation (the display
   as seen from the sensor, in the image's orientation: column j along local -x).
 
 Radiometry

@@ -13,7 +13,7 @@ commit, so they are built on first use (about 4 s) into ``$PACAM_CACHE`` (defaul
 folder and renamed, so concurrent processes never see half-written files. The same code gives
 the same bytes (the tests check).
 
-``python -m pacam_render.scene_assets`` builds them and prints the folder.
+``python -m pacam_render.scenes.assets`` builds them and prints the folder.
 """
 
 from __future__ import annotations
