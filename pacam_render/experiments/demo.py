@@ -46,9 +46,10 @@ DEMO_WINDOW = (0, 19, 672, 701)
 """The window of the prototype's 1280x960 sensor that the demo renders (x, y, w, h, px): every
 crop of :data:`CROPS` with room for the alignment search. At this, the camera's own pixel
 scale, r = 2 px and the trains blur over 45 and 63 px, as in the paper."""
-DEMO_SPP = 128
-"""Samples per pixel of the full-scale demo: 40 s on 2 cores (measured; the sensor's noise at
-300 photons/px/ms is larger than the Monte Carlo noise left)."""
+DEMO_SPP = 1024
+"""Samples per pixel of the full-scale demo: the moving captures keep one sampler render per
+0.5 px time step (at 128 spp, which they used to inflate to about 1000, their steps would be
+joined into one pose per pattern). 5.6 min on 2 cores shared with a study run (measured)."""
 
 
 def window_crops(spec: CaptureSpec) -> dict[str, tuple[float, float, float, float]]:
