@@ -28,6 +28,24 @@ depth the thin-lens model is used for."""
 MIN_EXPOSURE_MS = 0.01
 """Shortest exposure, ms: 10 us, the shortest shutter of machine-vision sensors such as the
 Grasshopper's ICX285."""
+MAX_EXPOSURE_MS = 1e5
+"""Longest exposure modelled, ms (100 s); far longer ones overflow the schedule's 1/T^2."""
+
+
+def check_exposure(exposure_ms: float) -> float:
+    """``exposure_ms`` if within [:data:`MIN_EXPOSURE_MS`, :data:`MAX_EXPOSURE_MS`]."""
+    v = check_positive("exposure_ms", exposure_ms, "ms")
+    if v < MIN_EXPOSURE_MS:
+        raise ParameterError(
+            f"exposure_ms must be >= {MIN_EXPOSURE_MS:g} ms (the sensor's shortest shutter), "
+            f"got {exposure_ms!r}"
+        )
+    if v > MAX_EXPOSURE_MS:
+        raise ParameterError(
+            f"exposure_ms must be <= {MAX_EXPOSURE_MS:g} ms (the longest exposure modelled), "
+            f"got {exposure_ms!r}"
+        )
+    return v
 
 
 @dataclass(frozen=True)
@@ -88,11 +106,7 @@ class CameraDesign:
                 f"{MIN_OPENING_LCOS_PX * self.lcos_pitch_mm:.4g} mm (the display cannot show a "
                 f"smaller opening), got {self.R_mm!r} mm = {opening_px:.3g} LCoS px"
             )
-        if self.exposure_ms < MIN_EXPOSURE_MS:
-            raise ParameterError(
-                f"exposure_ms must be >= {MIN_EXPOSURE_MS:g} ms (the sensor's shortest "
-                f"shutter), got {self.exposure_ms!r}"
-            )
+        check_exposure(self.exposure_ms)
 
     def _check_centres(self) -> None:
         """A designed schedule: one finite centre per pattern, every opening inside the lens."""

@@ -12,7 +12,7 @@ the object when possible (``side="auto"``), else in front of it.
 from __future__ import annotations
 
 from ..errors import ParameterError, check_positive
-from .camera import MIN_FOCUS_MM, MIN_OPENING_LCOS_PX, CameraDesign, prototype
+from .camera import MIN_FOCUS_MM, MIN_OPENING_LCOS_PX, CameraDesign, check_exposure, prototype
 from .optics import focus_for_defocus_mm
 
 
@@ -75,7 +75,7 @@ def solve(
     base = base or prototype()
     s_max = check_positive("max_velocity_px_per_ms", max_velocity_px_per_ms, "px/ms")
     exposure = base.exposure_ms if exposure_ms is None else exposure_ms
-    exposure = check_positive("exposure_ms", exposure, "ms")
+    exposure = check_exposure(exposure)
     depth = base.object_depth_mm if object_depth_mm is None else object_depth_mm
     depth = check_positive("object_depth_mm", depth, "mm")
     if side not in ("auto", "far", "near"):
