@@ -13,6 +13,11 @@ class ParameterError(ValueError):
     """A parameter is outside its valid range; the message names both."""
 
 
+class FileKeyError(ParameterError):
+    """A bad key or value in an input file (a study's TOML): the message names the file's
+    keys, which the CLI shows as they are (not as the flags of the same name)."""
+
+
 def check_finite(name: str, value: float) -> float:
     """Return ``value`` as float, or raise if it is NaN or infinite."""
     v = float(value)

@@ -44,7 +44,7 @@ class Results:
                     "same study with other settings); pass --force to start afresh there, or "
                     "choose another --out"
                 )
-            self.rows = {int(r["point"]): r for r in read_csv(self.path)}
+            self.rows = _resumed_rows(self.path)
             self.resumed = len(self.done())
         elif self.path.exists() and not force:
             raise ParameterError(f"--out {out} holds a {RESULTS} of unknown origin; pass --force")
@@ -78,6 +78,25 @@ def _read_json(path: Path) -> dict:
         return json.loads(path.read_text())
     except (OSError, ValueError) as exc:
         raise ParameterError(f"{path} is not readable JSON ({exc}); pass --force") from None
+
+
+def _resumed_rows(path: Path) -> dict[int, dict]:
+    """The rows of an earlier run by point; refused if the file is not such a table."""
+    try:
+        with open(path, newline="", encoding="utf-8") as f:
+            reader = csv.DictReader(f)
+            if path.stat().st_size and "point" not in (reader.fieldnames or []):
+                raise KeyError("no 'point' column")
+            rows = {int(r["point"]): r for r in reader}
+    except FileNotFoundError:
+        return {}
+    except (KeyError, TypeError, ValueError) as exc:  # no point column, not an integer, binary
+        raise ParameterError(
+            f"{path} is unreadable ({type(exc).__name__}: {exc}); pass --force to start afresh"
+        ) from None
+    if any(k < 0 for k in rows):
+        raise ParameterError(f"{path} is unreadable (a negative point); pass --force")
+    return rows
 
 
 def read_csv(path: Path) -> list[dict]:

@@ -27,7 +27,7 @@ from dataclasses import asdict, dataclass, field
 from importlib import resources
 from pathlib import Path
 
-from ..errors import ParameterError
+from ..errors import FileKeyError, ParameterError
 
 AXES = {
     "scene": "train",
@@ -189,7 +189,22 @@ def _toml(text: str, where: str) -> dict:
 
 
 def parse_study(doc: dict, quick: bool = False, source: str = "") -> StudySpec:
-    """:class:`StudySpec` from a TOML document (see the module docstring)."""
+    """:class:`StudySpec` from a TOML document (see the module docstring).
+
+    Raises
+    ------
+    FileKeyError
+        Naming the table and key at fault (a TOML key, not the CLI flag of the same name).
+    """
+    try:
+        return _parse(doc, quick, source)
+    except FileKeyError:
+        raise
+    except ParameterError as exc:
+        raise FileKeyError(str(exc)) from None
+
+
+def _parse(doc: dict, quick: bool, source: str) -> StudySpec:
     _keys(doc, "the study file", {"study", "render", "grid", "points", "quick"})
     head = _table(doc, "study")
     _keys(head, "[study]", {"name", "report", "description", "decompose"})
@@ -279,6 +294,11 @@ def _combinations(grid: dict, where: str) -> list[dict]:
 
 
 def _expand(grid, points: list, render: dict) -> tuple[Point, ...]:
+    if not grid and not points:  # else one point of defaults would run, asked for by no one
+        raise ParameterError(
+            "the study file names no points: give a [grid] table of axes (e.g. mode = "
+            f'["coded", "normal"]) or [[points]]; axes: {", ".join(AXES)}'
+        )
     grids = grid if isinstance(grid, list) else [grid] if grid or not points else []
     combos = []
     for k, g in enumerate(grids):
