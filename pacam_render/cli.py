@@ -16,7 +16,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .errors import ParameterError, check_finite, check_positive
+from .errors import FileKeyError, ParameterError, check_finite, check_positive
 from .exposure.capture import CaptureInterrupted
 from .exposure.record import CaptureRecord, analytic_psf, robust_psf
 from .io.exr import pick_layer, read_exr, write_exr
@@ -326,7 +326,7 @@ def _load_npy_psf(path: Path) -> np.ndarray:
         raise ParameterError(f"--psf file {path} does not exist")
     try:
         k = np.load(path, allow_pickle=False)
-    except ValueError as exc:  # object arrays, or not a .npy file at all
+    except (ValueError, EOFError) as exc:  # object arrays, an empty file, or not a .npy file
         why = "holds Python objects" if "allow_pickle" in str(exc) else f"is not readable ({exc})"
         raise ParameterError(
             f"--psf file {path} {why}; save the kernel as numbers: "
@@ -334,7 +334,27 @@ def _load_npy_psf(path: Path) -> np.ndarray:
         ) from None
     if not isinstance(k, np.ndarray) or k.dtype.kind not in "biuf":
         raise ParameterError(f"--psf file {path} holds {k.dtype} values, not real numbers")
+    if k.size == 0:
+        raise ParameterError(f"--psf file {path} holds an empty array (shape {k.shape})")
     return k
+
+
+NOISE_SIGMA_MAX = 1e3
+"""The largest --noise-sigma, in multiples of the layer's peak (or of white, 1, if the peak is
+lower): beyond it the image is all noise, and its square overflows."""
+
+
+def _check_noise_sigma(sigma: float | None, image) -> None:
+    """--noise-sigma: finite, >= 0 and at most :data:`NOISE_SIGMA_MAX` x max(peak, 1)."""
+    if sigma is None:
+        return
+    peak = max(float(np.nanmax(np.abs(image))) if np.size(image) else 0.0, 1.0)
+    hi = NOISE_SIGMA_MAX * peak
+    if not 0 <= sigma <= hi:  # also NaN
+        raise ParameterError(
+            f"--noise-sigma must be in [0, {hi:.4g}] (the layer's units: up to "
+            f"{NOISE_SIGMA_MAX:g}x its peak or white, {peak:.4g}), got {sigma!r}"
+        )
 
 
 def _deconvolve_layer(layers: list[str], layer: str | None) -> str:
@@ -436,10 +456,11 @@ def _cmd_deconvolve(args: argparse.Namespace) -> int:
     capture = Path(args.capture)
     psf_file = capture.parent / "psf_rendered.exr" if args.psf == "rendered" else Path(args.psf)
     inputs = [capture] if args.psf in ("analytic", "robust") else [capture, psf_file]
-    out, single_file = _deconvolve_out(args, inputs)
+    out, single_file = _deconvolve_out(args, inputs)  # before reading: a slip costs nothing
     layers = read_exr(capture)
     layer = _deconvolve_layer(list(layers), args.layer)
     image = pick_layer(layers, layer, capture)
+    _check_noise_sigma(args.noise_sigma, image)
     record = _capture_record(capture, required=args.psf in ("analytic", "robust"))
     kw, how = _sparse_options(args, layer, record)
     psf = _load_psf(args.psf, capture, record)
@@ -584,6 +605,8 @@ def _cmd_render(args: argparse.Namespace) -> int:
     if (out / "capture.exr").exists() and not args.force:
         raise ParameterError(f"--out {out} already holds a capture; pass --force to overwrite it")
     with _new_folder(out), output_lock(out):
+        if args.force:
+            _discard_partial(out / ".partial")
         cap = render_capture(
             spec,
             partial_dir=out / ".partial",
@@ -616,6 +639,20 @@ def _cmd_render(args: argparse.Namespace) -> int:
         + ", ".join(["capture", *cap.extra_layers, *(["mc_sigma"] if args.mc_sigma_layer else [])])
     )
     return 0
+
+
+def _discard_partial(partial: Path) -> None:
+    """--force starts afresh: drop the finished steps of an earlier run (after the lock)."""
+    import shutil
+
+    if partial.exists():
+        shutil.rmtree(partial)
+        warnings.warn(
+            f"--force: discarded the finished steps of an earlier run in {partial}; rendering "
+            "afresh",
+            PacamWarning,
+            stacklevel=2,
+        )
 
 
 def _write_or_rescue(cap, out: Path, args: argparse.Namespace) -> list[Path]:
@@ -817,18 +854,32 @@ def _cmd_study(args: argparse.Namespace) -> int:
             budget_hours=args.budget,
             on_estimate=estimate,
         )
-    except KeyboardInterrupt:
-        print(
-            f"pacam study: interrupted; every finished point is in {Path(args.out) / 'results.csv'}"
-            ": run the same command again to resume",
-            file=sys.stderr,
-        )
+    except (KeyboardInterrupt, CaptureInterrupted) as exc:  # the latter: Ctrl-C in a serial render
+        _study_interrupted(Path(args.out), len(spec.points), exc)
         return 130
     print(
         f"study {s.name}: {s.ran} points run, {s.skipped} already done, {s.failed} failed, "
         f"{s.seconds:.1f} s -> {Path(args.out)}/{{{','.join(s.files)}}}"
     )
     return 1 if s.failed else 0
+
+
+def _study_interrupted(out: Path, points: int, exc: BaseException) -> None:
+    """Say how many points ``results.csv`` keeps, and whether the render cut short kept its
+    finished steps (a serial study's capture saves them in its ``.partial``)."""
+    from .study.results import RESULTS, read_csv
+
+    try:
+        saved = len(read_csv(out / RESULTS))
+    except (OSError, ValueError):
+        saved = 0
+    why = str(exc).split(";")[0] if isinstance(exc, CaptureInterrupted) else "interrupted"
+    kept = " (the render under way kept its finished steps)" if "saved in" in str(exc) else ""
+    print(
+        f"pacam study: {why}; {saved} of {points} points are saved in {out / RESULTS}{kept}: "
+        "run the same command again to resume",
+        file=sys.stderr,
+    )
 
 
 def _add_design_args(p: argparse.ArgumentParser) -> None:
@@ -1017,7 +1068,7 @@ def _cmd_optimize(args: argparse.Namespace) -> int:
     if not 0 <= args.seed < 2**32:
         raise ParameterError(f"--seed must be an integer in [0, 2^32), got {args.seed!r}")
     out = prepare_out_dir(args.out, args.force)
-    with output_lock(out):
+    with _new_folder(out), output_lock(out):  # an interrupt before any file leaves no folder
         doc = run_optimize(problem, out, quick=args.quick, seed=args.seed, force=args.force,
                            starts=args.starts, iterations=args.iterations,
                            progress=not args.quiet)  # fmt: skip
@@ -1333,8 +1384,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         try:
             _check_common(args)
             return args.func(args)
-        except ParameterError as exc:
-            print(f"{name}: error: {_user_words(str(exc))}", file=sys.stderr)
+        except ParameterError as exc:  # a file's keys stay keys; a parameter becomes its flag
+            words = str(exc) if isinstance(exc, FileKeyError) else _user_words(str(exc))
+            print(f"{name}: error: {words}", file=sys.stderr)
             return 2
         except CaptureInterrupted as exc:
             print(f"{name}: {exc}", file=sys.stderr)

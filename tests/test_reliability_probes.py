@@ -9,6 +9,7 @@ import re
 import socketserver
 import threading
 import warnings
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -272,3 +273,158 @@ def test_an_empty_out_is_refused(argv, tmp_path, capsys, monkeypatch):
     assert main([*argv, "--out", ""]) == 2
     assert "--out must name a folder or file, got ''" in capsys.readouterr().err
     assert not any(tmp_path.iterdir())
+
+
+# --- the "Low" items: one-line errors, honest messages, --force and interrupts --------------------
+def _one_line_error(capsys, argv, match: str) -> None:
+    """``main(argv)`` exits 2 with one line (no traceback) matching ``match``."""
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip()
+    assert re.search(match, err), err
+    assert "\n" not in err and "Traceback" not in err
+
+
+def test_design_refuses_an_absurd_exposure_in_one_line(capsys):
+    _one_line_error(capsys, ["design", "--exposure", "1e300"], r"--exposure must be <= 100000 ms")
+    argv = ["design", "--exposure", "1e300", "--max-velocity", "1"]
+    _one_line_error(capsys, argv, r"--exposure must be <= 100000 ms")
+
+
+def _tiny_capture(path):
+    """A capture EXR that deconvolve reads (a 'capture' layer only), no JSON beside it."""
+    from pacam_render.io.exr import write_exr
+
+    write_exr(path, {"capture": np.full((8, 8, 3), 0.5, np.float32)})
+    return str(path)
+
+
+@pytest.mark.parametrize(("content", "match"), [(None, "not readable"), ((0, 0), "empty array")])
+def test_an_empty_npy_psf_is_refused_in_one_line(content, match, tmp_path, capsys):
+    psf = tmp_path / "k.npy"
+    psf.write_bytes(b"") if content is None else np.save(psf, np.zeros(content))
+    capture = _tiny_capture(tmp_path / "c.exr")
+    out = tmp_path / "out"
+    argv = ["deconvolve", capture, "--psf", str(psf), "--method", "wiener", "--out", str(out)]
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert f"--psf file {psf} " in err and match in err and "Traceback" not in err
+
+
+def test_an_absurd_noise_sigma_is_refused_naming_the_flag_and_range(tmp_path, capsys):
+    capture = _tiny_capture(tmp_path / "c.exr")
+    out = tmp_path / "out"
+    argv = ["deconvolve", capture, "--psf", "analytic", "--method", "wiener", "--out", str(out)]
+    for sigma in ("1e300", "nan", "-1"):
+        match = r"--noise-sigma must be in \[0, 1000\] \(the layer's units: up to 1000x its peak"
+        _one_line_error(capsys, [*argv, "--noise-sigma", sigma], match)
+        assert not out.exists()
+
+
+def _fake_tasks(monkeypatch, interrupt_at: int | None = None):
+    """Study tasks that score every point ``ok`` without rendering; the ``interrupt_at``-th
+    task raises what a Ctrl-C inside a serial capture raises."""
+    import pacam_render.study as study
+    from pacam_render.exposure.integrate import CaptureInterrupted
+    from pacam_render.study.point import point_row
+
+    calls = []
+
+    def run_task(task):
+        calls.append(task)
+        if len(calls) == interrupt_at:
+            raise CaptureInterrupted("interrupted (SIGINT) before any time step finished; "
+                                     "nothing to resume")  # fmt: skip
+        return [point_row(p, {}, "ok", 0.0, 0.0) for p in task.points]
+
+    monkeypatch.setattr(study, "run_task", run_task)
+    monkeypatch.setattr(study, "write_report", lambda spec, out: [], raising=False)
+    return calls
+
+
+def _study_toml(tmp_path, body='[grid]\nseed = [0, 1, 2]\nmethod = ["none"]\n'):
+    path = tmp_path / "s.toml"
+    path.write_text("[render]\nwidth = 32\nheight = 24\nnoise_ratio = false\nspp = 4\n" + body)
+    return str(path)
+
+
+def test_an_interrupted_serial_study_says_how_many_points_are_saved(tmp_path, capsys, monkeypatch):
+    _fake_tasks(monkeypatch, interrupt_at=2)
+    out = tmp_path / "out"
+    argv = ["study", _study_toml(tmp_path), "--workers", "0", "--quiet", "--out", str(out)]
+    assert main(argv) == 130
+    err = capsys.readouterr().err.strip()
+    assert err == (
+        f"pacam study: interrupted (SIGINT) before any time step finished; 1 of 3 points are "
+        f"saved in {out / 'results.csv'}: run the same command again to resume"
+    )
+    assert (out / "results.csv").read_text().count("\n") == 2  # the header and point 0
+
+
+@pytest.mark.parametrize(
+    "garbage", [b"\x00\xff garbage\n", b"garbage\n", b"point,status\n1.5,ok\n", b"point\n-1\n"]
+)
+def test_a_garbage_results_csv_is_refused_naming_the_file(garbage, tmp_path, capsys, monkeypatch):
+    _fake_tasks(monkeypatch)
+    out = tmp_path / "out"
+    argv = ["study", _study_toml(tmp_path), "--workers", "0", "--quiet", "--out", str(out)]
+    assert main(argv) == 0
+    (out / "results.csv").write_bytes(garbage)
+    _one_line_error(capsys, argv, rf"{out / 'results.csv'} is unreadable .*; pass --force")
+
+
+@pytest.mark.parametrize("body", ["", "[study]\nname = 'x'\n", "[grid]\n"])
+def test_a_study_without_points_is_refused(body, tmp_path, capsys, monkeypatch):
+    _fake_tasks(monkeypatch, interrupt_at=1)  # would fail the test with 130 if it ran
+    toml = tmp_path / "s.toml"
+    toml.write_text(body)
+    out = tmp_path / "out"
+    argv = ["study", str(toml), "--out", str(out)]
+    _one_line_error(capsys, argv, r"the study file names no points: give a \[grid\] table")
+    assert not out.exists()
+
+
+@pytest.mark.parametrize(
+    ("render", "match"),
+    [
+        ("max_step_px = -1", r"\[render\] max_step_px must be > 0 px"),
+        ("noise_ratio = 20", r"\[render\] noise_ratio must be a number in \(0, 10\]"),
+    ],
+)
+def test_study_errors_name_the_toml_key_not_the_flag(render, match, tmp_path, capsys):
+    toml = tmp_path / "s.toml"
+    toml.write_text(f"[render]\n{render}\n[grid]\nseed = [0]\n")
+    _one_line_error(capsys, ["study", str(toml), "--out", str(tmp_path / "out")], match)
+
+
+def test_render_force_discards_a_stale_checkpoint(tmp_path, capsys, monkeypatch):
+    import pacam_render.exposure.capture as capture
+
+    out = tmp_path / "out"
+    stale = out / ".partial"
+    stale.mkdir(parents=True)
+    (stale / "state.json").write_text("{}")
+    seen = []
+
+    def render_capture(spec, partial_dir=None, **kw):
+        seen.append(Path(partial_dir).exists())
+        raise ParameterError("stop here")
+
+    monkeypatch.setattr(capture, "render_capture", render_capture)
+    argv = ["render", "train", "--width", "16", "--height", "12", "--spp", "1", "--force"]
+    assert main([*argv, "--out", str(out)]) == 2
+    assert seen == [False]
+    err = capsys.readouterr().err
+    assert f"note: --force: discarded the finished steps of an earlier run in {stale}" in err
+
+
+def test_an_interrupted_optimize_leaves_no_empty_folder(tmp_path, capsys, monkeypatch):
+    import pacam_render.optimize.run as run
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(run, "run_optimize", interrupted)
+    out = tmp_path / "out"
+    assert main(["optimize", "--max-velocity", "1", "--quick", "--out", str(out)]) == 130
+    assert capsys.readouterr().err.strip() == "pacam optimize: interrupted"
+    assert not out.exists()
