@@ -276,18 +276,20 @@ def test_an_empty_out_is_refused(argv, tmp_path, capsys, monkeypatch):
 
 
 # --- the "Low" items: one-line errors, honest messages, --force and interrupts --------------------
-def _one_line_error(capsys, argv, match: str) -> None:
-    """``main(argv)`` exits 2 with one line (no traceback) matching ``match``."""
+def _one_line_error(capsys, argv, match: str) -> str:
+    """``main(argv)`` exits 2 with one line (no traceback) matching ``match``; returns it."""
     assert main(argv) == 2
     err = capsys.readouterr().err.strip()
     assert re.search(match, err), err
     assert "\n" not in err and "Traceback" not in err
+    return err
 
 
 def test_design_refuses_an_absurd_exposure_in_one_line(capsys):
-    _one_line_error(capsys, ["design", "--exposure", "1e300"], r"--exposure must be <= 100000 ms")
+    err = _one_line_error(capsys, ["design", "--exposure", "1e300"], r"<= 100000 ms")
+    assert err.startswith("pacam design: error:")
     argv = ["design", "--exposure", "1e300", "--max-velocity", "1"]
-    _one_line_error(capsys, argv, r"--exposure must be <= 100000 ms")
+    assert "--exposure" in _one_line_error(capsys, argv, r"--exposure must be <= 100000 ms")
 
 
 def _tiny_capture(path):
@@ -393,7 +395,8 @@ def test_a_study_without_points_is_refused(body, tmp_path, capsys, monkeypatch):
 def test_study_errors_name_the_toml_key_not_the_flag(render, match, tmp_path, capsys):
     toml = tmp_path / "s.toml"
     toml.write_text(f"[render]\n{render}\n[grid]\nseed = [0]\n")
-    _one_line_error(capsys, ["study", str(toml), "--out", str(tmp_path / "out")], match)
+    err = _one_line_error(capsys, ["study", str(toml), "--out", str(tmp_path / "out")], match)
+    assert "--max-step-px" not in err and "--noise-ratio" not in err
 
 
 def test_render_force_discards_a_stale_checkpoint(tmp_path, capsys, monkeypatch):

@@ -322,8 +322,9 @@ def test_cli_render_refuses_a_misspelt_motion_key(tmp_path, capsys):
 def test_a_scene_file_without_motion_is_noted_static(tmp_path):
     from pacam_render.limits import PacamWarning
 
-    with pytest.warns(PacamWarning, match=r"mine.xml is static: no mine.motion.json .*README"):
+    with pytest.warns(PacamWarning, match=r"mine.xml is static: no mine.motion.json .*README") as w:
         S.load_scene(str(_user_scene(tmp_path, scale=1000.0)))
+    assert sum("is static" in str(r.message) for r in w) == 1
     with warnings.catch_warnings():
         warnings.simplefilter("error", PacamWarning)  # a motion file, even a still one: no note
         S.load_scene(str(_user_scene(tmp_path, {"shapes": {}}, 1000.0)))
