@@ -148,3 +148,51 @@ def test_cli_writes_the_layers_and_no_truth_leaves_them_out(tmp_path):
     run(tmp_path / "b", "--no-truth")
     assert set(read_exr(tmp_path / "b" / "capture.exr")) == {"capture"}
     assert "objects" not in json.loads((tmp_path / "b" / "capture.json").read_text())
+
+
+def test_design_fit_states_each_objects_defocus_and_speed(coded):
+    """The record's ``design_fit`` against the thin lens (Eqs. 9, 12): a normal capture focuses
+    on the design depth, so a plane at z has r = |1/Z_d - 1/z| f_px R; the front square's speed
+    is |V_IMG|. An object whose r is 0.5 px and 20 % off the design's is noted."""
+    spec, cap = coded
+    cam = capture_design(spec)
+    fit = cap.record.design_fit
+    for name, z in (("back", BACK_Z), ("front", FRONT_Z)):
+        r = abs(1 / cam.object_depth_mm - 1 / z) * cam.focal_length_px * cam.R_mm
+        assert fit[name]["depth_mm"] == pytest.approx(z, rel=1e-3)
+        assert fit[name]["r_px"] == pytest.approx(r, rel=1e-3)
+        assert fit[name]["off_depth"] == (r > 0.5)
+        assert "range_px_per_ms" not in fit[name]  # a normal camera has no invariant range
+        noted = any(f"object {name!r} lies at" in n for n in cap.record.notes)
+        assert noted == fit[name]["off_depth"]
+    assert fit["front"]["speed_px_per_ms"] == pytest.approx(np.hypot(*V_IMG), rel=1e-3)
+    assert fit["back"]["speed_px_per_ms"] == 0.0
+    assert json.loads(json.dumps(cap.meta["design_fit"])) == fit
+
+
+def test_design_fit_range_scales_with_beta_and_flags_fast_objects():
+    """A coded camera's invariant range at depth z is |a_i(z)| T, with a_i proportional to
+    beta(z) (Eq. 18): half the design's beta, half the range. Levin's body motion keeps its
+    range at every depth. Synthetic layers: object 1 at the design depth, object 2 where beta
+    is half of it, each moving just above its own range."""
+    from pacam_render.exposure.design_fit import fit_notes, object_fit
+    from pacam_render.model.camera import preset
+
+    cam = preset("prototype")
+    zd, zf = cam.object_depth_mm, cam.focus_distance_mm
+    z2 = 1 / (1 / zf - 0.5 * (1 / zf - 1 / zd))  # beta(z2) = beta(zd) / 2
+    rng = cam.velocity_range_px_per_ms
+    ids = np.repeat([[1, 2]], 4, axis=0)
+    depth = np.where(ids == 1, zd, z2)
+    vel = np.zeros(ids.shape + (2,))
+    vel[..., 0] = np.where(ids == 1, 1.01 * rng, 0.99 * rng)
+    layers = {"object_id": ids, "depth": depth, "velocity": vel}
+    fit = object_fit(layers, {"1": "a", "2": "b"}, cam, "coded")
+    assert fit["a"]["range_px_per_ms"] == pytest.approx(rng)
+    assert fit["b"]["range_px_per_ms"] == pytest.approx(0.5 * rng)
+    assert fit["a"]["too_fast"] and fit["b"]["too_fast"]
+    assert fit["b"]["r_px"] == pytest.approx(0.5 * cam.r_px) and fit["b"]["off_depth"]
+    assert len(fit_notes(fit, cam, "coded")) == 3  # a too fast; b off its depth and too fast
+    levin = object_fit(layers, {"1": "a", "2": "b"}, cam, "levin")
+    assert levin["b"]["range_px_per_ms"] == pytest.approx(rng) and not levin["b"]["too_fast"]
+    assert levin["a"]["r_px"] == pytest.approx(0.0, abs=1e-9)  # Levin's lens is on the object

@@ -479,6 +479,7 @@ def _render(spec: CaptureSpec, description, run: Run, truth: bool, target, keep:
         spec, design, cam, params, sensor, variant, time.perf_counter() - t_start, steps
     )
     record.objects = objects
+    record.design_fit = _design_fit(layers, objects, cam, spec.mode)
     ids = layers.get("object_id")
     record.render_error = _render_error(prog, exp, spec, render_s, objects, ids, record, sharp)
     if not run.pilot_only and not keep:
@@ -552,6 +553,18 @@ def _truth(scene, desc, spec, design, run: Run, prog, record, store, truth: bool
             exc.total,
             exc.signum,
         ) from None
+
+
+def _design_fit(layers: dict, objects: dict | None, cam, mode: str) -> dict | None:
+    """Each object against the design's depth and speed range (:mod:`.design_fit`), noted."""
+    from .design_fit import fit_notes, object_fit
+
+    if mode == "reference" or not objects or "depth" not in layers:
+        return None
+    fit = object_fit(layers, objects, cam, mode)
+    for line in fit_notes(fit, cam, mode):
+        _note(line)
+    return fit
 
 
 def _render_error(prog, exp, spec, seconds, objects, ids, record, sharp) -> dict:

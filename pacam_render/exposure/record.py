@@ -116,6 +116,10 @@ class CaptureRecord:
     """The window of the sensor rendered: x, y, width, height and the sensor's size, px."""
     objects: dict | None = None
     """The ``object_id`` layer's legend: id (a string) to shape id; 0 is no surface."""
+    design_fit: dict | None = None
+    """Each object against the design (:mod:`~pacam_render.exposure.design_fit`): its median
+    ``depth_mm``, defocus ``r_px``, ``speed_px_per_ms`` (95th percentile), the invariant
+    ``range_px_per_ms`` at its depth where the mode has one, ``off_depth`` and ``too_fast``."""
     units: dict | None = None
     """Each layer of ``capture.exr`` to its unit (:data:`LAYER_UNITS`), written with the file."""
     render_error: dict | None = None
@@ -132,7 +136,7 @@ class CaptureRecord:
         """The JSON-ready dict; optional fields that are unset are left out."""
         out = {k: v for k, v in asdict(self).items() if k not in ("extra", "sensor")}
         optional = ("resumed_from_step", "fastest_image_speed_px_per_ms", "noise_sigma")
-        for key in (*optional, "crop", "objects", "units", "render_error"):
+        for key in (*optional, "crop", "objects", "design_fit", "units", "render_error"):
             if out[key] is None:
                 del out[key]
         if self.sensor is not None:
