@@ -176,12 +176,37 @@ def test_local_cluster_of_two_equals_the_serial_run(tmp_path):
     serial = run_study(spec, tmp_path / "serial", workers=0, progress=False)
     dask2 = run_study(spec, tmp_path / "dask", workers=2, progress=False)
     assert serial.ran == dask2.ran == 4 and serial.failed == dask2.failed == 0
+    assert serial.dashboard is None and dask2.dashboard.startswith("http://")
     a, b = _rows(tmp_path / "serial"), _rows(tmp_path / "dask")
     drop = ("render_s", "total_s")
     assert [{k: v for k, v in r.items() if k not in drop} for r in a] == [
         {k: v for k, v in r.items() if k not in drop} for r in b
     ]
     assert (tmp_path / "dask" / "report.md").read_text().count("coded") > 0
+
+
+@pytest.mark.render
+def test_a_study_runs_on_a_client_of_your_own_and_leaves_it_open(tmp_path):
+    """``run_study(client=...)``: every point is a task on that cluster (its task stream shows
+    them), the results are the serial run's, and the client is still open afterwards."""
+    import dask
+    from distributed import Client, LocalCluster, get_task_stream
+
+    spec = _tiny(tmp_path)
+    run_study(spec, tmp_path / "serial", workers=0, progress=False)
+    spawn = {"distributed.worker.multiprocessing-method": "spawn"}
+    with dask.config.set(spawn), LocalCluster(n_workers=1, dashboard_address=None) as cluster:
+        with Client(cluster) as client, get_task_stream(client) as stream:
+            summary = run_study(spec, tmp_path / "mine", client=client, progress=False)
+            assert client.status == "running"
+        assert summary.dashboard == client.dashboard_link  # printed with the progress
+    assert summary.ran == 4 and summary.failed == 0
+    assert sum(t["key"].startswith("pacam-") for t in stream.data) == 4  # 2 pilots, 2 renders
+    drop = ("render_s", "total_s")
+    a, b = _rows(tmp_path / "serial"), _rows(tmp_path / "mine")
+    assert [{k: r[k] for k in r if k not in drop} for r in a] == [
+        {k: r[k] for k in r if k not in drop} for r in b
+    ]
 
 
 @pytest.mark.render
@@ -192,9 +217,9 @@ def test_an_interrupted_study_resumes_to_the_same_results(tmp_path, monkeypatch)
     run_study(spec, tmp_path / "whole", workers=0, progress=False)
     real = S.run_tasks
 
-    def one_then_ctrl_c(fn, tasks, on_done, *engine):
+    def one_then_ctrl_c(fn, tasks, on_done, *engine, **kw):
         if fn is not S.run_task:  # the pilot passes run whole
-            return real(fn, tasks, on_done, *engine)
+            return real(fn, tasks, on_done, *engine, **kw)
         on_done(tasks[0], fn(tasks[0]))
         raise KeyboardInterrupt
 

@@ -8,12 +8,21 @@ against each capture's ground truth, run as independent tasks on Dask (``pacam s
 
 from __future__ import annotations
 
+import sys
 import time
+from contextlib import nullcontext
 from dataclasses import dataclass, field
+from functools import partial
 from pathlib import Path
 
 from ..errors import ParameterError, check_positive
-from .engine import check_workers, run_tasks
+from .engine import (
+    check_workers,
+    dashboard_link,
+    open_client,
+    run_tasks,
+    threads_per_worker,
+)
 from .point import Task, pilot_task, point_row, run_task
 from .results import Results
 from .spec import StudySpec, builtin_studies, load_study
@@ -38,6 +47,8 @@ class StudySummary:
     files: list[str] = field(default_factory=list)
     estimate_s: float | None = None
     """The cost of the renders still to do, predicted from their pilot passes, s."""
+    dashboard: str | None = None
+    """The address of the Dask dashboard that showed the run (None: serial, or no bokeh)."""
 
 
 def run_study(
@@ -51,6 +62,7 @@ def run_study(
     threads: int | None = None,
     budget_hours: float | None = None,
     on_estimate=None,
+    client=None,
 ) -> StudySummary:
     """Run the points of ``spec`` not yet finished in ``out``, then write the report.
 
@@ -75,6 +87,11 @@ def run_study(
         longer (hours of wall time). The pilots are kept, so a re-run does not repeat them.
     on_estimate : callable, optional
         Called with the :class:`StudySummary` once the cost is estimated (before the renders).
+    client : distributed.Client, optional
+        Run on this Dask client (a cluster of your own, left open) instead of ``workers`` or
+        ``scheduler``. Otherwise one cluster serves the pilots and the renders; the address
+        of its dashboard (served when bokeh is installed) is printed with the progress and
+        kept in ``StudySummary.dashboard``.
 
     Returns
     -------
@@ -102,27 +119,43 @@ def run_study(
         results = Results(out, spec, force)
         tasks = _tasks(spec, results.done(), out, keep_images)
         summary = StudySummary(spec.name, len(spec.points), skipped=len(results.done()))
-        if spec.render.get("noise_ratio") and tasks:
-            summary.estimate_s = _estimate(tasks, workers, scheduler, threads, progress)
-            if on_estimate is not None:
-                on_estimate(summary)
-            _check_budget(summary.estimate_s, budget_hours)
-        todo = sum(len(t.points) for t in tasks)
-        bar = tqdm(total=todo, unit="point", desc=spec.name, disable=not progress, smoothing=0)
-
-        def done(task: Task, rows) -> None:
-            if isinstance(rows, BaseException):  # the worker died twice, or Dask failed it
-                rows = _failed_rows(task, rows)
-            results.add(rows)
-            summary.ran += len(rows)
-            summary.failed += sum(r["status"] != "ok" for r in rows)
-            bar.update(len(rows))
-
-        with bar:
-            run_tasks(run_task, tasks, done, workers, scheduler, threads)
+        cluster = open_client(workers, scheduler, client) if tasks else nullcontext()
+        with cluster as dask_client:
+            summary.dashboard = dashboard_link(dask_client)
+            if summary.dashboard and progress:
+                tqdm.write(f"Dask dashboard: {summary.dashboard}", file=sys.stderr)
+            own = scheduler is None and client is None and dask_client is not None
+            threads = threads or (threads_per_worker(workers) if own else None)
+            run = partial(run_tasks, workers=workers, threads=threads, client=dask_client)
+            if spec.render.get("noise_ratio") and tasks:
+                share = workers if scheduler is None and client is None else 1
+                summary.estimate_s = _estimate(tasks, run, share, progress)
+                if on_estimate is not None:
+                    on_estimate(summary)
+                _check_budget(summary.estimate_s, budget_hours)
+            _render_all(tasks, run, results, summary, spec.name, progress)
         summary.files = write_report(spec, out)
     summary.seconds = time.perf_counter() - t0
     return summary
+
+
+def _render_all(tasks: list, run, results, summary, name: str, progress: bool) -> None:
+    """Render every task's points; each finished row goes to ``results`` at once."""
+    from tqdm import tqdm
+
+    todo = sum(len(t.points) for t in tasks)
+    bar = tqdm(total=todo, unit="point", desc=name, disable=not progress, smoothing=0)
+
+    def done(task: Task, rows) -> None:
+        if isinstance(rows, BaseException):  # the worker died twice, or Dask failed it
+            rows = _failed_rows(task, rows)
+        results.add(rows)
+        summary.ran += len(rows)
+        summary.failed += sum(r["status"] != "ok" for r in rows)
+        bar.update(len(rows))
+
+    with bar:
+        run(run_task, tasks, done)
 
 
 def _tasks(spec: StudySpec, done: set[int], out: Path, keep: bool) -> list:
@@ -136,11 +169,11 @@ def _tasks(spec: StudySpec, done: set[int], out: Path, keep: bool) -> list:
     return tasks
 
 
-def _estimate(tasks: list, workers: int, scheduler, threads, progress: bool) -> float:
+def _estimate(tasks: list, run, workers: int, progress: bool) -> float:
     """Run every task's pilot passes (kept for its render), and predict the wall time of the
     renders: each render's planned passes (one of their steps timed) x :data:`OVERHEAD`,
-    shared among the workers (a serial run's pilots ran on every core, a worker's on its
-    share)."""
+    shared among ``workers`` (a serial run's pilots ran on every core, a worker's on its
+    share; a cluster of your own counts as one)."""
     from tqdm import tqdm
 
     costs: list[float] = []
@@ -153,8 +186,8 @@ def _estimate(tasks: list, workers: int, scheduler, threads, progress: bool) -> 
         bar.update(1)
 
     with bar:
-        run_tasks(_safe_pilot, tasks, done, workers, scheduler, threads)
-    return sum(costs) / max(1, workers if scheduler is None else 1)
+        run(_safe_pilot, tasks, done)
+    return sum(costs) / max(1, workers)
 
 
 def _safe_pilot(task: Task):

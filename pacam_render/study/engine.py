@@ -6,6 +6,10 @@
 * ``scheduler``: an existing Dask cluster by address (``dask scheduler`` / ``dask worker``, or
   dask-jobqueue on SLURM); its workers need pacam_render installed.
 * ``workers=0``: in this process, one task after another (for debugging).
+* ``client``: a ``distributed.Client`` of your own (a notebook's cluster), left open.
+
+:func:`open_client` can serve the LocalCluster's dashboard (with bokeh); :func:`dashboard_link`
+gives its address.
 
 A task whose worker dies is retried once by the scheduler (``allowed-failures = 1`` on the
 embedded cluster; a cluster of your own keeps its own setting); if it dies again its result is
@@ -161,6 +165,7 @@ def run_tasks(
     workers: int = 0,
     scheduler: str | None = None,
     threads: int | None = None,
+    client=None,
 ) -> None:
     """Run ``fn(task)`` for every task; call ``on_done(task, result)`` here as each finishes.
 
@@ -179,6 +184,9 @@ def run_tasks(
         then ignored.
     threads : int, optional
         Dr.Jit threads per worker of the LocalCluster (default cores / workers).
+    client : distributed.Client, optional
+        A client to run on (left open); ``workers`` and ``scheduler`` are then ignored, and
+        ``threads`` is set on its workers only if given.
 
     Raises
     ------
@@ -187,32 +195,37 @@ def run_tasks(
     KeyboardInterrupt
         On Ctrl-C; the tasks under way are cancelled, and finished ones were handed on.
     """
-    if scheduler is None and workers == 0:
+    if client is None and scheduler is None and workers == 0:
         for task in tasks:
             on_done(task, fn(task))
         return
+    if client is None and scheduler is not None:
+        threads = None  # a cluster of your own keeps its workers' settings
+    elif client is None and threads is None:
+        threads = threads_per_worker(workers)  # (a client given: ``threads`` as given)
+    with open_client(workers, scheduler, client) as client:
+        _submit_all(client, fn, tasks, on_done, threads)
+
+
+def _submit_all(client, fn: Callable, tasks: Sequence, on_done: Callable, threads) -> None:
+    """Submit every task to ``client``; hand each result (or exception) on as it finishes."""
     from distributed import as_completed
 
-    if scheduler is not None:
-        threads = None  # a cluster of your own keeps its workers' settings
-    elif threads is None:
-        threads = threads_per_worker(workers)
-    with _client(workers, scheduler) as client:
-        tag = uuid.uuid4().hex[:8]
-        futures = {
-            client.submit(_call, fn, t, threads, pure=False, key=f"pacam-{tag}-{i}"): t
-            for i, t in enumerate(tasks)
-        }
-        try:
-            for fut in as_completed(futures):
-                try:
-                    result = fut.result()
-                except Exception as exc:  # KilledWorker, or an error outside fn's own handling
-                    result = exc
-                on_done(futures[fut], result)
-        except BaseException:
-            client.cancel(list(futures))
-            raise
+    tag = uuid.uuid4().hex[:8]
+    futures = {
+        client.submit(_call, fn, t, threads, pure=False, key=f"pacam-{tag}-{i}"): t
+        for i, t in enumerate(tasks)
+    }
+    try:
+        for fut in as_completed(futures):
+            try:
+                result = fut.result()
+            except Exception as exc:  # KilledWorker, or an error outside fn's own handling
+                result = exc
+            on_done(futures[fut], result)
+    except BaseException:
+        client.cancel(list(futures))
+        raise
 
 
 def _call(fn: Callable, task, threads: int | None):
@@ -222,6 +235,34 @@ def _call(fn: Callable, task, threads: int | None):
 
         dr.set_thread_count(int(threads))
     return fn(task)
+
+
+@contextlib.contextmanager
+def open_client(workers: int, scheduler: str | None = None, client=None) -> Iterator:
+    """The Dask client that runs tasks: ``client`` itself (left open), one connected to
+    ``scheduler``, a LocalCluster of ``workers`` processes (closed on exit), or None when
+    ``workers`` is 0 (serial). A LocalCluster serves its dashboard on a free port (with
+    bokeh; :func:`dashboard_link`)."""
+    if client is not None:
+        yield client
+        return
+    if scheduler is None and workers == 0:
+        yield None
+        return
+    with _client(workers, scheduler) as made:
+        yield made
+
+
+def dashboard_link(client) -> str | None:
+    """The address of ``client``'s Dask dashboard, or None where it serves none."""
+    if client is None:
+        return None
+    try:
+        info = client.scheduler_info()
+    except Exception:  # noqa: BLE001 - a dashboard is a convenience, never a failure
+        return None
+    served = info.get("services", {}).get("dashboard") and _has_bokeh()
+    return client.dashboard_link if served else None
 
 
 @contextlib.contextmanager
@@ -250,8 +291,14 @@ def _client(workers: int, scheduler: str | None) -> Iterator:
             n_workers=workers,
             threads_per_worker=1,
             processes=True,
-            dashboard_address=None,
+            dashboard_address=":0",  # a free port: the HTTP server runs in any case
             silence_logs=logging.ERROR,
         )
         with cluster, Client(cluster) as client:
             yield client
+
+
+def _has_bokeh() -> bool:
+    import importlib.util
+
+    return importlib.util.find_spec("bokeh") is not None
