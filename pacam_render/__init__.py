@@ -46,6 +46,7 @@ _EXPORTS = {
     ".restore.deconvolve": [("DECONVOLUTION_METHODS", "METHODS"), "deconvolve", "wiener"],
     ".scenes": ["load_scene", "psf_scene"],
     ".sensor.apply": ["SensorTarget", "add_sensor_layers"],
+    ".sensor.on_capture": ["load_capture", "sensor_on_capture"],
     ".sensor.model": [
         "DEFAULT_LIGHT_LEVEL",
         "SensorCapture",

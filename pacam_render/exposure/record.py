@@ -212,6 +212,37 @@ class CaptureFile(NamedTuple):
     """Each returned layer to its unit (None for a layer this version does not know)."""
 
 
+def read_capture_layers(path: str | os.PathLike) -> tuple[dict[str, np.ndarray], CaptureRecord]:
+    """A capture's layers as stored (:data:`LAYER_UNITS`) and its record.
+
+    Parameters
+    ----------
+    path : path-like
+        ``capture.exr``, or the folder that holds it; its JSON must be beside it.
+
+    Raises
+    ------
+    ParameterError
+        If a file is missing or unreadable.
+    """
+    import json
+
+    from ..io.exr import read_exr
+
+    exr = Path(path)
+    exr = exr / "capture.exr" if exr.is_dir() else exr
+    sidecar = exr.with_suffix(".json")
+    if not exr.is_file():
+        raise ParameterError(f"no capture at {exr}")
+    if not sidecar.is_file():
+        raise ParameterError(f"{exr} has no {sidecar.name} beside it: its scale is not known")
+    try:
+        record = CaptureRecord.from_json(json.loads(sidecar.read_text()), where=str(sidecar))
+    except json.JSONDecodeError as exc:
+        raise ParameterError(f"{sidecar} is not valid JSON ({exc})") from None
+    return read_exr(exr), record
+
+
 def read_capture(path: str | os.PathLike) -> CaptureFile:
     """Read a capture (``capture.exr`` and its JSON) with every image layer on the white scale.
 
@@ -237,23 +268,12 @@ def read_capture(path: str | os.PathLike) -> CaptureFile:
     ParameterError
         If a file is missing or unreadable, or ``light_factor`` is not > 0.
     """
-    import json
-
     from ..errors import check_positive
-    from ..io.exr import read_exr
 
-    exr = Path(path)
-    exr = exr / "capture.exr" if exr.is_dir() else exr
-    sidecar = exr.with_suffix(".json")
-    if not sidecar.is_file():
-        raise ParameterError(f"{exr} has no {sidecar.name} beside it: its scale is not known")
-    try:
-        record = CaptureRecord.from_json(json.loads(sidecar.read_text()), where=str(sidecar))
-    except json.JSONDecodeError as exc:
-        raise ParameterError(f"{sidecar} is not valid JSON ({exc})") from None
-    lf = check_positive(f"light_factor in {sidecar}", record.light_factor)
+    stored, record = read_capture_layers(path)
+    lf = check_positive("light_factor in the capture's JSON", record.light_factor)
     layers, units = {}, {}
-    for name, arr in read_exr(exr).items():
+    for name, arr in stored.items():
         unit = layer_unit(name)
         scaled = unit is not None and unit.startswith(CAPTURE_UNIT)
         layers[name] = (arr / np.float32(lf)) if scaled else arr
