@@ -30,8 +30,8 @@ _EXPORTS = {
     ".model.design": [("solve_design", "solve")],
     ".model.modes": ["MODES", "Mode", "capture_camera", "mode"],
     ".model.report": ["design_report"],
+    ".psf.grid": ["PSFTruncationWarning"],
     ".psf.analytic": [
-        "PSFTruncationWarning",
         "coded_psf",
         "design_psf",
         "discrete_coded_psf",

@@ -28,7 +28,6 @@ ALLOWED_CYCLES = {
     # Left for later: another change is under way in psf/ and restore/ (issue 28, item 2: the
     # shared Fourier helpers of restore/ go to a leaf module, as skimage keeps uft.py). Remove
     # each entry in the change that breaks its cycle.
-    "psf": {"pacam_render.psf.analytic", "pacam_render.psf.planar"},
     "restore": {
         "pacam_render.restore.deconvolve",
         "pacam_render.restore.sparse",

@@ -13,7 +13,6 @@ supply the pieces. Units: s in px/ms, a_i in px/ms^2, T and exposures in ms (the
 
 from .analytic import (
     MODE_TRAJECTORIES,
-    PSFTruncationWarning,
     coded_psf,
     design_psf,
     design_trajectory,
@@ -24,6 +23,7 @@ from .analytic import (
     short_exposure_psf,
     static_psf,
 )
+from .grid import PSFTruncationWarning
 from .robust import aligned_speed_psf, speed_robust_psf
 
 __all__ = [

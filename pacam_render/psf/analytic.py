@@ -21,13 +21,11 @@ exposure in ms, r in px.
 from __future__ import annotations
 
 import math
-import warnings
 
 import numpy as np
 from tqdm import tqdm
 
 from ..errors import ParameterError, check_finite, check_positive
-from ..limits import check_memory
 from ..model import paper
 from ..model import schedule as sch
 from ..model.modes import (
@@ -38,51 +36,22 @@ from ..model.modes import (
     mode_exposure_ms,
     t0_offset_px,
 )
+from .grid import (  # the limit and the warning are also read here by earlier callers
+    MAX_LOST_FRACTION,  # noqa: F401
+    R_DELTA_PX,
+    PSFTruncationWarning,  # noqa: F401
+    auto_size,
+    kernel_shape,
+    normalise,
+)
 from .pillbox import quadrant_area
+from .planar import planar_kernel
 from .trajectory import Segment, bin_statistics, extent, total_weight
-
-MAX_AUTO_SIZE = 2049
-"""Largest kernel side chosen automatically, px; larger PSFs are truncated with a warning."""
-
-R_DELTA_PX = 1e-3
-"""Below this radius the pillbox is treated as a delta: the L1 change is < 4 r."""
-
-
-MAX_LOST_FRACTION = 0.01
-"""``pacam psf`` refuses a kernel that loses more than this fraction of its mass."""
-
-
-class PSFTruncationWarning(UserWarning):
-    """Part of the PSF's mass falls outside the kernel; the rest was renormalised.
-
-    ``lost`` is that part, a fraction of the PSF's mass in (0, 1].
-    """
-
-    def __init__(self, message: str, lost: float = 0.0):
-        super().__init__(message)
-        self.lost = lost
 
 
 def default_du_px(r_px: float) -> float:
     """Default quadrature bin for the defocused motion PSF, px (see bench_psf.py)."""
     return min(0.05, r_px / 4.0)
-
-
-def _auto_size(lo: float, hi: float, r: float) -> int:
-    half = max(abs(lo), abs(hi)) + r
-    n = 2 * math.ceil(half + 0.5) + 1
-    return min(n, MAX_AUTO_SIZE)
-
-
-def _shape(size, lo: float, hi: float, r: float) -> tuple[int, int]:
-    if size is None:
-        n = _auto_size(lo, hi, r)
-        return n, n
-    h, w = (size, size) if np.isscalar(size) else size
-    if int(h) != h or int(w) != w or h < 1 or w < 1:
-        raise ParameterError(f"size must be a positive int or (h, w), got {size!r}")
-    check_memory(f"a {h}x{w} kernel", 32.0 * h * w, "the kernel size (--size)")
-    return int(h), int(w)
 
 
 def _deposit_discs(kernel, xe, ye, r, centres, masses) -> None:
@@ -124,14 +93,14 @@ def kernel_from_trajectory(
     lo, hi = extent(segments)
     ys = sorted({seg.y for seg in segments})
     y_max = max(abs(ys[0]), abs(ys[-1]))
-    h, w = _shape(size, lo - y_max, hi + y_max, r)
+    h, w = kernel_shape(size, lo - y_max, hi + y_max, r)
     xe = np.arange(w + 1) - w // 2 - 0.5
     ye = np.arange(h + 1) - h // 2 - 0.5
     kernel = np.zeros((h, w))
     for y in ys:
         row = [seg for seg in segments if seg.y == y]
         _deposit_row(kernel, row, xe, ye - y, r, du_px, extent(row))
-    return _normalise(kernel, total_weight(segments))
+    return normalise(kernel, total_weight(segments))
 
 
 def _deposit_row(kernel, segments, xe, ye, r: float, du_px, span) -> None:
@@ -152,23 +121,6 @@ def _deposit_row(kernel, segments, xe, ye, r: float, du_px, span) -> None:
         keep = mass > 0.0
         centres = moment[keep] / mass[keep]
         _deposit_discs(kernel, xe, ye, r, centres, mass[keep] / (math.pi * r * r))
-
-
-def _normalise(kernel: np.ndarray, expected: float) -> np.ndarray:
-    got = float(kernel.sum())
-    if not got > 0.0:
-        raise ParameterError(
-            f"no part of the PSF falls inside the {kernel.shape[0]}x{kernel.shape[1]} kernel; "
-            "enlarge size"
-        )
-    lost = 1.0 - got / expected
-    if lost > 1e-9:
-        message = (
-            f"{lost:.3%} of the PSF's mass lies outside the {kernel.shape[0]}x{kernel.shape[1]} "
-            "kernel; the rest was renormalised"
-        )
-        warnings.warn(PSFTruncationWarning(message, lost), stacklevel=3)
-    return kernel / got
 
 
 def _check_motion(s: float, a_i: float, T_ms: float) -> tuple[float, float, float]:
@@ -213,10 +165,10 @@ def pillbox_psf(r_px: float, size=None, centre=(0.0, 0.0)) -> np.ndarray:
     cy = check_finite("centre y (px)", centre[1])
     from .pillbox import disc_coverage
 
-    n = _auto_size(-abs(cx) - abs(cy), abs(cx) + abs(cy), r)
-    shape = _shape(size if size is not None else n, 0, 0, r)
+    n = auto_size(-abs(cx) - abs(cy), abs(cx) + abs(cy), r)
+    shape = kernel_shape(size if size is not None else n, 0, 0, r)
     cov = disc_coverage(r if r >= R_DELTA_PX else 0.0, shape, (cx, cy))
-    return _normalise(cov, 1.0 if r < R_DELTA_PX else math.pi * r * r)
+    return normalise(cov, 1.0 if r < R_DELTA_PX else math.pi * r * r)
 
 
 def coded_psf(
@@ -387,7 +339,7 @@ def least_lost_fraction(
     segments, r = design_trajectory(design, mode, s, origin)
     lo, hi = extent(segments)
     y_max = max(abs(seg.y) for seg in segments)
-    h, w = _shape(size, lo - y_max, hi + y_max, r)
+    h, w = kernel_shape(size, lo - y_max, hi + y_max, r)
     if r < R_DELTA_PX:
         return 0.0, (h, w), r
     inside = min(1.0, 2 * h / (math.pi * r), 2 * w / (math.pi * r), h * w / (math.pi * r * r))
@@ -433,6 +385,5 @@ def design_psf(
     segments, r = design_trajectory(design, mode, s, origin)
     if v_px_per_ms == 0.0:
         return kernel_from_trajectory(segments, r, size)
-    from .planar import planar_kernel
 
     return planar_kernel(segments, r, v_px_per_ms, size)

@@ -18,7 +18,7 @@ import math
 import numpy as np
 
 from ..errors import ParameterError, check_finite, check_positive
-from .analytic import R_DELTA_PX, _normalise, _shape
+from .grid import R_DELTA_PX, kernel_shape, normalise
 from .pillbox import quadrant_area
 from .trajectory import Segment, extent, total_weight
 
@@ -70,15 +70,15 @@ def planar_kernel(
     x, y, mass = _samples(segments, v, step if r > 0.0 else step / POINT_REFINE)
     if size is None:
         lo, hi = extent(segments)
-        w = _shape(None, lo, hi, r)[1]
+        w = kernel_shape(None, lo, hi, r)[1]
         h = 2 * math.ceil(float(np.abs(y).max()) + r + 0.5) + 1
         size = (h, w)
-    kernel = np.zeros(_shape(size, 0.0, 0.0, r))
+    kernel = np.zeros(kernel_shape(size, 0.0, 0.0, r))
     if r == 0.0:
         _deposit_points(kernel, x, y, mass)
     else:
         _deposit_discs_2d(kernel, x, y, r, mass / (math.pi * r * r))
-    return _normalise(kernel, total_weight(segments))
+    return normalise(kernel, total_weight(segments))
 
 
 def _samples(segments: list[Segment], v: float, step: float):
