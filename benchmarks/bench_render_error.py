@@ -24,7 +24,13 @@
 5. The steps' times as one stream: one uniform draw per pass shared by every step (a randomly
    shifted grid of times, still unbiased) against an independent draw per step.
 
-    python benchmarks/bench_render_error.py [--full] [--quick] [--part 1 2 3 4 5]
+6. The noise-target planner: a step's fixed cost against its samples (the constant
+   ``progress.STEP_OVERHEAD_PX_SAMPLES`` of the pass-cost model), and a capture of the train
+   window rendered to a target with the re-plan (a + b / spp, the cheapest pass size) against
+   one pass size added a pass at a time (the earlier planner), for a short exposure (where the
+   poses' floor dominates) and a coded one.
+
+    python benchmarks/bench_render_error.py [--full] [--quick] [--part 1 2 3 4 5 6]
 """
 
 from __future__ import annotations
@@ -43,10 +49,11 @@ import numpy as np
 from common import record
 from matplotlib.ticker import ScalarFormatter
 
-from pacam_render.exposure import integrate
+from pacam_render.exposure import integrate, progress
 from pacam_render.exposure.capture import CaptureSpec, capture_design, render_capture
 from pacam_render.render.samplers import DEFAULT_SAMPLER, SAMPLERS
 from pacam_render.scenes import load_scene, psf_scene
+from pacam_render.sensor.apply import SensorTarget
 
 FIGURES = Path(__file__).with_name("figures")
 DOCS = Path(__file__).resolve().parents[1] / "docs"
@@ -329,6 +336,91 @@ def _plot_seconds(rows: list[dict], lf: float) -> None:
     plt.close(fig)
 
 
+def overhead_rows() -> list[dict]:
+    """The planner's cost model, in pixel-samples: a step's fixed cost o from two fixed-spp
+    coded captures of the train window at 4 and 64 samples per step (t = steps o + c spp
+    pixels), and a pass's own from short captures of 512 spp in 2 and in 32 passes (their
+    difference is 30 passes' fixed cost, less their steps'). Wall and CPU seconds."""
+    runs = {}
+    for key, mode, spp, passes in (
+        ("lo", "coded", 2 * 128 * 4, 2),
+        ("hi", "coded", 2 * 128 * 64, 2),
+        ("few", "short", 512, 2),
+        ("many", "short", 512, 32),
+    ):
+        spec = CaptureSpec(scene="train", mode=mode, spp=spp, passes=passes, **WINDOW)
+        cpu0 = time.process_time()
+        cap = capture(spec)
+        runs[key] = (cap, {"wall": cap.record.render_seconds, "CPU": time.process_time() - cpu0})
+    px = runs["lo"][0].image.shape[0] * runs["lo"][0].image.shape[1]
+    rows = []
+    for clock in ("wall", "CPU"):
+        (lo, t_lo), (hi, t_hi) = runs["lo"], runs["hi"]
+        c = (t_hi[clock] - t_lo[clock]) / ((hi.record.effective_spp - lo.record.effective_spp) * px)
+        o = (t_lo[clock] - c * lo.record.effective_spp * px) / (2 * lo.record.n_steps)
+        (_, t_few), (many, t_many) = runs["few"], runs["many"]
+        per_pass = (t_many[clock] - t_few[clock]) / 30 - many.record.n_steps * o
+        rows.append(
+            {
+                "clock": clock,
+                "s per pixel-sample (c)": c,
+                "step: o / c": o / c,
+                "in use (step)": progress.STEP_OVERHEAD_PX_SAMPLES,
+                "pass: its own / c": per_pass / c,
+                "in use (pass)": progress.PASS_OVERHEAD_PX_SAMPLES,
+                "short steps per pass": many.record.n_steps,
+            }
+        )
+        print(rows[-1], flush=True)
+    return rows
+
+
+@contextlib.contextmanager
+def one_size_planner():
+    """The earlier planner: passes of the main size, added one at a time until the target."""
+
+    def add_one(sched, stats, exp):
+        if sched.done_passes >= sched.planned and sched.spp + sched.groups[-1][0] <= sched.max_spp:
+            sched.planned += 1
+
+    saved, progress.replan = progress.replan, add_one
+    try:
+        yield
+    finally:
+        progress.replan = saved
+
+
+def planner_rows() -> list[dict]:
+    """The re-plan against one pass size, each to the crossover study's target: 0.2x the
+    ICX285's noise at 10^4 photons/px/ms (the lowest sensor noise a crossover render feeds)."""
+    target = SensorTarget(0.2, (("grasshopper-icx285", 1e4),))
+    rows = []
+    for mode in ("short", "normal", "coded"):
+        for planner in ("re-plan (default)", "one size"):
+            spec = CaptureSpec(scene="train", mode=mode, **WINDOW)
+            cpu0 = time.process_time()
+            with one_size_planner() if planner == "one size" else contextlib.nullcontext():
+                cap = render_capture(spec, progress=False, truth=False, target=target)
+            err = cap.record.render_error
+            sizes = dict.fromkeys(err["pass_spp"])
+            rows.append(
+                {
+                    "mode": mode,
+                    "planner": planner,
+                    "target": err["target_sigma"],
+                    "mc_sigma": err["mc_sigma"],
+                    "met": err["target_met"],
+                    "passes": err["passes"],
+                    "pass sizes (spp)": " ".join(f"{s}x{err['pass_spp'].count(s)}" for s in sizes),
+                    "spp": err["spp"],
+                    "seconds": cap.record.render_seconds,
+                    "CPU seconds": time.process_time() - cpu0,
+                }
+            )
+            print(rows[-1], flush=True)
+    return rows
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--full", action="store_true", help="more spp (slower)")
@@ -336,7 +428,7 @@ def main() -> None:
     ap.add_argument("--note", default="", help="appended to each table's caption")
     ap.add_argument("--spp", type=int, nargs="*", help="part 1's spp (default 1024 4096)")
     ap.add_argument("--samplers", nargs="*", default=list(SAMPLERS), help="part 1's samplers")
-    ap.add_argument("--part", type=int, nargs="*", default=[1, 2, 3, 4, 5])
+    ap.add_argument("--part", type=int, nargs="*", default=[1, 2, 3, 4, 5, 6])
     args = ap.parse_args()
     t0 = time.perf_counter()
     note = f"; {args.note}" if args.note else ""
@@ -379,6 +471,21 @@ def main() -> None:
             "error against a fine jittered reference (noise removed), mean square over two "
             "seeds; the recorded sigma is the captures' own (4 passes for the point, 2 for the "
             "train)" + note,
+        )
+    if 6 in args.part:
+        record(
+            "Render error: the noise-target planner, a step's fixed cost",
+            overhead_rows(),
+            "train, 200x120 window; coded: 128 steps per pass, 2 passes at 4 and 64 spp per "
+            "step; short: 512 spp in 2 and in 32 passes; costs beyond the samples, in "
+            "pixel-samples" + note,
+        )
+        record(
+            "Render error: the noise-target planner, re-plan against one pass size",
+            planner_rows(),
+            "train, 200x120 window at full scale, 0.5 px steps, ldsampler; target 0.2x the "
+            "ICX285's noise at 10^4 photons/px/ms (capture units); 'pass sizes' lists spp x "
+            "passes, pilot first" + note,
         )
     print(f"{time.perf_counter() - t0:.0f} s")
 

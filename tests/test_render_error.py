@@ -8,6 +8,7 @@ References: the spread of two captures of different seeds (the measured error), 
 from __future__ import annotations
 
 import json
+import math
 
 import numpy as np
 import pytest
@@ -20,8 +21,10 @@ from pacam_render.exposure.estimate import (
     PassGroup,
     PassStats,
     main_pass_spp,
+    pass_variance_fit,
     rms,
 )
+from pacam_render.exposure.progress import advance, pass_cost, pilot_schedule
 from pacam_render.io.exr import read_exr
 from pacam_render.limits import PacamWarning
 from pacam_render.render.passes import split_spp
@@ -90,6 +93,81 @@ def test_main_pass_size_follows_the_pilot_and_the_sample_limit():
     assert main_pass_spp(stats, 2.0, 16, 10**6) == 0  # already met
     assert main_pass_spp(stats, 0.01, 16, 32 + 40) == 16  # room for two passes of 16 only
     assert main_pass_spp(stats, 0.01, 16, 40) == 0  # no room for two more passes
+
+
+def test_pass_variance_fit_recovers_a_floor_and_a_sampling_part():
+    """One pass's variance a + b / spp (a from the poses a pass draws once, b from its
+    samples), recovered from two groups of many passes; a pure 1 / spp group gives a = 0."""
+    rng = np.random.default_rng(3)
+    for a, b in ((0.5, 8.0), (0.0, 8.0)):
+        stats = PassStats([PassGroup(spp=16), PassGroup(spp=256)])
+        for g, s in enumerate((16, 256)):
+            for _ in range(400):
+                stats.add(g, rng.normal(size=(16, 16, 1)) * np.sqrt(a + b / s))
+        fa, fb = pass_variance_fit(stats)
+        assert fb == pytest.approx(b, rel=0.1)
+        assert fa == pytest.approx(a, abs=0.05)
+
+
+class _Steps:
+    """A moving exposure for the planner: a 400x160 window in 8 steps of one sampler quantum
+    (4 spp) each at least, and a pass's variance a + b / spp per pixel."""
+
+    pixels, quantum, n_steps = 400 * 160, 4, 8
+
+    def __init__(self, a: float, b: float):
+        self.a, self.b = a, b
+
+    def pass_quantum(self) -> int:
+        return self.quantum * self.n_steps
+
+    def steps(self, spp: int) -> list:
+        per = self.quantum * -(-spp // (self.quantum * self.n_steps))
+        return [type("Step", (), {"spp": per}) for _ in range(self.n_steps)]
+
+    def steps_per_pass(self, spp: int) -> int:
+        return self.n_steps
+
+
+def _plan(exp: _Steps, sigma: float, seed: int = 0) -> tuple[list, PassStats]:
+    """Render a synthetic capture to ``sigma`` with the real schedule (pilot, main, replan)."""
+    rng = np.random.default_rng(seed)
+    sched = pilot_schedule(exp, 2**40)
+    stats = PassStats([PassGroup(spp=sched.groups[0][0])])
+    while (nxt := sched.next_pass()) is not None:
+        g, spp = nxt
+        stats.add(g, 1.0 + rng.normal(size=(64, 64, 1)) * np.sqrt(exp.a + exp.b / spp))
+        sched.groups[g][1] += 1
+        advance(sched, stats, exp, AbsoluteTarget(sigma), None)
+    assert sched.met and rms(stats.variance()) <= sigma
+    assert all(n >= 2 for _, n in sched.groups)  # every group measures its own spread
+    return sched.groups, stats
+
+
+def test_a_pose_floor_is_met_with_small_passes_at_near_the_least_cost():
+    """A floor that more samples per pass cannot lower (a moving scene's one pose draw per
+    step per pass): once the main passes show it, the rest are small passes. The capture costs
+    within 4x of the best (pass size, count) found by brute force on the exact variance (the
+    pilot cannot see the floor, so its first two main passes are sized without it: 3.6x here,
+    most of it those two), and the main size kept to the end would cost 3x the plan or more."""
+    exp, sigma = _Steps(a=4e-4, b=0.02), 2e-3
+    groups, stats = _plan(exp, sigma)
+    assert groups[-1][0] < groups[1][0]  # a smaller group after the main one
+    cost = sum(n * pass_cost(exp, s) for s, n in groups)
+
+    def fixed(s: int) -> float:  # the fewest passes of s alone that meet sigma^2
+        return math.ceil((exp.a + exp.b / s) / sigma**2) * pass_cost(exp, s)
+
+    best = min(fixed(32 * 2**k) for k in range(12))
+    assert cost <= 4 * best
+    assert fixed(groups[1][0]) >= 3 * cost
+
+
+def test_without_a_floor_the_main_pass_size_is_kept():
+    """All sampling (variance 1 / spp): smaller passes only add overhead, so the plan keeps
+    the main passes' size and meets the target without another group."""
+    groups, _ = _plan(_Steps(a=0.0, b=0.02), 2e-3)
+    assert len(groups) == 2
 
 
 def test_sampler_chunks_are_sizes_mitsuba_renders_exactly():

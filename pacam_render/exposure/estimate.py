@@ -187,6 +187,49 @@ def main_pass_spp(pilot: PassStats, sigma_target: float, quantum: int, max_spp: 
     return max(per, 0)
 
 
+def pass_variance_fit(stats: PassStats) -> tuple[float, float]:
+    """(a, b) of one pass's variance, a + b / spp (mean over the window), fitted to the groups
+    that have two passes or more.
+
+    A pass of a moving scene draws one time per step for all its samples, so its error has a
+    part that more samples per pass do not reduce (``a``: the poses) beside the sampling part
+    (``b / spp``). Least squares in 1 / spp; with one group, or a fit that would make a part
+    negative, ``a`` is 0 (all sampling) or ``b`` is 0 (all floor), whichever fits.
+    """
+    pts = [(1.0 / g.spp, float(np.mean(g.variance()))) for g in stats.groups if g.n >= 2]
+    if not pts:
+        raise ValueError("no pass group has two passes: the variance is not known yet")
+    x, v = np.array(pts).T
+    if len(pts) >= 2 and np.ptp(x) > 0:
+        b, a = np.polyfit(x, v, 1)
+        if a >= 0 and b >= 0:
+            return float(a), float(b)
+    sampling = float(np.sum(x * v) / np.sum(x * x))  # v = b x through the origin
+    floor = float(np.mean(v))  # v = a
+    if np.sum((v - sampling * x) ** 2) <= np.sum((v - floor) ** 2):
+        return 0.0, sampling
+    return floor, 0.0
+
+
+def passes_to_target(
+    stats: PassStats, fit: tuple[float, float], spp: int, sigma_target: float, most: int
+) -> int | None:
+    """How many more passes of ``spp`` samples bring the window's Monte Carlo sigma to
+    ``sigma_target`` (with :data:`MARGIN` on the variance), by the module docstring's Var(mean)
+    and the per-pass variance ``fit`` (:func:`pass_variance_fit`); None if ``most`` do not."""
+    known = sum(g.spp**2 * g.n * float(np.mean(var)) for g, var in _group_vars(stats))
+    total, v = stats.spp, fit[0] + fit[1] / spp
+    goal = sigma_target**2 / MARGIN
+    # (known + n spp^2 v) <= goal (total + n spp)^2: the larger root of A n^2 + B n + C = 0
+    a, b, c = goal * spp**2, 2 * goal * total * spp - spp**2 * v, goal * total**2 - known
+    n = max(1, math.ceil((-b + math.sqrt(max(b * b - 4 * a * c, 0.0))) / (2 * a) - 1e-9))
+    return n if n <= most else None
+
+
+def _group_vars(stats: PassStats) -> list[tuple[PassGroup, np.ndarray]]:
+    return [(g, stats._pass_variance(g)) for g in stats.groups if g.n]
+
+
 def check_passes(passes: int) -> int:
     """``passes``: an integer >= 2 (two measure an error)."""
     if isinstance(passes, bool) or not isinstance(passes, (int, np.integer)) or passes < 2:

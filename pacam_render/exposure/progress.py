@@ -5,8 +5,10 @@ Without a target a capture is ``passes`` passes of spp / passes samples. With a 
 (:class:`~.estimate.NoiseTarget`), two pilot passes of the smallest size measure the error, the
 samples the target needs are predicted from them (sigma^2 ~ 1 / N), and the rest is rendered as
 :data:`~.estimate.MAIN_PASSES` equal passes; the capture stops after any of them once its
-Monte Carlo sigma meets the target, adds passes while it does not, and stops at the sample
-limit.
+Monte Carlo sigma meets the target. If two main passes do not meet it, :func:`replan` fits one
+pass's variance as a + b / spp over the pilot and main groups (``a``: the poses a moving pass
+draws once per step, which more samples do not lower) and plans the rest at the pass size that
+costs least; the sample limit stops it.
 """
 
 from __future__ import annotations
@@ -15,7 +17,16 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
-from .estimate import MAIN_PASSES, PILOT_PASSES, PassGroup, PassStats, main_pass_spp, rms
+from .estimate import (
+    MAIN_PASSES,
+    PILOT_PASSES,
+    PassGroup,
+    PassStats,
+    main_pass_spp,
+    pass_variance_fit,
+    passes_to_target,
+    rms,
+)
 from .steps import Exposure
 
 
@@ -90,8 +101,61 @@ def advance(sched: Schedule, stats: PassStats, exp: Exposure, target, record) ->
     sched.met = rms(stats.variance()) <= sched.target_sigma
     if sched.met:
         sched.planned = sched.done_passes
-    elif sched.done_passes >= sched.planned and sched.spp + sched.groups[-1][0] <= sched.max_spp:
-        sched.planned += 1
+    else:
+        replan(sched, stats, exp)
+
+
+def replan(sched: Schedule, stats: PassStats, exp: Exposure) -> None:
+    """The target is not met after two passes of the group under way: plan the rest from what
+    the passes show. One pass's variance is a + b / spp (:func:`~.estimate.pass_variance_fit`),
+    its cost that of :func:`pass_cost`; the pass size (from the pilot's up to the current) and
+    count that reach the target at the least cost are chosen. When the floor ``a`` of a moving
+    scene dominates, many small passes beat a few large ones. If the sample limit comes first,
+    passes of the current size go up to it (and the capture says the target was not met)."""
+    fit = pass_variance_fit(stats)
+    current = sched.groups[-1][0]
+    best = None
+    for spp in candidate_sizes(exp, current):
+        room = (sched.max_spp - sched.spp) // spp
+        n = passes_to_target(stats, fit, spp, sched.target_sigma, room)
+        if n is not None and spp != current:
+            n = max(n, 2)  # a new group: two passes at least, for its own spread
+        if n is not None and n <= room:
+            cost = n * pass_cost(exp, spp)
+            if best is None or cost < best[0]:
+                best = (cost, spp, n)
+    spp, n = (current, (sched.max_spp - sched.spp) // current) if best is None else best[1:]
+    if spp != current:
+        sched.groups.append([spp, 0])
+        stats.groups.append(PassGroup(spp=spp))
+    sched.planned = sched.done_passes + n
+
+
+def candidate_sizes(exp: Exposure, current: int) -> list[int]:
+    """Pass sizes (spp) from the pilot's, doubling, up to ``current``: each keeps every step."""
+    out, q = {current}, exp.pass_quantum()
+    while q < current:
+        out.add(sum(s.spp for s in exp.steps(q)))
+        q *= 2
+    return sorted(out)
+
+
+STEP_OVERHEAD_PX_SAMPLES = 1.5e5
+"""What one step's render costs beyond its samples (its geometry update and launch), in
+pixel-samples: 1.3e5 to 1.8e5 in three runs (wall and CPU seconds) with the LLVM variant on 2
+cores, a 200x120 train window at 4 and 64 spp per step
+(``benchmarks/bench_render_error.py --part 6``)."""
+PASS_OVERHEAD_PX_SAMPLES = 1.4e5
+"""What one pass costs beyond its steps (its statistics, the target's check), in pixel-samples:
+1.3e5 to 1.4e5 from short captures of 512 spp in 2 and in 32 passes, in the same runs."""
+
+
+def pass_cost(exp: Exposure, spp: int) -> float:
+    """A pass's cost in pixel-samples: its samples, each step's fixed cost and the pass's own.
+    A model with fixed constants rather than measured seconds, so that a seed gives one plan
+    and one image on any machine."""
+    steps = exp.steps_per_pass(spp)
+    return spp * exp.pixels + steps * STEP_OVERHEAD_PX_SAMPLES + PASS_OVERHEAD_PX_SAMPLES
 
 
 def group_stats(sched: Schedule, arrays: dict) -> PassStats:
