@@ -242,21 +242,32 @@ def _plot(
     import matplotlib.pyplot as plt
 
     keys = sorted(data, key=lambda v: float(v) if v != "" else 0)
-    fig, axes = plt.subplots(1, len(keys), figsize=(5.2 * len(keys), 4), squeeze=False)
+    fig, axes = plt.subplots(1, len(keys), figsize=(4.6 * len(keys) + 2.2, 4), squeeze=False)
+    names = sorted({lab.split(" + ")[0] for key in keys for lab in data[key]})
+    colour = dict(zip(names, plt.get_cmap("tab10").colors))  # one colour per capture
     for ax, key in zip(axes[0], keys):
         for lab, (xs, ys, ci) in sorted(data[key].items()):
-            line = ax.plot(xs, ys, "o-" if "coded" in lab else "s--", label=lab, ms=4)[0]
+            what, _, method = lab.partition(" + ")
+            style = _METHOD_STYLE.get(method, ":")
+            c = colour[what]
+            ax.plot(xs, ys, style, color=c, marker="o" if "coded" in what else "s", label=lab, ms=4)
             if np.any(ci > 0):
-                ax.fill_between(xs, ys - ci, ys + ci, color=line.get_color(), alpha=0.2, lw=0)
+                ax.fill_between(xs, ys - ci, ys + ci, color=c, alpha=0.2, lw=0)
         ax.set_xscale("log" if log else "linear")
         ax.set_xlabel(xlabel)
         ax.set_ylabel(ylabel or _YLABEL["psnr_moving_db"])
-        ax.set_title(f"{panel} {float(key):.4g}" if key != "" else "")
+        unit = _PANEL_UNITS.get(panel, "")
+        ax.set_title(f"{panel} {float(key):.4g} {unit}".strip() if key != "" else "")
         ax.grid(alpha=0.3)
-    axes[0][-1].legend(fontsize=7)
+    axes[0][-1].legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.02, 1.0))
     fig.tight_layout()
     save_figure(fig, out / name, 90)
     return name
+
+
+_METHOD_STYLE = {"hl": "-", "wiener": "--"}
+"""Line style per restoration method (others dotted); colour is the capture."""
+_PANEL_UNITS = {"speed": "px/ms", "light": "photons/px/ms"}
 
 
 def _crossover_text(ok: list[dict]) -> list[str]:
