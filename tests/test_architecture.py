@@ -221,12 +221,13 @@ def _record(**over) -> CaptureRecord:
 
 def test_record_round_trips_through_json():
     rec = _record(
-        sensor=SensorRecord("paper", {"qe": 1.0}, None, 1.5, 3, noise_sigma_white_units=0.02),
+        sensor=SensorRecord("paper", {"qe": 1.0}, None, 1.5, 3),
         noise_sigma=0.005,
         resumed_from_step=4,
     )
     d = json.loads(json.dumps(rec.to_json()))
-    assert d["sensor"]["noise_sigma_white_units"] == 0.02 and d["noise_sigma"] == 0.005
+    assert d["noise_sigma"] == 0.005 and d["noise_sigma_unit"].startswith("radiance x")
+    assert "noise_sigma_white_units" not in d["sensor"]  # one noise sigma, in one unit
     assert "fastest_image_speed_px_per_ms" not in d  # unset optional fields are left out
     back = CaptureRecord.from_json(d)
     assert back == rec
@@ -241,6 +242,7 @@ def test_record_reads_the_older_demo_sensor_block():
     rec = CaptureRecord.from_json(d)
     assert rec.sensor.light_level_photons_per_px_per_ms == 300.0
     assert rec.known_noise_sigma == pytest.approx(0.04 * 0.25)  # white units x light factor
+    assert rec.noise_sigma_white_units == pytest.approx(0.04)
     assert rec.to_json()["future_key"] == [1, 2]  # unknown keys are kept
 
 

@@ -111,7 +111,7 @@ def _deconvolve(cap, rendered_psf: bool, spp_psf: int, method: str = DEMO_METHOD
     if method in ("hl", "tv"):  # the sensor's own Poisson-Gaussian noise, white = 1 units
         kw = {"noise": layer_noise(cap.record).scaled(1.0 / cap.record.light_factor)}
     else:
-        kw = {"noise_sigma": cap.record.sensor.noise_sigma_white_units}
+        kw = {"noise_sigma": cap.record.noise_sigma_white_units}
     k = analytic_psf(cap.record)
     out = {"analytic PSF": deconvolve(noisy, k, method, **kw)}
     if rendered_psf:

@@ -51,18 +51,14 @@ def layer_unit(name: str) -> str | None:
 
 @dataclass
 class SensorRecord:
-    """The image sensor a capture went through (:mod:`pacam_render.sensor`).
-
-    ``noise_sigma_white_units``: the temporal noise sigma at the capture's mean level, with a
-    white diffuse surface = 1 (what a deconvolver should assume, Fig. 8's noise level).
-    """
+    """The image sensor a capture went through (:mod:`pacam_render.sensor`). Its noise sigma
+    is the record's own ``noise_sigma`` (one value, in the capture's units)."""
 
     preset: str
     model: dict
     light_level_photons_per_px_per_ms: float | None
     photons_per_unit: float
     seed: int
-    noise_sigma_white_units: float | None = None
     saturated_fraction: float | None = None
     """Fraction of values whose mean charge exceeds the sensor's saturation, before noise."""
 
@@ -75,7 +71,6 @@ class SensorRecord:
             light_level_photons_per_px_per_ms=level,
             photons_per_unit=d.get("photons_per_unit", float("nan")),
             seed=d.get("seed", 0),
-            noise_sigma_white_units=d.get("noise_sigma_white_units"),
             saturated_fraction=d.get("saturated_fraction"),
         )
 
@@ -87,7 +82,9 @@ class CaptureRecord:
     Units: ``exposure_ms`` and ``reference_exposure_ms`` in ms; ``light_factor`` is the
     capture's brightness relative to the full aperture over 45 ms (so ``capture /
     light_factor`` reads a white diffuse surface as about its reflectance); ``noise_sigma`` is
-    in the capture's own units (``noise_sigma_white_units x light_factor``).
+    the sensor's temporal noise sigma at the capture's mean level in the capture's own units
+    (``noise_sigma_unit`` in the JSON says so; :attr:`noise_sigma_white_units` is it on the
+    ``sharp`` layer's scale, white = 1).
     """
 
     spec: dict
@@ -141,6 +138,8 @@ class CaptureRecord:
                 del out[key]
         if self.sensor is not None:
             out["sensor"] = asdict(self.sensor)
+        if self.noise_sigma is not None:
+            out["noise_sigma_unit"] = CAPTURE_UNIT
         return {**self.extra, **out}
 
     @classmethod
@@ -165,19 +164,26 @@ class CaptureRecord:
         kw.setdefault("reference_exposure_ms", paper.EXPOSURE_MS)
         kw.setdefault("render_seconds", 0.0)
         kw.setdefault("variant", "unknown")
-        sensor = SensorRecord.from_json(d["sensor"]) if isinstance(d.get("sensor"), dict) else None
-        extra = {k: v for k, v in d.items() if k not in known and k != "sensor"}
+        block = d.get("sensor")
+        sensor = SensorRecord.from_json(block) if isinstance(block, dict) else None
+        old = block.get("noise_sigma_white_units") if isinstance(block, dict) else None
+        if kw.get("noise_sigma") is None and old is not None:  # files before one noise_sigma
+            kw["noise_sigma"] = old * kw["light_factor"]
+        drop = {"sensor", "noise_sigma_unit"}
+        extra = {k: v for k, v in d.items() if k not in known and k not in drop}
         return cls(**kw, sensor=sensor, extra=extra)
 
     @property
     def known_noise_sigma(self) -> float | None:
         """The capture's noise sigma in its own units, if a sensor model gave it."""
-        if self.noise_sigma is not None:
-            return self.noise_sigma
-        s = self.sensor
-        if s is not None and s.noise_sigma_white_units is not None:
-            return s.noise_sigma_white_units * self.light_factor
-        return None
+        return self.noise_sigma
+
+    @property
+    def noise_sigma_white_units(self) -> float | None:
+        """``noise_sigma`` on the white = 1 scale of ``sharp`` (divided by ``light_factor``)."""
+        if self.noise_sigma is None or not self.light_factor > 0:
+            return None
+        return self.noise_sigma / self.light_factor
 
 
 def analytic_psf(record: CaptureRecord, s: float = 0.0, size=None):

@@ -143,7 +143,6 @@ def add_sensor_layers(
         light_level_photons_per_px_per_ms=light_level,
         photons_per_unit=ppu,
         seed=seed,
-        noise_sigma_white_units=sigma,
         saturated_fraction=saturated,
     )
     rec.noise_sigma = sigma * rec.light_factor  # in the capture's own units

@@ -221,7 +221,7 @@ def _evaluate(cap, desc, p: Point, task: Task, info: dict) -> dict:
 
     add_sensor_layers(cap, SensorModel.from_preset(p.sensor), p.sensor, p.light_level, p.seed)
     noisy = cap.extra_layers["noisy"] / cap.record.light_factor  # white reads ~ its reflectance
-    sigma = cap.record.sensor.noise_sigma_white_units
+    sigma = cap.record.noise_sigma_white_units
     # the deconvolver is told every noise the capture has: the sensor's, the render's, and its
     # measured departure from the model
     parts = (sigma, info["render_noise_sigma"], info["model_sigma"])

@@ -28,6 +28,7 @@ from importlib import resources
 from pathlib import Path
 
 from ..errors import FileKeyError, ParameterError
+from ..sensor.model import DEFAULT_LIGHT_LEVEL
 
 AXES = {
     "scene": "train",
@@ -35,7 +36,7 @@ AXES = {
     "design": "prototype",
     "speed_px_per_ms": None,
     "depth_mm": None,
-    "light_level": 300.0,
+    "light_level": DEFAULT_LIGHT_LEVEL,
     "sensor": None,
     "method": "hl",
     "seed": 0,
@@ -43,10 +44,11 @@ AXES = {
 """Sweepable axes and their defaults (None: the scene's own speed and depth, the render's
 sensor). ``speed_px_per_ms``: image speed of the scene's fastest moving shape at t = 0 in the
 preset's own pixels (the motions are scaled); ``depth_mm``: the moving shapes' depth (they are
-moved along z, their image speed kept); ``light_level``: photons/px/ms of white through F2.8;
-``design``: ``prototype`` (the preset), ``cover=S`` with optional ``,F=N`` or ``,r=PX``
-(:func:`~pacam_render.model.design.solve`), or ``schedule=PATH``: a designed schedule
-(``pacam optimize``'s schedule.json)."""
+moved along z, their image speed kept); ``light_level``: photons/px/ms of white through F2.8
+(by default :data:`~pacam_render.sensor.model.DEFAULT_LIGHT_LEVEL`, as for ``render`` and
+``optimize``); ``design``: ``prototype`` (the preset), ``cover=S`` with optional ``,F=N`` or
+``,r=PX`` (:func:`~pacam_render.model.design.solve`), or ``schedule=PATH``: a designed
+schedule (``pacam optimize``'s schedule.json)."""
 RENDER = {
     "scene": "train",
     "preset": "prototype",
