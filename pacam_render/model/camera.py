@@ -354,6 +354,14 @@ def preset(name: str, **options) -> CameraDesign:
     Returns
     -------
     CameraDesign
+
+    Examples
+    --------
+    The paper's prototype: r = 2 px of defocus buys invariance for |s| <= |a_i| T.
+
+    >>> d = preset("prototype")
+    >>> round(d.r_px, 3), round(d.velocity_range_px_per_ms, 3), d.n_patterns, d.exposure_ms
+    (2.0, 0.896, 16, 45.0)
     """
     if name not in PRESETS:
         raise ParameterError(f"unknown preset {name!r}; valid: {', '.join(sorted(PRESETS))}")

@@ -112,7 +112,18 @@ MODES_WITH_PSF = tuple(name for name, m in MODES.items() if m.psf is not None)
 
 
 def mode(name: str) -> Mode:
-    """The :class:`Mode` called ``name``, or :class:`ParameterError` listing the valid ones."""
+    """The :class:`Mode` called ``name``, or :class:`ParameterError` listing the valid ones.
+
+    Examples
+    --------
+    >>> m = mode("short")
+    >>> m.exposure_ms, m.full_opening, m.refocus
+    (0.679, True, True)
+    >>> mode("blurry")
+    Traceback (most recent call last):
+    ...
+    pacam_render.errors.ParameterError: unknown mode 'blurry'; valid: normal, coded, ...
+    """
     if name not in MODES:
         raise ParameterError(f"unknown mode {name!r}; valid: {', '.join(MODES)}")
     return MODES[name]

@@ -157,7 +157,14 @@ def levin_psf(s: float, a_i: float, T_ms: float, size=None, x0_px: float = 0.0) 
 
 
 def pillbox_psf(r_px: float, size=None, centre=(0.0, 0.0)) -> np.ndarray:
-    """psi (Eq. 13): a uniform disc of radius r_px with exact pixel coverage."""
+    """psi (Eq. 13): a uniform disc of radius r_px with exact pixel coverage.
+
+    Examples
+    --------
+    >>> k = pillbox_psf(2.0)
+    >>> k.shape, round(float(k.sum()), 12), round(float(k[3, 3]), 4)
+    ((7, 7), 1.0, 0.0796)
+    """
     r = float(r_px)
     if not math.isfinite(r) or r < 0:
         raise ParameterError(f"r_px must be a finite radius >= 0 px, got {r_px!r}")
@@ -381,6 +388,16 @@ def design_psf(
     -------
     numpy.ndarray
         The pixel-integrated kernel, odd-sized, summing to 1.
+
+    Examples
+    --------
+    The prototype's coded kernel at rest and inside its invariant range (|s| <= 0.9 px/ms)
+    have the same support, shifted by -s^2 / (2 a_i):
+
+    >>> from pacam_render.model.camera import preset
+    >>> k0 = design_psf(preset("prototype"), "coded", s=0.0)
+    >>> k0.shape, round(float(k0.sum()), 12)
+    ((25, 25), 1.0)
     """
     segments, r = design_trajectory(design, mode, s, origin)
     if v_px_per_ms == 0.0:

@@ -147,6 +147,11 @@ def available_presets() -> list[str]:
     -------
     list of str
         The keys of :data:`PRESETS`, sorted (``grasshopper-icx285`` and ``paper``).
+
+    Examples
+    --------
+    >>> available_presets()
+    ['grasshopper-icx285', 'paper']
     """
     return sorted(PRESETS)
 

@@ -156,6 +156,12 @@ def builtin_studies() -> list[str]:
 def load_study(name_or_path: str, quick: bool = False) -> StudySpec:
     """A study by built-in name or TOML path, parsed and checked.
 
+    Examples
+    --------
+    >>> spec = load_study("crossover", quick=True)
+    >>> spec.name, len(spec.points), spec.render["noise_ratio"]
+    ('crossover', 9, 0.2)
+
     Raises
     ------
     ParameterError
