@@ -31,6 +31,7 @@ from common import median_spread, record, timeit
 from matplotlib.ticker import NullFormatter
 
 from pacam_render.exposure import psf_render as prd
+from pacam_render.exposure.psf_spec import PSFSpec
 from pacam_render.model.camera import prototype
 from pacam_render.restore import metrics
 
@@ -61,8 +62,8 @@ def main() -> None:
     kw = dict(threads=None)  # all Dr.Jit threads: the fastest set-up for both integrators
 
     t0 = time.perf_counter()
-    ref = rnd.render(cam, "coded", SPEED, spp=ref_spp, seed=10**6, **kw)
-    ref2 = rnd.render(cam, "coded", SPEED, spp=ref_spp, seed=10**6 + 1, **kw)
+    ref = rnd.render(cam, PSFSpec("coded", SPEED, spp=ref_spp, seed=10**6, **kw))
+    ref2 = rnd.render(cam, PSFSpec("coded", SPEED, spp=ref_spp, seed=10**6 + 1, **kw))
     ref_kernel = 0.5 * (ref.kernel + ref2.kernel)
     ref_noise = metrics.rel_l1(ref.kernel, ref2.kernel) / 2  # L1 of the mean against the truth
     ref_s = time.perf_counter() - t0
@@ -75,8 +76,10 @@ def main() -> None:
             errs, seeds = [], iter(range(1000))
 
             def run(integ=integ, spp=spp, errs=errs, seeds=seeds):
-                r = rnd.render(cam, "coded", SPEED, spp=spp, seed=next(seeds), integrator=integ,
-                               size=shape, **kw)  # fmt: skip
+                spec = PSFSpec(
+                    "coded", SPEED, spp=spp, seed=next(seeds), integrator=integ, size=shape, **kw
+                )
+                r = rnd.render(cam, spec)
                 errs.append(metrics.rel_l1(r.kernel, ref_kernel))
                 return r
 

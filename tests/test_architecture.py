@@ -15,7 +15,7 @@ import pacam_render
 from pacam_render.errors import ParameterError
 from pacam_render.exposure.capture import MODES as CAPTURE_MODES
 from pacam_render.exposure.capture import mode_camera
-from pacam_render.exposure.psf_render import RENDER_MODES, mode_setup
+from pacam_render.exposure.psf_setup import RENDER_MODES, mode_setup
 from pacam_render.exposure.record import CaptureRecord, SensorRecord
 from pacam_render.model import paper
 from pacam_render.model.camera import prototype

@@ -15,6 +15,8 @@ import pytest
 from pacam_render.cli import main
 from pacam_render.errors import ParameterError
 from pacam_render.exposure import psf_render as prd
+from pacam_render.exposure.psf_result import source_blur_l1
+from pacam_render.exposure.psf_spec import PSFSpec, plan_render
 from pacam_render.io import exr as exrio
 from pacam_render.model.camera import prototype
 from pacam_render.model.modes import MODES_WITH_PSF, capture_camera
@@ -30,8 +32,8 @@ def renderer():
 
 
 def _pair(renderer, cam, mode, s, **kw):
-    a = renderer.render(cam, mode, s, seed=1, **kw)
-    b = renderer.render(cam, mode, s, seed=2, **kw)
+    a = renderer.render(cam, PSFSpec(mode, s, seed=1, **kw))
+    b = renderer.render(cam, PSFSpec(mode, s, seed=2, **kw))
     return a, b, 0.5 * (a.kernel + b.kernel), metrics.rel_l1(a.kernel, b.kernel) / 2
 
 
@@ -67,14 +69,14 @@ def test_crop_of_the_prototype_film_matches_the_window_film(renderer):
     """The crop of the 1280x960 film (the brief's set-up) and the kernel-sized film agree."""
     cam = prototype()
     s = 0.5
-    crop = renderer.render(cam, "coded", s, spp=1, seed=4, film="crop")
+    crop = renderer.render(cam, PSFSpec("coded", s, spp=1, seed=4, film="crop"))
     assert crop.film["crop"]["width"] == crop.kernel.shape[1]
     # the kernel's centre pixel is a film pixel whose centre is the t = 0 image
     u0 = 640 - cam.beta_px_per_mm * (cam.R_max_mm - cam.R_mm)
     assert crop.film["kernel_origin_on_film_px"][0] == math.floor(u0) + 0.5
     assert crop.film["crop"]["offset_x"] + crop.kernel.shape[1] // 2 == math.floor(u0)
     assert crop.film["crop"]["offset_y"] + crop.kernel.shape[0] // 2 == 480
-    win = renderer.render(cam, "coded", s, seed=5, spp=512)
+    win = renderer.render(cam, PSFSpec("coded", s, seed=5, spp=512))
     k = design_psf(cam, "coded", s)
     noise = metrics.rel_l1(crop.kernel, k) + metrics.rel_l1(win.kernel, k)
     assert metrics.rel_l1(crop.kernel, win.kernel) < 1.2 * noise
@@ -87,7 +89,7 @@ def test_crop_of_the_prototype_film_matches_the_window_film(renderer):
 def test_pinhole_origin_registration(renderer, mode):
     """origin='pinhole' (how deconvolve registers captures) shifts both kernels alike."""
     cam = prototype()
-    r = renderer.render(cam, mode, 0.3, origin="pinhole", spp=64)
+    r = renderer.render(cam, PSFSpec(mode, 0.3, origin="pinhole", spp=64))
     k = design_psf(cam, mode, 0.3, origin="pinhole")
     assert r.kernel.shape == k.shape
     assert np.allclose(metrics.kernel_centroid(r.kernel), metrics.kernel_centroid(k), atol=0.05)
@@ -106,8 +108,8 @@ def test_static_disc_radius_is_eq12(renderer):
     assert r == pytest.approx(cam.r_px, rel=0.01)
     assert metrics.rel_l1(mean, pillbox_psf(cam.r_px, size=shape)) < 1.3 * floor + 2e-3
     # the source's own size is negligible (second order in its radius)
-    assert prd.source_blur_l1(cam.r_px, prd.DEFAULT_SOURCE_RADIUS_PX) < 5e-4
-    assert prd.source_blur_l1(cam.r_px, 0.25) > 0.01  # psf_scene's default would show
+    assert source_blur_l1(cam.r_px, prd.DEFAULT_SOURCE_RADIUS_PX) < 5e-4
+    assert source_blur_l1(cam.r_px, 0.25) > 0.01  # psf_scene's default would show
 
 
 @pytest.mark.parametrize("mode", ["levin", "normal", "flutter", "coded_continuous"])
@@ -123,9 +125,9 @@ def test_other_modes_match_their_analytic_psf(renderer, mode):
 
 def test_same_seed_is_bit_identical(renderer):
     cam = prototype()
-    a = renderer.render(cam, "coded", 0.3, seed=7, spp=16)
-    b = renderer.render(cam, "coded", 0.3, seed=7, spp=16)
-    c = renderer.render(cam, "coded", 0.3, seed=8, spp=16)
+    a = renderer.render(cam, PSFSpec("coded", 0.3, seed=7, spp=16))
+    b = renderer.render(cam, PSFSpec("coded", 0.3, seed=7, spp=16))
+    c = renderer.render(cam, PSFSpec("coded", 0.3, seed=8, spp=16))
     assert np.array_equal(a.kernel, b.kernel)  # one Dr.Jit thread: deterministic atomics
     assert not np.array_equal(a.kernel, c.kernel)
 
@@ -138,7 +140,7 @@ def test_scene_velocity_moves_rays_and_connections(renderer):
     import mitsuba as mi
 
     cam = prototype()
-    renderer.render(cam, "coded", 0.0, spp=1)  # loads a scene
+    renderer.render(cam, PSFSpec("coded", 0.0, spp=1))  # loads a scene
     scene, _ = next(iter(renderer._scenes.values()))
     sensor = scene.sensors()[0]
     v = (0.3, -0.2, 0.0)
@@ -240,11 +242,11 @@ def test_in_focus_depth_is_a_clear_error(tmp_path, capsys):
     assert main(["psf", "--depth", repr(zf), "--velocity", "0", "--render", "--out", str(out)]) == 2
     assert "beta = 0" in capsys.readouterr().err
     with pytest.raises(ParameterError, match="spp"):
-        prd.plan_render(prototype(), spp=2.5)
+        plan_render(prototype(), PSFSpec(spp=2.5))
     with pytest.raises(ParameterError, match="integrator"):
-        prd.plan_render(prototype(), integrator="bdpt")
+        plan_render(prototype(), PSFSpec(integrator="bdpt"))
     with pytest.raises(ParameterError, match="mode"):
-        prd.plan_render(prototype(), "bogus")
+        plan_render(prototype(), PSFSpec("bogus"))
 
 
 @pytest.mark.parametrize("mode", MODES_WITH_PSF)

@@ -37,6 +37,9 @@ import numpy as np
 
 from ..errors import ParameterError
 from ..exposure import psf_render as prd
+from ..exposure.psf_result import source_blur_l1
+from ..exposure.psf_setup import model_window_kernels
+from ..exposure.psf_spec import PSFSpec
 from ..io.outputs import csv_text, prepare_out_dir, save_figure, write_text
 from ..model.camera import CameraDesign, prototype
 from ..psf.analytic import design_psf
@@ -124,8 +127,8 @@ def _static_r(renderer, design: CameraDesign, grid: Grid) -> dict:
     shape = (ladder_size(2 * math.ceil(r + 0.5) + 1),) * 2
     spp = _spp(16 * grid.particles_per_window, shape)
     kw = dict(size=shape, spp=spp, per_window=False)
-    a = renderer.render(design, "normal", 0.0, seed=grid.seeds[0], **kw)
-    b = renderer.render(design, "normal", 0.0, seed=grid.seeds[1], **kw)
+    a = renderer.render(design, PSFSpec("normal", 0.0, seed=grid.seeds[0], **kw))
+    b = renderer.render(design, PSFSpec("normal", 0.0, seed=grid.seeds[1], **kw))
     ra, rb = metrics.fit_disc_radius(a.kernel, r), metrics.fit_disc_radius(b.kernel, r)
     rm = metrics.fit_disc_radius(0.5 * (a.kernel + b.kernel), r)
     return {
@@ -135,7 +138,7 @@ def _static_r(renderer, design: CameraDesign, grid: Grid) -> dict:
         "r_noise_pct": 100.0 * abs(ra - rb) / 2.0 / r,
         "r_kernel_px": shape[0],
         "r_render_s": a.seconds + b.seconds,
-        "source_l1_bound": prd.source_blur_l1(r, renderer.source_radius_px),
+        "source_l1_bound": source_blur_l1(r, renderer.source_radius_px),
     }
 
 
@@ -169,9 +172,9 @@ def run_point(
     cont = design_psf(design, "coded_continuous", speed, size=shape)
     analytic_s = time.perf_counter() - t0
     spp = _spp(grid.particles_per_window, shape)
-    kw = dict(size=shape, spp=spp, model=disc)
-    a = renderer.render(design, "coded", speed, seed=grid.seeds[0], **kw)
-    b = renderer.render(design, "coded", speed, seed=grid.seeds[1], **kw)
+    kw = dict(size=shape, spp=spp)
+    a = renderer.render(design, PSFSpec("coded", speed, seed=grid.seeds[0], **kw), model=disc)
+    b = renderer.render(design, PSFSpec("coded", speed, seed=grid.seeds[1], **kw), model=disc)
     mean = 0.5 * (a.kernel + b.kernel)
     floor = metrics.rel_l1(a.kernel, b.kernel) / 2.0
     l1_disc = metrics.rel_l1(mean, disc)
@@ -180,7 +183,7 @@ def run_point(
     cu = 0.5 * (a.centroid_u_px + b.centroid_u_px)
     a_fit = metrics.fit_acceleration(t_mid, cu)
     a_fit_a, a_fit_b = a.fitted_a_i, b.fitted_a_i
-    windows = prd.model_window_kernels(design, "coded", speed, shape)
+    windows = model_window_kernels(design, "coded", speed, shape)
     a_fit_model = metrics.fit_acceleration(t_mid, [metrics.kernel_centroid(k)[0] for k in windows])
     a_model = design.a_i_px_per_ms2
     cr, ca = metrics.kernel_centroid(mean), metrics.kernel_centroid(disc)

@@ -20,6 +20,7 @@ from .capture import (
     write_capture,
 )
 from .psf_render import PSFRenderer, render_psf
+from .psf_spec import PSFSpec
 from .record import CaptureRecord, SensorRecord
 
 __all__ = [
@@ -28,6 +29,7 @@ __all__ = [
     "CaptureRecord",
     "CaptureSpec",
     "PSFRenderer",
+    "PSFSpec",
     "SensorRecord",
     "render_capture",
     "render_psf",
