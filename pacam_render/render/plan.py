@@ -2,10 +2,10 @@
 
 :func:`build_plan` parses the plugin's parameters once into an :class:`AperturePlan` of numpy
 arrays (pbrt-v4's ``Create`` idea: parsing and checking are separate from rendering). The
-Mitsuba kernels (:mod:`pacam_render.render.sensor`) read only the plan; nothing here imports
-Mitsuba, so plans can be built, checked and tested without a renderer.
+Mitsuba kernels (:mod:`pacam_render.render.aperture_camera`) read only the plan; nothing here
+imports Mitsuba, so plans can be built, checked and tested without a renderer.
 
-Conventions, units and the radiometry are described in :mod:`pacam_render.render.sensor`.
+Conventions, units and the radiometry are described in :mod:`pacam_render.render.aperture_camera`.
 """
 
 from __future__ import annotations

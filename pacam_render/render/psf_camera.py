@@ -3,9 +3,9 @@
 Mitsuba 3 moves no geometry with ray time. For one point source on black, where everything that
 moves shares one velocity, moving the whole scene by v (t - t_mid) is exact and continuous in a
 single render. This sensor does that through the base class's documented hook,
-:meth:`~pacam_render.render.sensor.ProgrammableApertureCamera.scene_shift`: camera rays start at
-o - v tau, and particle-tracer connections see the scene point at p + v tau, tau being the ray's
-(window-mapped) paper time. Used by :mod:`pacam_render.exposure.psf_render`.
+:meth:`~pacam_render.render.aperture_camera.ProgrammableApertureCamera.scene_shift`: camera
+rays start at o - v tau, and particle-tracer connections see the scene point at p + v tau, tau
+being the ray's (window-mapped) paper time. Used by :mod:`pacam_render.exposure.psf_render`.
 
 Units: velocity in world mm/ms.
 """
@@ -16,7 +16,7 @@ import drjit as dr
 import mitsuba as mi
 
 from ..errors import ParameterError, check_finite
-from .sensor import JIT, ProgrammableApertureCamera
+from .aperture_camera import JIT, ProgrammableApertureCamera
 
 VARIANT = mi.variant()
 """The variant this module was imported for (see :mod:`.registry`)."""

@@ -2,8 +2,8 @@
 
 Mitsuba's Python plugins are module-level classes that derive from the *active* variant's
 ``mi.Sensor``; after a variant switch, Mitsuba re-imports them (``ad/integrators/__init__``).
-This module does the same for ours: :mod:`.sensor` and :mod:`.psf_camera` are imported on the
-first :func:`register` (or :func:`~.backend.select_variant`, or render), and re-imported and
+This module does the same for ours: :mod:`.aperture_camera` and :mod:`.psf_camera` are imported
+on the first :func:`register` (or :func:`~.backend.select_variant`, or render), and re-imported and
 registered again after every variant switch. Nothing here imports Mitsuba at import time, so
 ``import pacam_render`` stays light.
 
@@ -29,7 +29,7 @@ from .variant import activate_variant
 PLUGIN_NAME = "programmable_aperture"
 PSF_PLUGIN_NAME = "pacam_psf_camera"
 _MODULES = (
-    ("sensor", "ProgrammableApertureCamera", PLUGIN_NAME),
+    ("aperture_camera", "ProgrammableApertureCamera", PLUGIN_NAME),
     ("psf_camera", "PSFCamera", PSF_PLUGIN_NAME),
 )
 _registered: str | None = None  # the variant the plugins were last registered for
@@ -55,7 +55,7 @@ def sensor_class(variant: str | None = None) -> type:
     Returns
     -------
     type
-        ``ProgrammableApertureCamera`` from :mod:`pacam_render.render.sensor`, imported (or
+        ``ProgrammableApertureCamera`` from :mod:`pacam_render.render.aperture_camera`, imported (or
         re-imported) for the active variant.
 
     Raises
@@ -72,7 +72,7 @@ def sensor_class(variant: str | None = None) -> type:
         raise ParameterError(
             f"the sensor class exists for the active variant {active!r} only, not {variant!r}"
         )
-    return _module("sensor", active).ProgrammableApertureCamera
+    return _module("aperture_camera", active).ProgrammableApertureCamera
 
 
 def register() -> str:
@@ -160,7 +160,7 @@ def sensor_dict(**params) -> dict:
     Parameters
     ----------
     **params
-        The sensor's properties (see :mod:`pacam_render.render.sensor`): the plugin's own
+        The sensor's properties (see :mod:`pacam_render.render.aperture_camera`): the plugin's own
         (:data:`~pacam_render.render.plan.PROP_KEYS`, e.g. ``lens_radius`` R_max and
         ``aperture_radius`` R in mm, ``schedule``, ``n_patterns``, ``image_acceleration`` in
         px/ms^2, ``reference_exposure`` in ms) and the camera's (``fov`` in deg, ``fov_axis``,

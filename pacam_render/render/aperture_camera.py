@@ -135,7 +135,7 @@ from .plan import (
 
 if mi.variant() is None:  # mi.Sensor and the array types below belong to one variant
     raise ImportError(
-        "pacam_render.render.sensor needs an active Mitsuba variant: call "
+        "pacam_render.render.aperture_camera needs an active Mitsuba variant: call "
         "pacam_render.render.register() (or backend.select_variant()) first"
     )
 
