@@ -24,16 +24,7 @@ from pacam_render.psf.analytic import design_psf
 
 PACKAGE = Path(pacam_render.__file__).resolve().parent
 
-ALLOWED_CYCLES = {
-    # Left for later: another change is under way in psf/ and restore/ (issue 28, item 2: the
-    # shared Fourier helpers of restore/ go to a leaf module, as skimage keeps uft.py). Remove
-    # each entry in the change that breaks its cycle.
-    "restore": {
-        "pacam_render.restore.deconvolve",
-        "pacam_render.restore.sparse",
-        "pacam_render.restore.splitting",
-    },
-}
+ALLOWED_CYCLES: dict[str, set[str]] = {}
 """Import cycles the test tolerates, each a set of modules; a cycle among other modules fails."""
 
 

@@ -24,7 +24,8 @@ import numpy as np
 import scipy.fft as sfft
 
 from ..errors import ParameterError, check_positive
-from ..restore.deconvolve import WORKERS, pad_width, psf_to_otf, taper_pad, wiener_spectrum
+from ..restore.deconvolve import wiener_spectrum
+from ..restore.fourier import WORKERS, pad_width, psf_to_otf, taper_pad
 from ..restore.metrics import best_shift_px, psnr_batch
 
 IMAGE_NAMES = (

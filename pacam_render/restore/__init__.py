@@ -3,7 +3,9 @@
 :mod:`.deconvolve` holds the deconvolvers (:data:`METHODS`: our Wiener filter with a 1/f^2
 natural-image prior fitted above the noise, Richardson-Lucy and unsupervised Wiener from
 scikit-image, and optional BM3D deblurring); :mod:`.sparse` the hyper-Laplacian and
-total-variation priors (``hl``, ``tv``). All use the same tapered reflect padding;
+total-variation priors (``hl``, ``tv``). All use the same tapered reflect padding and
+transfer functions, from :mod:`.fourier`, a leaf below them; :mod:`.noise` holds the noise a
+deconvolver assumes (a white sigma, known or estimated, or the sensor's Poisson-Gaussian model);
 :mod:`.metrics` holds PSNR, SSIM, shift-aligned PSNR and the fits of rendered PSFs (centroid,
 the image acceleration of Eq. 18, the defocus disc of Eq. 12). Images are float (H, W) or
 (H, W, C), PSFs (h, w) or (h, w, C) in px. The dispatcher ``deconvolve`` is not re-exported
@@ -14,7 +16,6 @@ here, because its name would hide the :mod:`.deconvolve` module: use
 from .deconvolve import (
     METHODS,
     bm3d_deblur,
-    estimate_noise_sigma,
     oracle_wiener,
     richardson_lucy,
     unsupervised_wiener,
@@ -33,7 +34,7 @@ from .metrics import (
     rel_l1,
     ssim,
 )
-from .noise import NoiseModel
+from .noise import NoiseModel, estimate_noise_sigma
 from .sparse import sparse_deconvolve
 from .splitting import shrink
 

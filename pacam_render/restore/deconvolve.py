@@ -4,7 +4,7 @@ Wiener (scikit-image), and BM3D deblurring (optional ``bm3d`` package).
 All methods share the same boundary handling: the image is reflect-padded by the PSF's extent and
 the pad is tapered with a raised cosine towards the image mean, so the padded image is periodic
 and continuous. That keeps the circular FFT from ringing at the borders. The pad is cropped off
-afterwards.
+afterwards (:mod:`.fourier`, shared with :mod:`.sparse`).
 
 Wiener noise-to-signal choice (``nsr="prior"``, the default): the image spectrum is modelled as
 natural images' S(f) = c / (|f|^2 + f0^2), with f in cycles/px and f0 = 1/N_max; c is fitted
@@ -19,7 +19,6 @@ Images are float (H, W) or (H, W, C) on any linear scale; PSFs are 2-D (shared) 
 
 from __future__ import annotations
 
-import os
 import warnings
 
 import numpy as np
@@ -27,161 +26,15 @@ import scipy.fft as sfft
 from scipy.optimize import minimize_scalar
 
 from ..errors import ParameterError
+from .fourier import WORKERS, check_image, check_psf, pad_width, psf_to_otf, taper_pad
 from .metrics import psnr
+from .noise import SIGMA_FLOOR, check_sigma, estimate_noise_sigma
+from .sparse import sparse_deconvolve
 
 METHODS = ("wiener", "hl", "tv", "rl", "uwiener", "bm3d")
-SIGMA_FLOOR = 1e-6
-"""Wiener's smallest noise sigma, relative to the image's peak (a noiseless render)."""
 BM3D_LICENCE = (
     "bm3d (Tampere University) is free for non-commercial use only; see the bm3d package licence"
 )
-WORKERS = os.cpu_count() or 1
-
-
-# --- validation -------------------------------------------------------------------------------
-def check_psf(psf, image_shape: tuple[int, ...]) -> np.ndarray:
-    """Validate a PSF against an image and return it normalised to unit mass, as float64.
-
-    Parameters
-    ----------
-    psf : array_like
-        The point-spread function on the image's pixel grid (px): 2-D (h, w), shared by all
-        channels, or 3-D (h, w, C), one kernel per channel. Finite and non-negative.
-    image_shape : tuple of int
-        Shape of the image it will deconvolve, (H, W) or (H, W, C).
-
-    Returns
-    -------
-    psf : ndarray of float64
-        The PSF divided by its sum (per channel for an (h, w, C) PSF), so each kernel sums to 1.
-
-    Raises
-    ------
-    ParameterError
-        If the PSF is not 2-D or 3-D, contains NaN or infinite values, has a negative value, has
-        zero total mass (in any channel), is larger than half the image in either direction, or is
-        3-D with a channel count other than the image's (1 for an (H, W) image).
-    """
-    k = np.asarray(psf, dtype=float)
-    if k.ndim not in (2, 3):
-        raise ParameterError(f"psf must be 2-D (h, w) or (h, w, C), got shape {k.shape}")
-    if not np.all(np.isfinite(k)):
-        raise ParameterError("psf contains NaN or infinite values")
-    if k.min() < 0:
-        raise ParameterError(f"psf must be non-negative, min is {k.min():g}")
-    sums = k.sum(axis=(0, 1))
-    if np.any(sums <= 0):
-        raise ParameterError("psf is all zero: it must have positive total mass")
-    if 2 * k.shape[0] > image_shape[0] + 1 or 2 * k.shape[1] > image_shape[1] + 1:
-        raise ParameterError(
-            f"psf of {k.shape[0]}x{k.shape[1]} px is larger than half the "
-            f"{image_shape[0]}x{image_shape[1]} px image: the borders, which the blur mixes "
-            "with the unseen scene outside, would be most of it; deblur a larger image (or "
-            "crop the PSF's empty margins)"
-        )
-    if k.ndim == 3:
-        channels = image_shape[2] if len(image_shape) == 3 else 1
-        if k.shape[2] != channels:
-            raise ParameterError(
-                f"psf has {k.shape[2]} channels but the image has {channels}: mismatched channels"
-            )
-    return k / sums
-
-
-def check_image(image) -> np.ndarray:
-    """Validate an image and return it as a finite float64 array.
-
-    Parameters
-    ----------
-    image : array_like
-        Image of shape (H, W) or (H, W, C), on any linear scale.
-
-    Returns
-    -------
-    image : ndarray of float64
-        The image, same shape.
-
-    Raises
-    ------
-    ParameterError
-        If the image is not 2-D or 3-D, or contains NaN or infinite values.
-    """
-    y = np.asarray(image, dtype=float)
-    if y.ndim not in (2, 3):
-        raise ParameterError(f"image must be (H, W) or (H, W, C), got shape {y.shape}")
-    if not np.all(np.isfinite(y)):
-        raise ParameterError("image contains NaN or infinite values")
-    return y
-
-
-# --- boundaries ----------------------------------------------------------------------------------
-def pad_width(psf_shape: tuple[int, ...]) -> tuple[int, int]:
-    """Rows and columns of padding for a PSF: its full extent, so the blur never wraps.
-
-    Parameters
-    ----------
-    psf_shape : tuple of int
-        Shape of the PSF, (h, w) or (h, w, C), px.
-
-    Returns
-    -------
-    pad : tuple of int
-        (h, w): the rows and columns of padding, px (see :func:`taper_pad`).
-    """
-    return int(psf_shape[0]), int(psf_shape[1])
-
-
-def _ramp(n: int, head: int, tail: int) -> np.ndarray:
-    """1 inside, raised-cosine fall to 0 over ``head`` and ``tail`` samples at the ends."""
-    w = np.ones(n)
-    for p, sl in ((head, slice(0, head)), (tail, slice(n - tail, n))):
-        if p > 0:
-            t = 0.5 - 0.5 * np.cos(np.pi * (np.arange(p) + 0.5) / p)
-            w[sl] = t if sl.start == 0 else t[::-1]
-    return w
-
-
-def taper_pad(image2d: np.ndarray, pad: tuple[int, int]) -> tuple[np.ndarray, tuple[slice, slice]]:
-    """Reflect-pad to an FFT-friendly size, fade the pad to the image mean with a raised cosine.
-
-    The image gets ``pad`` rows above and columns to the left, and at least as many below and to
-    the right: up to the next size that :func:`scipy.fft.next_fast_len` finds fast for a real
-    FFT. The pad is reflected (``symmetric`` instead when the image is one pixel thick or the pad
-    is not smaller than the image's shorter side), then faded towards the image mean, so that
-    the padded image is periodic and continuous and the circular FFT does not ring at the
-    borders.
-
-    Parameters
-    ----------
-    image2d : ndarray
-        One channel, shape (H, W).
-    pad : tuple of int
-        (py, px): rows and columns of padding on each side, px; usually :func:`pad_width`.
-
-    Returns
-    -------
-    padded : ndarray
-        The padded, tapered image, shape (Hp, Wp) with
-        Hp = ``next_fast_len(H + 2 py, real=True)`` and Wp likewise.
-    keep : tuple of slice
-        (rows, columns) that crop the original (H, W) region back out of ``padded``.
-
-    Notes
-    -----
-    With m the image mean and w(y, x) = w_y(y) w_x(x) a separable window,
-    padded = m + (reflected - m) w. Each 1-D window is 1 over the image and, over a pad of p
-    samples, rises from the outer edge as 0.5 - 0.5 cos(pi (k + 1/2) / p), k = 0 .. p - 1.
-    """
-    h, w = image2d.shape
-    py, px = pad
-    H = sfft.next_fast_len(h + 2 * py, real=True)
-    W = sfft.next_fast_len(w + 2 * px, real=True)
-    widths = ((py, H - h - py), (px, W - w - px))
-    mode = "reflect" if min(h, w) > 1 and max(py, px) < min(h, w) else "symmetric"
-    out = np.pad(image2d, widths, mode=mode)
-    mean = image2d.mean()
-    win = np.outer(_ramp(H, *widths[0]), _ramp(W, *widths[1]))
-    return mean + (out - mean) * win, (slice(py, py + h), slice(px, px + w))
 
 
 def _per_channel(image: np.ndarray, psf: np.ndarray, fn) -> np.ndarray:
@@ -195,34 +48,6 @@ def _per_channel(image: np.ndarray, psf: np.ndarray, fn) -> np.ndarray:
 
 
 # --- Wiener -------------------------------------------------------------------------------------
-def psf_to_otf(psf2d: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
-    """Real-FFT transfer function (OTF) of a centred PSF on a grid of ``shape``.
-
-    Parameters
-    ----------
-    psf2d : ndarray
-        2-D PSF (h, w) whose origin is its centre pixel (h//2, w//2); at most ``shape``.
-    shape : tuple of int
-        (H, W) of the (padded) image grid, px.
-
-    Returns
-    -------
-    otf : ndarray of complex128
-        ``scipy.fft.rfft2`` of the PSF zero-padded to ``shape`` and rolled circularly so that
-        its centre pixel sits at (0, 0); shape (H, W // 2 + 1).
-
-    Notes
-    -----
-    With the origin at (0, 0), multiplying an image spectrum by the OTF convolves the image with
-    the PSF (circularly) without shifting it.
-    """
-    big = np.zeros(shape)
-    h, w = psf2d.shape
-    big[:h, :w] = psf2d
-    big = np.roll(big, (-(h // 2), -(w // 2)), axis=(0, 1))
-    return sfft.rfft2(big, workers=WORKERS)
-
-
 def _freq2(shape: tuple[int, int]) -> np.ndarray:
     fy = sfft.fftfreq(shape[0])[:, None]
     fx = sfft.rfftfreq(shape[1])[None, :]
@@ -240,7 +65,7 @@ def prior_spectrum(Y: np.ndarray, H2: np.ndarray, shape, sigma: float) -> np.nda
     Y : ndarray of complex
         ``rfft2`` of the (padded) observed image, shape (H, W // 2 + 1).
     H2 : ndarray of float
-        |H|^2, the squared magnitude of the OTF on the same grid (:func:`psf_to_otf`).
+        |H|^2, the squared magnitude of the OTF on the same grid (:func:`~.fourier.psf_to_otf`).
     shape : tuple of int
         (H, W) of the real-space grid, px; N = H W.
     sigma : float
@@ -281,7 +106,7 @@ def wiener_spectrum(Y, H, shape, sigma: float, nsr="prior", scale: float = 1.0) 
     Y : ndarray of complex
         ``rfft2`` of the (padded) observed image, shape (H, W // 2 + 1).
     H : ndarray of complex
-        The OTF on the same grid (:func:`psf_to_otf`).
+        The OTF on the same grid (:func:`~.fourier.psf_to_otf`).
     shape : tuple of int
         (H, W) of the real-space grid, px.
     sigma : float
@@ -321,31 +146,12 @@ def _wiener2d(y: np.ndarray, k: np.ndarray, sigma: float, nsr, scale: float) -> 
     return sfft.irfft2(X, s=yp.shape, workers=WORKERS)[keep]
 
 
-def estimate_noise_sigma(image: np.ndarray) -> float:
-    """Wavelet (MAD) estimate of white-noise sigma, averaged over channels.
-
-    Parameters
-    ----------
-    image : ndarray
-        (H, W), or (H, W, C) with the channels on the last axis.
-
-    Returns
-    -------
-    sigma : float
-        Standard deviation of the noise, in the image's units: the mean over the channels of
-        scikit-image's :func:`~skimage.restoration.estimate_sigma` (median absolute deviation of
-        the finest wavelet detail coefficients).
-    """
-    from skimage.restoration import estimate_sigma
-
-    return float(np.mean(estimate_sigma(image, channel_axis=-1 if image.ndim == 3 else None)))
-
-
 def wiener(image, psf, noise_sigma: float | None = None, nsr="prior", scale: float = 1.0):
     """Wiener deconvolution. ``nsr``: "prior" (1/f^2 prior, see module doc) or a constant.
 
-    Each channel is reflect-padded by the PSF's extent and tapered (:func:`taper_pad`), filtered
-    in the Fourier domain (:func:`wiener_spectrum`) and cropped back.
+    Each channel is reflect-padded by the PSF's extent and tapered
+    (:func:`~.fourier.taper_pad`), filtered in the Fourier domain (:func:`wiener_spectrum`) and
+    cropped back.
 
     Parameters
     ----------
@@ -357,9 +163,10 @@ def wiener(image, psf, noise_sigma: float | None = None, nsr="prior", scale: flo
     noise_sigma : float, optional
         Standard deviation of the white noise, in the image's units: the known one (capture
         metadata, or the ``paper`` sensor preset's 0.01 on a [0, 1] image). None: estimated
-        with :func:`estimate_noise_sigma`. Used only with ``nsr="prior"``; there 0 (a noiseless
-        image) and anything below 1e-6 of the image's peak becomes :data:`SIGMA_FLOOR` x peak,
-        a vanishing but finite regulariser that keeps H = 0 bins finite.
+        with :func:`~.noise.estimate_noise_sigma`. Used only with ``nsr="prior"``; there 0 (a
+        noiseless image) and anything below 1e-6 of the image's peak becomes
+        :data:`~.noise.SIGMA_FLOOR` x peak, a vanishing but finite regulariser that keeps H = 0
+        bins finite.
     nsr : {"prior"} or float, optional
         ``"prior"`` (default): NSR(f) = sigma^2 / S(f), with S the 1/f^2 natural-image spectrum
         fitted to the observation where it stands above the noise (:func:`prior_spectrum`).
@@ -396,7 +203,7 @@ def wiener(image, psf, noise_sigma: float | None = None, nsr="prior", scale: flo
             raise ParameterError(f"nsr must be 'prior' or a constant >= 0, got {nsr!r}")
     elif nsr != "prior":
         raise ParameterError(f"nsr must be 'prior' or a constant >= 0, got {nsr!r}")
-    sigma = None if noise_sigma is None else _check_sigma(noise_sigma)
+    sigma = None if noise_sigma is None else check_sigma(noise_sigma)
     if not y.any():
         return np.zeros_like(y)  # nothing to deblur (and no spectrum to fit a prior to)
     if not isinstance(nsr, str):
@@ -405,13 +212,6 @@ def wiener(image, psf, noise_sigma: float | None = None, nsr="prior", scale: flo
         sigma = estimate_noise_sigma(y) if sigma is None else sigma
         sigma = max(sigma, SIGMA_FLOOR * float(np.abs(y).max()))  # H = 0 bins stay finite
     return _per_channel(y, k, lambda c, kk: _wiener2d(c, kk, sigma, nsr, scale))
-
-
-def _check_sigma(sigma: float) -> float:
-    s = float(sigma)
-    if not np.isfinite(s) or s < 0:
-        raise ParameterError(f"noise_sigma must be a finite value >= 0, got {sigma!r}")
-    return s
 
 
 def oracle_wiener(image, psf, truth, noise_sigma: float | None = None):
@@ -476,7 +276,7 @@ def richardson_lucy(image, psf, iterations: int = 30):
     """Richardson-Lucy deconvolution (scikit-image).
 
     Needs a non-negative image; amplifies noise with more iterations, so ``iterations`` is the
-    regulariser. Runs on the tapered, padded image (:func:`taper_pad`), cropped back.
+    regulariser. Runs on the tapered, padded image (:func:`~.fourier.taper_pad`), cropped back.
 
     Parameters
     ----------
@@ -522,7 +322,7 @@ def richardson_lucy(image, psf, iterations: int = 30):
 def unsupervised_wiener(image, psf, seed: int = 0):
     """Unsupervised Wiener-Hunt (scikit-image): regularisation estimated by Gibbs sampling.
 
-    Runs on the tapered, padded image (:func:`taper_pad`), cropped back.
+    Runs on the tapered, padded image (:func:`~.fourier.taper_pad`), cropped back.
 
     Parameters
     ----------
@@ -565,7 +365,8 @@ def bm3d_deblur(image, psf, noise_sigma: float | None = None):
     """BM3D deblurring (Dabov et al.), as in the paper's real experiments.
 
     Optional extra: ``pip install bm3d``. Licence: free for non-commercial use only
-    (:data:`BM3D_LICENCE`). Runs on the tapered, padded image (:func:`taper_pad`), cropped back.
+    (:data:`BM3D_LICENCE`). Runs on the tapered, padded image (:func:`~.fourier.taper_pad`),
+    cropped back.
 
     Parameters
     ----------
@@ -575,7 +376,7 @@ def bm3d_deblur(image, psf, noise_sigma: float | None = None):
         PSF, as for :func:`wiener`.
     noise_sigma : float, optional
         Standard deviation of the white noise, in the image's units; None: estimated with
-        :func:`estimate_noise_sigma`. Values below 1e-4 are used as 1e-4.
+        :func:`~.noise.estimate_noise_sigma`. Values below 1e-4 are used as 1e-4.
 
     Returns
     -------
@@ -606,7 +407,7 @@ def bm3d_deblur(image, psf, noise_sigma: float | None = None):
     y = check_image(image)
     k = check_psf(psf, y.shape)
     if noise_sigma is not None:
-        _check_sigma(noise_sigma)
+        check_sigma(noise_sigma)
     if not y.any():
         return np.zeros_like(y)  # bm3d refuses a zero noise level on a zero image
     sigma = estimate_noise_sigma(y) if noise_sigma is None else float(noise_sigma)
@@ -647,8 +448,6 @@ def deconvolve(image, psf, method: str = "wiener", **kwargs):
     ParameterError
         If ``method`` is not one of :data:`METHODS`, or as the method raises it.
     """
-    from .sparse import sparse_deconvolve  # it builds on this module
-
     funcs = {
         "wiener": wiener,
         "hl": lambda y, k, **kw: sparse_deconvolve(y, k, "hl", **kw),

@@ -8,6 +8,9 @@ apply a variance-stabilising transform (the generalised Anscombe transform): the
 the noise white but turns the blur into a non-linear operator, so the FFT x-step of
 :mod:`.splitting` would no longer be exact.
 
+A white noise sigma, known or estimated from the image (:func:`estimate_noise_sigma`), is the
+special case shot = prnu = 0 (:meth:`NoiseModel.white`).
+
 Units: ``y`` in the image's own units; the sensor's electrons per image unit make the link
 (:meth:`NoiseModel.from_sensor`).
 """
@@ -22,6 +25,36 @@ from ..errors import ParameterError, check_finite, check_positive
 
 VARIANCE_FLOOR = 1e-12
 """Smallest variance used in a weight, relative to the image's bright end squared."""
+SIGMA_FLOOR = 1e-6
+"""Wiener's smallest noise sigma, relative to the image's peak (a noiseless render)."""
+
+
+def estimate_noise_sigma(image: np.ndarray) -> float:
+    """Wavelet (MAD) estimate of white-noise sigma, averaged over channels.
+
+    Parameters
+    ----------
+    image : ndarray
+        (H, W), or (H, W, C) with the channels on the last axis.
+
+    Returns
+    -------
+    sigma : float
+        Standard deviation of the noise, in the image's units: the mean over the channels of
+        scikit-image's :func:`~skimage.restoration.estimate_sigma` (median absolute deviation of
+        the finest wavelet detail coefficients).
+    """
+    from skimage.restoration import estimate_sigma
+
+    return float(np.mean(estimate_sigma(image, channel_axis=-1 if image.ndim == 3 else None)))
+
+
+def check_sigma(sigma: float) -> float:
+    """``noise_sigma`` as a float, checked finite and >= 0 (else a :class:`ParameterError`)."""
+    s = float(sigma)
+    if not np.isfinite(s) or s < 0:
+        raise ParameterError(f"noise_sigma must be a finite value >= 0, got {sigma!r}")
+    return s
 
 
 @dataclass(frozen=True)

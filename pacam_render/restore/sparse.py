@@ -10,7 +10,7 @@ white (a known sigma, or the wavelet estimate), or the sensor's signal-dependent
 Poisson-Gaussian variance, with lambda = :data:`LAMBDA_SCALE` on the image scaled so that its
 99.5th percentile is 1 (the prior is not scale-free). Saturated samples get weight 0: their
 value is not the blur of the scene. The pad around the image holds the tapered reflection of
-:func:`~.deconvolve.taper_pad`, as for Wiener.
+:func:`~.fourier.taper_pad`, as for Wiener.
 
 Colour images share one prior across channels (``colour="joint"``) or not (``"channel"``); the
 default is the better one per method (:data:`DEFAULT_COLOUR`).
@@ -29,17 +29,8 @@ from collections.abc import Callable
 import numpy as np
 
 from ..errors import ParameterError
-from .deconvolve import (
-    SIGMA_FLOOR,
-    _check_sigma,
-    check_image,
-    check_psf,
-    estimate_noise_sigma,
-    pad_width,
-    psf_to_otf,
-    taper_pad,
-)
-from .noise import VARIANCE_FLOOR, NoiseModel
+from .fourier import check_image, check_psf, pad_width, psf_to_otf, taper_pad
+from .noise import SIGMA_FLOOR, VARIANCE_FLOOR, NoiseModel, check_sigma, estimate_noise_sigma
 from .splitting import ITERATIONS, Problem, solve
 
 HL_ALPHA = 2.0 / 3.0
@@ -92,7 +83,7 @@ def sparse_deconvolve(
     method : {"hl", "tv"}
     noise_sigma : float, optional
         White noise's standard deviation, image units; None (and no ``noise``): estimated
-        (:func:`~.deconvolve.estimate_noise_sigma`).
+        (:func:`~.noise.estimate_noise_sigma`).
     alpha : float, optional
         hl's exponent in (0, 1] (default :data:`HL_ALPHA`).
     noise : NoiseModel, optional
@@ -148,7 +139,7 @@ def _checked(image, psf, noise, noise_sigma, colour, iterations):
     if noise is not None and not isinstance(noise, NoiseModel):
         raise ParameterError(f"noise must be a NoiseModel, got {type(noise).__name__}")
     if noise_sigma is not None:
-        sigma = _check_sigma(noise_sigma)
+        sigma = check_sigma(noise_sigma)
         noise = NoiseModel.white(max(sigma, SIGMA_FLOOR * float(np.abs(y).max() or 1.0)))
     return y, k, noise
 
@@ -171,7 +162,7 @@ def data_weight(planes: np.ndarray, noise: NoiseModel, lam: float) -> np.ndarray
 
 def _padded_problem(planes, weight, k, alpha: float, joint: bool):
     """The problem on the padded grid: the data and the first guess padded with the tapered
-    reflection of :func:`~.deconvolve.taper_pad`, weighted as the image on average."""
+    reflection of :func:`~.fourier.taper_pad`, weighted as the image on average."""
     pad = pad_width(k.shape)
     padded = [taper_pad(g, pad) for g in planes]
     x0, keep = np.stack([xp for xp, _ in padded]), padded[0][1]

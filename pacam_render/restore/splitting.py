@@ -28,7 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.fft as sfft
 
-from .deconvolve import WORKERS, psf_to_otf
+from .fourier import WORKERS, psf_to_otf
 
 BETA_START, BETA_STOP = 1.0, 256.0
 """The prior's penalty at the first and the last iteration (Krishnan & Fergus 2009)."""
@@ -108,7 +108,7 @@ class Problem:
     weight : ndarray
         (C, Hp, Wp) data weights w (lambda / variance), 0 where a sample is left out.
     otf : ndarray
-        (C, Hp, Wp // 2 + 1) transfer functions (:func:`~.deconvolve.psf_to_otf`).
+        (C, Hp, Wp // 2 + 1) transfer functions (:func:`~.fourier.psf_to_otf`).
     alpha : float
         The prior's exponent in (0, 1].
     joint : bool
