@@ -6,11 +6,11 @@ pixel*, never sampled at its centre. Motion is along +x (columns). The origin is
 images at mid-exposure, t = 0, so that x(t) = s t + a_i t^2 / 2 (Eq. 2).
 
 How it is computed:
-- the motion part comes from :mod:`pacam_render.trajectory`: the exact time spent in each pixel
+- the motion part comes from :mod:`pacam_render.psf.trajectory`: the exact time spent in each pixel
   (closed form, so Eq. 1's vertex singularity is integrated, never sampled);
 - with defocus (r > 0), the trajectory is cut into sub-pixel bins of width ``du_px`` whose exact
   time and centroid are known, and each bin deposits an exactly integrated pillbox
-  (:mod:`pacam_render.pillbox`) at its centroid. This is exact for the discrete schedule at
+  (:mod:`pacam_render.psf.pillbox`) at its centroid. This is exact for the discrete schedule at
   s = 0 (every pattern is an atom) and second order in ``du_px`` otherwise;
   ``benchmarks/bench_psf.py`` measures its error against run time.
 
