@@ -1,6 +1,8 @@
 """Deconvolution: synthetic captures (known image * known PSF + noise) against ground truth,
 closed-form properties of the Wiener filter, and clear errors for bad input."""
 
+import inspect
+
 import numpy as np
 import pytest
 from scipy.signal import fftconvolve
@@ -36,6 +38,18 @@ def capture():
 # PSNR gain over the blurred input, in dB, that each method must reach
 # measured: +3.9, +3.7, +3.8, +4.6 dB at 128 px; margins leave room for library versions).
 MARGINS = {"wiener": 3.0, "rl": 2.5, "uwiener": 3.0, "bm3d": 3.5}
+
+
+def test_default_method_is_the_cli_s_and_the_better_one(capture):
+    """The API and ``pacam deconvolve`` share one default (issue 27 item 7): hl, which beats
+    Wiener on a natural image at the same known noise (as bench_deconvolve measures)."""
+    from pacam_render.cli import build_parser
+
+    args = build_parser().parse_args(["deconvolve", "c.exr", "--out", "o"])
+    assert inspect.signature(D.deconvolve).parameters["method"].default == args.method
+    x, k, y = capture
+    by_default = metrics.psnr(D.deconvolve(y, k, noise_sigma=SIGMA), x)
+    assert by_default > metrics.psnr(D.deconvolve(y, k, "wiener", noise_sigma=SIGMA), x) + 0.3
 
 
 @pytest.mark.parametrize("method", ["wiener", "rl", "uwiener", "bm3d"])

@@ -421,7 +421,7 @@ def bm3d_deblur(image, psf, noise_sigma: float | None = None):
     return _per_channel(y, k, _padded(one))
 
 
-def deconvolve(image, psf, method: str = "wiener", **kwargs):
+def deconvolve(image, psf, method: str = "hl", **kwargs):
     """Dispatch to one of :data:`METHODS`.
 
     Parameters
@@ -430,10 +430,10 @@ def deconvolve(image, psf, method: str = "wiener", **kwargs):
         Blurred, noisy image, (H, W) or (H, W, C).
     psf : array_like
         PSF, px: (h, w) or (h, w, C), origin at the centre pixel (h//2, w//2).
-    method : {"wiener", "hl", "tv", "rl", "uwiener", "bm3d"}, optional
-        :func:`wiener` (default); ``hl`` (hyper-Laplacian) or ``tv`` (total variation),
-        :func:`~.sparse.sparse_deconvolve`; :func:`richardson_lucy`,
-        :func:`unsupervised_wiener` or :func:`bm3d_deblur`.
+    method : {"hl", "wiener", "tv", "rl", "uwiener", "bm3d"}, optional
+        ``hl`` (hyper-Laplacian prior, the default, as ``pacam deconvolve``'s) or ``tv`` (total
+        variation), :func:`~.sparse.sparse_deconvolve`; :func:`wiener`;
+        :func:`richardson_lucy`, :func:`unsupervised_wiener` or :func:`bm3d_deblur`.
     **kwargs
         Passed on to the method: e.g. ``noise_sigma`` (wiener, hl, tv, bm3d), ``nsr`` and
         ``scale`` (wiener), ``alpha`` (hl), ``iterations`` (rl), ``seed`` (uwiener).
