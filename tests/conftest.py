@@ -15,6 +15,7 @@ RENDER_MODULES = {
     "test_demo",
     "test_psf_render",
     "test_regression_images",
+    "test_tutorial",
 }
 RENDER_FIXTURES = {"quick_dir", "renderer", "mi"}  # fixtures of tests that render
 
