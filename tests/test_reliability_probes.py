@@ -153,9 +153,9 @@ def test_psf_render_beyond_the_sample_limit_is_refused_naming_the_flag(
 
 
 def test_psf_of_a_huge_sensor_is_refused_before_computing_the_kernel(tmp_path, capsys, monkeypatch):
-    import pacam_render.cli as cli
+    import pacam_render.cli.psf as cli_psf
 
-    monkeypatch.setattr(cli, "design_psf", _refuse("computed the kernel before refusing"))
+    monkeypatch.setattr(cli_psf, "design_psf", _refuse("computed the kernel before refusing"))
     out = tmp_path / "out"
     assert main([*PSF, "--width", "100000000", "--out", str(out)]) == 2
     err = capsys.readouterr().err

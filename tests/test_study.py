@@ -294,11 +294,11 @@ def test_a_task_whose_worker_dies_is_retried_once_then_failed(monkeypatch):
 def test_workers_flag_is_checked_and_bounded_before_any_process_starts(monkeypatch):
     from pacam_render.limits import PacamWarning
 
-    with pytest.raises(ParameterError, match="workers must be an integer >= 0"):
+    with pytest.raises(ParameterError, match="`workers` must be an integer >= 0"):
         E.check_workers(-1)
     assert E.check_workers(None) == os.cpu_count()
     for asked, tasks in ((6, 2), (1000, 50), (100000, None)):  # issue 26: 1000 ran out of memory
-        with pytest.warns(PacamWarning, match=f"workers {asked} is more than this run can use"):
+        with pytest.warns(PacamWarning, match=f"`workers` {asked} is more than this run can use"):
             got = E.check_workers(asked, tasks)
         assert got == min(tasks or asked, os.cpu_count())
     monkeypatch.setattr(E, "available_bytes", lambda: 3 * E.WORKER_BYTES)

@@ -249,6 +249,48 @@ def read_capture_layers(path: str | os.PathLike) -> tuple[dict[str, np.ndarray],
     return read_exr(exr), record
 
 
+def read_record(capture: str | os.PathLike, required: bool = True) -> CaptureRecord | None:
+    """The record of ``capture.exr`` from its JSON sidecar, or None if it has none.
+
+    Parameters
+    ----------
+    capture : path-like
+        The capture's EXR file; its record is the ``.json`` of the same name beside it.
+    required : bool
+        Whether the record must be complete (a camera, ...). If False, a sidecar that is valid
+        JSON but not a complete record gives a :class:`~pacam_render.limits.PacamWarning` and
+        None: only its noise sigma would have been used.
+
+    Returns
+    -------
+    CaptureRecord or None
+
+    Raises
+    ------
+    ParameterError
+        If the sidecar is not valid JSON, or (``required``) not a complete record.
+    """
+    import json
+    import warnings
+
+    from ..limits import PacamWarning
+
+    path = Path(capture).with_suffix(".json")
+    if not path.is_file():
+        return None
+    try:
+        data = json.loads(path.read_text())
+    except json.JSONDecodeError as exc:
+        raise ParameterError(f"{path} is not valid JSON ({exc})") from exc
+    try:
+        return CaptureRecord.from_json(data, where=str(path))
+    except ParameterError as exc:
+        if required:
+            raise
+        warnings.warn(f"{exc}; its noise sigma is not used", PacamWarning, stacklevel=2)
+        return None
+
+
 def read_capture(path: str | os.PathLike) -> CaptureFile:
     """Read a capture (``capture.exr`` and its JSON) with every image layer on the white scale.
 

@@ -58,7 +58,7 @@ def check_workers(workers: int | None, n_tasks: int | None = None) -> int:
             return 0
         return min(default_workers(), n_tasks or default_workers())
     if isinstance(workers, bool) or not isinstance(workers, int) or workers < 0:
-        raise ParameterError(f"workers must be an integer >= 0 (0: serial), got {workers!r}")
+        raise ParameterError(f"`workers` must be an integer >= 0 (0: serial), got {workers!r}")
     limits = {"cores": default_workers(), "memory": max(1, available_bytes() // WORKER_BYTES)}
     if n_tasks is not None:
         limits["tasks"] = max(1, n_tasks)
@@ -66,7 +66,7 @@ def check_workers(workers: int | None, n_tasks: int | None = None) -> int:
     if workers > bound:
         why = ", ".join(f"{v} {k}" for k, v in limits.items())
         warnings.warn(
-            f"workers {workers} is more than this run can use ({why}): using {bound}",
+            f"`workers` {workers} is more than this run can use ({why}): using {bound}",
             PacamWarning,
             stacklevel=2,
         )

@@ -1,0 +1,66 @@
+"""Writing a capture from a command, and the lines that summarise it (``render``, ``sensor``)."""
+
+from __future__ import annotations
+
+import shutil
+import tempfile
+from pathlib import Path
+
+
+def write_or_rescue(cap, out: Path, force: bool, error_layer: bool = False) -> list[Path]:
+    """Write the capture; only then drop its rendered passes (``DIR/.partial``). A failed
+    write (a full disk) keeps them, tries the files in a temporary folder too, and says where
+    both are: the same command resumes from the passes without rendering again."""
+    from ..exposure.capture import write_capture
+
+    try:
+        paths = write_capture(cap, out, force=force, error_layer=error_layer)
+    except OSError as exc:
+        kept = out / ".partial"
+        where = f"the rendered passes are kept in {kept}" if kept.is_dir() else "nothing was kept"
+        try:
+            rescue = Path(tempfile.mkdtemp(prefix="pacam-rescue-"))
+            write_capture(cap, rescue, force=True, error_layer=error_layer)
+            where += f", and the capture was written to {rescue}"
+        except OSError:
+            pass
+        raise OSError(
+            f"writing the capture to {out} failed ({exc}); {where}: free the space and run the "
+            "same command again, which resumes without rendering"
+        ) from None
+    shutil.rmtree(out / ".partial", ignore_errors=True)
+    return paths
+
+
+def error_line(err: dict) -> str:
+    """One line: the capture's Monte Carlo sigma, against the sensor's, its time steps' error,
+    and its cost."""
+    ratio = err.get("ratio_to_sensor")
+    vs = f" ({ratio:.2g}x the sensor's)" if ratio is not None else ""
+    target = ""
+    if "target_sigma" in err:
+        met = "met" if err["target_met"] else "NOT met"
+        target = f", target {err['target_sigma']:.3g} {met}"
+    steps = (
+        "time-step error 0 (stratified random times: inside the MC sigma)"
+        if err["time_steps_per_pass"]
+        else "no time steps (static)"
+    )
+    return (
+        f"MC sigma {err['mc_sigma']:.3g}{vs}{target}, {steps}, {err['seconds']:.1f} s "
+        f"({err['passes']} passes, {err['spp']} spp, {err['sampler']})"
+    )
+
+
+def scale_line(optics: dict, coded: dict) -> str:
+    """The camera's px quantities at the capture's resolution (they shrink with binning)."""
+    if coded.get("schedule") == "designed":  # no parabola: no a_i, no invariant range
+        return (
+            f"at {optics['width_px']}x{optics['height_px']} px: r = {optics['r_px']:.3g} px; "
+            f"a designed schedule of {coded['n_patterns']} openings (pacam optimize)"
+        )
+    return (
+        f"at {optics['width_px']}x{optics['height_px']} px: r = {optics['r_px']:.3g} px, "
+        f"a_i = {optics['a_i_px_per_ms2']:.3g} px/ms^2; the coded design keeps |s| <= "
+        f"{coded['velocity_range_px_per_ms']:.3g} px/ms invariant (r = {coded['r_px']:.3g} px)"
+    )

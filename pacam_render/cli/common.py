@@ -1,0 +1,198 @@
+"""What the commands share: the common flags, written once, and the one place where a library
+message's parameter names become the flags a user typed.
+
+Library messages name parameters (``max_step_px``, ```spp```): a name with an underscore bare,
+a one-word name in backticks (so that "64 spp" stays prose). :func:`user_words` maps both
+through :data:`FLAGS`; ```force=True``` becomes ``--force``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import re
+import signal
+import sys
+import warnings
+from pathlib import Path
+
+from ..errors import ParameterError
+from ..io.outputs import writable_dir
+from ..limits import DEFAULT_MAX_SAMPLES, DEFAULT_MAX_STEPS, PacamWarning
+
+FLAGS = {
+    "max_step_px": "--max-step-px",
+    "max_steps": "--max-steps",
+    "max_samples": "--max-samples",
+    "noise_ratio": "--noise-ratio",
+    "budget_hours": "--budget",
+    "workers": "--workers",
+    "scheduler": "--scheduler",
+    "noise_target": "--noise-target",
+    "cover_px_per_ms": "--cover",
+    "cover": "--cover",
+    "schedule": "--schedule",
+    "max_velocity_px_per_ms": "--max-velocity",
+    "object_depth_mm": "--depth",
+    "depth_range_mm": "--depth-range",
+    "exposure_ms": "--exposure",
+    "f_number": "--f-number",
+    "r_px": "--r-px",
+    "n_patterns": "--n-patterns",
+    "light_level": "--light-level",
+    "noise_sigma": "--noise-sigma",
+    "quantum_px": "--quantum",
+    "per_pattern": "--per-pattern",
+    "velocity_px_per_ms": "--velocity",
+    "spp": "--spp",
+    "seed": "--seed",
+    "size": "--size",
+    "film": "--film",
+    "crop": "--crop",
+    "width": "--width",
+    "height": "--height",
+    "mode": "--mode",
+    "preset": "--preset",
+    "sensor": "--sensor",
+    "psf": "--psf",
+    "like": "--like",
+    "render": "--render",
+    "method": "--method",
+    "colour": "--colour",
+    "layer": "--layer",
+    "starts": "--starts",
+    "iterations": "--iterations",
+    "quick": "--quick",
+    "out": "--out",
+    "force": "--force",
+}
+"""Parameter names in library messages, and the flags a CLI user typed instead: the one
+mapping (a file's keys, :class:`~pacam_render.errors.FileKeyError`, are left as they are)."""
+_QUOTED = re.compile(r"`(" + "|".join(map(re.escape, FLAGS)) + r")(?:=True)?`")
+_BARE = re.compile(r"(?<![\w-])(" + "|".join(n for n in FLAGS if "_" in n) + r")(?![\w-])(?! \(--)")
+
+
+def user_words(message: str) -> str:
+    """A library message in the CLI's words: parameter names become their flags.
+
+    >>> user_words("raise max_samples, or lower `spp` (64 spp now); pass `force=True`")
+    'raise --max-samples, or lower --spp (64 spp now); pass --force'
+    """
+    message = _QUOTED.sub(lambda m: FLAGS[m.group(1)], message)
+    return _BARE.sub(lambda m: FLAGS[m.group(1)], message)
+
+
+def add_out(p: argparse.ArgumentParser, help: str | None = None, **kw) -> None:
+    """``--out DIR`` (required unless ``default`` is given)."""
+    p.add_argument("--out", required="default" not in kw, metavar="DIR", help=help, **kw)
+
+
+def add_force(p: argparse.ArgumentParser, help: str = "overwrite results in DIR") -> None:
+    p.add_argument("--force", action="store_true", help=help)
+
+
+def add_quiet(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+
+
+def add_preset(p: argparse.ArgumentParser, help: str | None = "base camera (default: prototype)"):
+    p.add_argument("--preset", default="prototype", help=help)
+
+
+def add_outputs(p: argparse.ArgumentParser, force_help: str = "overwrite results in DIR") -> None:
+    """``--out DIR``, ``--force`` and ``--quiet``, in that order."""
+    add_out(p)
+    add_force(p, force_help)
+    add_quiet(p)
+
+
+def add_engine_args(p: argparse.ArgumentParser) -> None:
+    """Where the command's independent tasks run (:mod:`pacam_render.study.engine`)."""
+    p.add_argument(
+        "--workers",
+        type=int,
+        metavar="N",
+        help="worker processes of a local Dask cluster (default: one per core, at most one per "
+        "task; 0: serially, in this process)",
+    )
+    p.add_argument(
+        "--scheduler", metavar="ADDRESS", help="run on an existing Dask cluster (tcp://host:8786)"
+    )
+
+
+def add_limit_args(p: argparse.ArgumentParser) -> None:
+    """Bounds on a capture's work, and how often it saves its finished steps."""
+    p.add_argument(
+        "--max-steps",
+        type=int,
+        default=DEFAULT_MAX_STEPS,
+        metavar="N",
+        help=f"refuse a capture of more time steps (default {DEFAULT_MAX_STEPS})",
+    )
+    p.add_argument(
+        "--max-samples",
+        type=int,
+        default=DEFAULT_MAX_SAMPLES,
+        metavar="N",
+        help=f"refuse more than N = spp x width x height samples (default 2^35 = "
+        f"{DEFAULT_MAX_SAMPLES}, about 1.5 h on 2 cores)",
+    )
+    p.add_argument(
+        "--checkpoint-every",
+        type=float,
+        default=5.0,
+        metavar="S",
+        help="seconds between saves of the finished steps to DIR/.partial (default 5)",
+    )
+
+
+def check_common(args: argparse.Namespace) -> None:
+    """Flags that several commands share, refused before any work: a size of 0 px would
+    quietly become the default (``args.width or ...``), an empty --out the current folder."""
+    for flag in ("width", "height"):
+        value = getattr(args, flag, None)
+        if value is not None and value < 1:
+            raise ParameterError(f"--{flag} must be a positive number of px, got {value}")
+    out = getattr(args, "out", None)
+    if out is not None and not str(out).strip():
+        raise ParameterError(f"--out must name a folder or file, got {out!r}")
+
+
+def note_printer(name: str):
+    """``warnings.showwarning`` that prints a :class:`PacamWarning` as one ``note:`` line."""
+    default = warnings.showwarning
+
+    def show(message, category, filename, lineno, file=None, line=None):
+        if issubclass(category, PacamWarning):
+            print(f"{name}: note: {user_words(str(message))}", file=sys.stderr)
+        else:
+            default(message, category, filename, lineno, file, line)
+
+    return show
+
+
+@contextlib.contextmanager
+def terminate_as_interrupt():
+    """SIGTERM is handled as Ctrl-C (KeyboardInterrupt), so both save and exit alike."""
+
+    def handler(signum, frame):
+        raise KeyboardInterrupt
+
+    old = signal.signal(signal.SIGTERM, handler)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, old)
+
+
+@contextlib.contextmanager
+def new_folder(out: Path):
+    """Create ``out`` (proven writable); if the command fails and leaves it empty, remove it."""
+    created = not out.exists()
+    writable_dir(out)
+    try:
+        yield out
+    except BaseException:
+        if created and out.is_dir() and not any(out.iterdir()):
+            out.rmdir()
+        raise

@@ -1,0 +1,200 @@
+"""``pacam psf``: an analytic PSF (EXR, PNG preview, JSON), optionally ray-traced too."""
+
+from __future__ import annotations
+
+import argparse
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import ParameterError, check_finite, check_positive
+from ..exposure.record import read_record
+from ..io.exr import write_exr
+from ..io.outputs import prepare_out_dir, write_json
+from ..io.preview import srgb8, write_png
+from ..limits import DEFAULT_MAX_SAMPLES, PacamWarning
+from ..model.camera import CameraDesign, preset
+from ..model.modes import MODES_WITH_PSF
+from ..psf.analytic import design_psf
+from ..psf.origin import origin_record
+from .common import add_force, add_out, add_quiet
+
+
+def add(sub) -> None:
+    p = sub.add_parser("psf", help="write an analytic PSF (EXR, PNG preview, JSON)")
+    p.add_argument("--preset", default="prototype")
+    p.add_argument("--depth", type=float, required=True, metavar="MM", help="point depth, mm")
+    p.add_argument("--velocity", type=float, required=True, metavar="PX_PER_MS")
+    p.add_argument("--mode", default="coded", choices=MODES_WITH_PSF)
+    p.add_argument("--size", type=int, metavar="PX", help="odd kernel side (default: fits the PSF)")
+    p.add_argument("--width", type=int, metavar="W", help="sensor px (default: the preset's, 1280)")
+    p.add_argument("--height", type=int, metavar="H", help="sensor px (default: 960)")
+    p.add_argument("--crop", metavar="X,Y,W,H", help="the capture's window (recorded)")
+    p.add_argument(
+        "--like",
+        metavar="CAPTURE.exr",
+        help="copy a capture's sensor size and crop from its JSON, so the kernel fits it",
+    )
+    p.add_argument(
+        "--render", action="store_true", help="also ray-trace it (ptracer): psf_rendered.exr"
+    )
+    p.add_argument(
+        "--spp",
+        type=int,
+        metavar="N",
+        help="with --render: samples per film pixel per pattern window (default: about 2^18 "
+        "particles per window)",
+    )
+    p.add_argument("--seed", type=int, metavar="S", help="with --render: seed (default 0)")
+    p.add_argument(
+        "--max-samples",
+        type=int,
+        default=DEFAULT_MAX_SAMPLES,
+        metavar="N",
+        help=f"with --render: refuse more than N = spp x film px x windows particles (default "
+        f"2^35 = {DEFAULT_MAX_SAMPLES})",
+    )
+    p.add_argument(
+        "--film",
+        default="window",
+        choices=("window", "crop"),
+        help="with --render: a kernel-sized film (default) or a crop of the 1280x960 film "
+        "(ptracer then traces the whole film's spp x 1280 x 960 particles per window)",
+    )
+    p.add_argument(
+        "--origin",
+        choices=("t0", "pinhole"),
+        help="what the centre pixel stands for: the t = 0 image (default) or the pinhole image "
+        "(as 'deconvolve --psf analytic' registers captures; the default with --like). "
+        "psf.json records it, and deconvolve moves a t0 kernel's result onto the pinhole image",
+    )
+    add_quiet(p)
+    add_out(p)
+    add_force(p, "overwrite existing results")
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    if args.origin is None:  # a kernel made for a capture is centred as deconvolve centres it
+        args.origin = "pinhole" if args.like is not None else "t0"
+    check_positive("--depth", args.depth, "mm")
+    check_finite("--velocity", args.velocity)
+    cam, crop = _psf_geometry(args)
+    cam = cam.with_(object_depth_mm=args.depth)
+    if args.size is not None:
+        _odd_size(args.size)
+    seed = 0 if args.seed is None else args.seed
+    if args.render:  # check everything before computing or writing anything
+        from ..exposure.psf_render import check_request
+
+        check_request(cam, args.spp, seed, args.film)
+        check_positive("--max-samples", args.max_samples)
+    elif args.spp is not None or args.seed is not None:
+        raise ParameterError("--spp and --seed need --render")
+    out = prepare_out_dir(args.out, args.force)
+    k = _checked_psf(cam, args)
+    r = _rendered_psf(cam, k, seed, args) if args.render else None
+    # nothing is written before the render ends: an interrupt leaves no half set of files
+    write_exr(out / "psf_analytic.exr", {"psf": k}, force=args.force)
+    write_png(out / "psf_analytic.png", srgb8(k), force=args.force)
+    meta = {
+        **cam.summary(),
+        "mode": args.mode,
+        "velocity_px_per_ms": args.velocity,
+        "size_px": list(k.shape),
+        **({"crop": crop} if crop else {}),
+        **origin_record(cam, args.mode, args.origin),
+        "psf_origin": "centre pixel = where the point images at mid-exposure (t = 0)"
+        if args.origin == "t0"
+        else "centre pixel = where a pinhole at the lens centre images the point at t = 0",
+    }
+    written = "psf_analytic.exr, psf_analytic.png"
+    if r is not None:
+        from ..restore.metrics import rel_l1
+
+        write_exr(out / "psf_rendered.exr", {"psf": r.kernel}, force=args.force)
+        write_png(out / "psf_rendered.png", srgb8(r.kernel), force=args.force)
+        meta["rendered"] = {**r.to_json(), "l1_vs_analytic": rel_l1(r.kernel, k)}
+        written += ", psf_rendered.exr, psf_rendered.png"
+        print(
+            f"rendered in {r.seconds:.1f} s ({r.particles} particles, spp {r.spp}, seed "
+            f"{r.seed}): L1 to the analytic PSF {rel_l1(r.kernel, k):.4f}, fitted a_i "
+            f"{r.fitted_a_i:.5g} px/ms^2 (Eq. 18: {r.model_a_i:.5g})"
+        )
+    write_json(out / "psf.json", meta, force=args.force)
+    print(f"wrote {out}/: {written}, psf.json ({k.shape[0]}x{k.shape[1]} px)")
+    return 0
+
+
+def _rendered_psf(cam: CameraDesign, k: np.ndarray, seed: int, args: argparse.Namespace):
+    """The ray-traced kernel; refused beyond --max-samples before any rendering."""
+    from ..exposure.psf_render import render_psf
+
+    return render_psf(
+        cam, args.mode, args.velocity, size=k.shape, spp=args.spp, seed=seed, film=args.film,
+        origin=args.origin, model=k, max_samples=args.max_samples, progress=not args.quiet,
+    )  # fmt: skip
+
+
+def _psf_geometry(args: argparse.Namespace) -> tuple[CameraDesign, dict | None]:
+    """The preset at the capture's sensor size (``--like``, or ``--width``/``--height``), and
+    the crop to record. A kernel's px quantities (r, a_i) follow the sensor's size; a crop does
+    not change the kernel, only where it applies."""
+    base = preset(args.preset)
+    if args.like is not None:
+        if args.width or args.height or args.crop:
+            raise ParameterError("--like copies the capture's size and crop: leave out --width, "
+                                 "--height and --crop")  # fmt: skip
+        capture = Path(args.like)
+        record = read_record(capture)
+        if record is None:
+            raise ParameterError(f"--like needs the capture's {capture.with_suffix('.json')}")
+        cam = record.camera
+        return base.with_(width_px=cam["width_px"], height_px=cam["height_px"]), record.crop
+    width = args.width or base.width_px
+    height = args.height or base.height_px
+    base = base.with_(width_px=width, height_px=height)
+    if args.crop is None:
+        return base, None
+    from ..exposure.capture import check_crop, parse_crop
+
+    x, y, w, h = check_crop(parse_crop(args.crop), width, height)
+    crop = {"x": x, "y": y, "width": w, "height": h}
+    return base, {**crop, "sensor_width_px": width, "sensor_height_px": height}
+
+
+def _checked_psf(cam: CameraDesign, args: argparse.Namespace) -> np.ndarray:
+    """The analytic kernel, refused if more than MAX_LOST_FRACTION of it falls outside."""
+    from ..psf.analytic import MAX_LOST_FRACTION, PSFTruncationWarning, least_lost_fraction
+
+    size = None if args.size is None else _odd_size(args.size)
+    # a bound first: the kernel of a huge defocus takes minutes to compute, then is refused
+    least, (h, w), r = least_lost_fraction(cam, args.mode, args.velocity, size, args.origin)
+    if least > MAX_LOST_FRACTION:
+        raise ParameterError(
+            f"at least {least:.3%} of the PSF falls outside the {h}x{w} kernel (its defocus "
+            f"radius is {r:.4g} px on a {cam.width_px}x{cam.height_px} px sensor), more than "
+            f"the {MAX_LOST_FRACTION:.0%} allowed; lower --width/--height (px quantities grow "
+            "with them) or give a larger --size (the automatic size stops at 2049 px)"
+        )
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", PSFTruncationWarning)
+        k = design_psf(cam, args.mode, args.velocity, size, origin=args.origin)
+    lost = max((getattr(w.message, "lost", 0.0) for w in caught), default=0.0)
+    if lost > MAX_LOST_FRACTION:
+        raise ParameterError(
+            f"{lost:.3%} of the PSF (--velocity {args.velocity:g} px/ms at --depth "
+            f"{args.depth:g} mm) falls outside the {k.shape[0]}x{k.shape[1]} kernel, more than "
+            f"the {MAX_LOST_FRACTION:.0%} allowed; give a larger --size (the automatic size "
+            "stops at 2049 px) or a lower --velocity"
+        )
+    for w in caught:  # a small loss: one note
+        warnings.warn(str(w.message), PacamWarning, stacklevel=2)
+    return k
+
+
+def _odd_size(n: int) -> int:
+    if n < 1 or n % 2 == 0:
+        raise ParameterError(f"--size must be a positive odd number of px, got {n}")
+    return n

@@ -1,0 +1,254 @@
+"""``pacam render``: a capture of a scene in one mode, optionally through the image sensor."""
+
+from __future__ import annotations
+
+import argparse
+import warnings
+from pathlib import Path
+
+from ..errors import ParameterError, check_positive
+from ..limits import PacamWarning
+from ..model.camera import preset
+from ..model.modes import MODES
+from ..render.samplers import DEFAULT_SAMPLER, SAMPLERS
+from .capture_out import error_line, scale_line, write_or_rescue
+from .common import add_force, add_limit_args, add_out, add_preset, add_quiet, new_folder
+
+
+def add(sub) -> None:
+    p = sub.add_parser("render", help="render a capture of a scene in one mode")
+    p.add_argument("scene", help="train, soccer, walker, or a path to a Mitsuba .xml scene")
+    p.add_argument(
+        "--mode",
+        default="coded",
+        help=f"{', '.join(MODES)} (see pacam_render.model.modes; default coded)",
+    )
+    p.add_argument(
+        "--width",
+        type=int,
+        metavar="W",
+        help="sensor px (default 320, a binned sensor; with --crop, the preset's 1280)",
+    )
+    p.add_argument(
+        "--height", type=int, metavar="H", help="sensor px (default 240; with --crop, 960)"
+    )
+    p.add_argument(
+        "--crop",
+        metavar="X,Y,W,H",
+        help="render only this window of the sensor, in its px: the camera at its real scale",
+    )
+    add_preset(p)
+    p.add_argument(
+        "--spp", type=int, metavar="N", help="samples per pixel, over all passes (default 64)"
+    )
+    p.add_argument(
+        "--passes",
+        type=int,
+        default=2,
+        metavar="P",
+        help="independent passes; their spread is the Monte Carlo error (default 2)",
+    )
+    p.add_argument(
+        "--sampler",
+        default=DEFAULT_SAMPLER,
+        choices=list(SAMPLERS),
+        help=f"Mitsuba's sample generator (default {DEFAULT_SAMPLER}: most error per second)",
+    )
+    p.add_argument(
+        "--noise-ratio",
+        type=float,
+        metavar="R",
+        help="render until the Monte Carlo sigma is at most R x the sensor's noise (--sensor)",
+    )
+    p.add_argument(
+        "--noise-target",
+        type=float,
+        metavar="SIGMA",
+        help="render until the Monte Carlo sigma is at most SIGMA (the capture's units)",
+    )
+    p.add_argument(
+        "--mc-sigma-layer",
+        action="store_true",
+        help="write the per-pixel Monte Carlo sigma as an mc_sigma layer in capture.exr",
+    )
+    p.add_argument("--seed", type=int, default=0, metavar="S")
+    p.add_argument(
+        "--max-step-px",
+        type=float,
+        default=0.5,
+        metavar="PX",
+        help="largest image motion between time steps (default 0.5 px)",
+    )
+    p.add_argument("--per-pattern", action="store_true", help="also keep per-pattern images")
+    p.add_argument(
+        "--no-truth",
+        action="store_true",
+        help="leave out the ground-truth layers sharp, depth, object_id and velocity",
+    )
+    p.add_argument(
+        "--cover",
+        type=float,
+        metavar="PX_PER_MS",
+        help="coded/levin: solve the design so this speed (preset px) is motion-invariant",
+    )
+    p.add_argument(
+        "--schedule",
+        metavar="SCHEDULE.json",
+        help="coded: show a designed schedule (pacam optimize's schedule.json)",
+    )
+    p.add_argument(
+        "--depth",
+        type=float,
+        metavar="MM",
+        help="the object depth the design is made for (default: the preset's, 500 mm)",
+    )
+    p.add_argument(
+        "--sensor",
+        metavar="PRESET",
+        help="add raw and noisy layers: paper, grasshopper-icx285, or a .json/.toml preset file",
+    )
+    p.add_argument(
+        "--light-level",
+        type=float,
+        metavar="L",
+        help="photons/px/ms of white through the full aperture (default 7000)",
+    )
+    add_limit_args(p)
+    add_out(p)
+    add_force(p, "overwrite an existing capture")
+    add_quiet(p)
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    from ..exposure.capture import CaptureSpec, check_budget, render_capture
+    from ..io.lock import output_lock
+
+    target = _noise_target(args)
+    spec = CaptureSpec(
+        scene=args.scene,
+        mode=args.mode,
+        **_sensor_size(args),
+        spp=64 if args.spp is None else args.spp,
+        seed=args.seed,
+        max_step_px=args.max_step_px,
+        per_pattern=args.per_pattern,
+        cover_px_per_ms=args.cover,
+        preset=args.preset,
+        object_depth_mm=args.depth,
+        schedule=args.schedule,
+        passes=args.passes,
+        sampler=args.sampler,
+    )
+    if args.schedule is not None:  # read and check it before any rendering
+        from ..exposure.capture import capture_design
+
+        capture_design(spec)
+    model = _sensor_model(args.sensor) if args.sensor else None
+    if args.light_level is not None and model is None:
+        raise ParameterError("--light-level needs --sensor")
+    if args.light_level is not None:  # refuse before rendering, not after
+        check_positive("--light-level", args.light_level, "photons/px/ms")
+    for flag in ("max_steps", "max_samples"):
+        check_positive("--" + flag.replace("_", "-"), getattr(args, flag))
+    if not args.checkpoint_every >= 0:  # 0: after every step
+        raise ParameterError(f"--checkpoint-every must be >= 0 s, got {args.checkpoint_every!r}")
+    check_budget(
+        spec, args.max_samples, not args.no_truth, target is not None
+    )  # render_capture checks again; this is before any file
+    out = Path(args.out)
+    if (out / "capture.exr").exists() and not args.force:
+        raise ParameterError(f"--out {out} already holds a capture; pass --force to overwrite it")
+    with new_folder(out), output_lock(out):
+        if args.force:
+            _discard_partial(out / ".partial")
+        cap = render_capture(
+            spec,
+            partial_dir=out / ".partial",
+            progress=not args.quiet,
+            save_every_s=args.checkpoint_every,
+            max_steps=args.max_steps,
+            max_samples=args.max_samples,
+            truth=not args.no_truth,
+            target=target,
+            keep_partial=True,
+        )
+        if model is not None:
+            from ..sensor.apply import add_sensor_layers
+
+            add_sensor_layers(cap, model, args.sensor, args.light_level, spec.seed)
+        paths = write_or_rescue(cap, out, args.force, args.mc_sigma_layer)
+    m = cap.meta
+    w, h = spec.image_size
+    where = f"{w}x{h}" + (f" window at ({spec.crop[0]}, {spec.crop[1]})" if spec.crop else "")
+    err = m["render_error"]
+    print(
+        f"{spec.mode} capture of {spec.scene}: {where} of a {spec.width}x{spec.height} sensor, "
+        f"{m['effective_spp']} spp in {err['passes']} passes of {m['n_steps']} step(s), "
+        f"{m['render_seconds']:.1f} s -> " + ", ".join(p.name for p in paths)
+    )
+    print(scale_line(m["optics"], m["coded_design"]))
+    print(error_line(err))
+    print(
+        "layers: "
+        + ", ".join(["capture", *cap.extra_layers, *(["mc_sigma"] if args.mc_sigma_layer else [])])
+    )
+    return 0
+
+
+def _sensor_model(name: str):
+    from ..sensor.model import SensorModel
+
+    return SensorModel.from_preset(name)
+
+
+def _discard_partial(partial: Path) -> None:
+    """--force starts afresh: drop the finished steps of an earlier run (after the lock)."""
+    import shutil
+
+    if partial.exists():
+        shutil.rmtree(partial)
+        warnings.warn(
+            f"--force: discarded the finished steps of an earlier run in {partial}; rendering "
+            "afresh",
+            PacamWarning,
+            stacklevel=2,
+        )
+
+
+def _noise_target(args: argparse.Namespace):
+    """The render's noise target from --noise-ratio (with --sensor) or --noise-target."""
+    from ..exposure.estimate import AbsoluteTarget
+
+    given = [f for f in ("noise_ratio", "noise_target") if getattr(args, f) is not None]
+    if not given:
+        return None
+    if len(given) == 2:
+        raise ParameterError("give --noise-ratio or --noise-target, not both")
+    if args.spp is not None:
+        raise ParameterError(
+            f"--spp and --{given[0].replace('_', '-')} both set the samples: give one "
+            "(a target renders until it is met, within --max-samples)"
+        )
+    if args.noise_target is not None:
+        return AbsoluteTarget(check_positive("--noise-target", args.noise_target))
+    if args.sensor is None:
+        raise ParameterError(
+            "--noise-ratio needs --sensor (it scales the sensor's noise); without a sensor, "
+            "give an absolute --noise-target"
+        )
+    from ..sensor.apply import SensorTarget
+
+    ratio = check_positive("--noise-ratio", args.noise_ratio)
+    return SensorTarget(ratio, ((args.sensor, args.light_level),))
+
+
+def _sensor_size(args: argparse.Namespace) -> dict:
+    """width, height and crop: ``--crop`` alone is a window of the preset's full sensor."""
+    full = preset(args.preset)
+    if args.crop is None:
+        return {"width": args.width or 320, "height": args.height or 240}
+    width, height = args.width or full.width_px, args.height or full.height_px
+    from ..exposure.capture import parse_crop
+
+    return {"width": width, "height": height, "crop": parse_crop(args.crop)}

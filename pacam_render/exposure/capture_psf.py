@@ -1,0 +1,170 @@
+"""The PSF a capture is deblurred with: analytic or speed-robust from its record, or a kernel
+file (an EXR that ``pacam psf`` wrote, with its ``psf.json``, or a bare ``.npy``), checked
+against the capture's sensor size, with the image point its centre pixel stands for."""
+
+from __future__ import annotations
+
+import json
+import os
+import warnings
+from pathlib import Path
+from typing import NamedTuple
+
+import numpy as np
+
+from ..errors import ParameterError
+from ..io.exr import read_exr
+from ..limits import PacamWarning
+from .record import CaptureRecord, analytic_psf, robust_psf
+
+PSF_SOURCES = ("analytic", "robust", "rendered")
+"""The kernels named rather than given by path: from the record, or ``psf_rendered.exr``."""
+
+
+class CapturePSF(NamedTuple):
+    """A kernel to deblur with, where it came from, and what its centre pixel stands for."""
+
+    kernel: np.ndarray
+    file: Path | None
+    origin: str
+    t0_offset_px: float
+
+
+def psf_path(psf: str, capture: str | os.PathLike) -> Path | None:
+    """The file that ``psf`` reads: None for ``analytic`` and ``robust`` (from the record),
+    ``psf_rendered.exr`` beside the capture for ``rendered``, else ``psf`` itself."""
+    if psf in ("analytic", "robust"):
+        return None
+    return Path(capture).parent / "psf_rendered.exr" if psf == "rendered" else Path(psf)
+
+
+def load_capture_psf(
+    psf: str, capture: str | os.PathLike, record: CaptureRecord | None
+) -> CapturePSF:
+    """The kernel to deblur ``capture`` with.
+
+    Parameters
+    ----------
+    psf : str
+        ``analytic`` (the s = 0 PSF of the capture's mode and design), ``robust`` (averaged
+        over the design's speed range), ``rendered`` (``psf_rendered.exr`` beside the capture)
+        or the path of an ``.exr`` (a ``psf`` layer, or its only layer) or ``.npy`` kernel.
+    capture : path-like
+        The capture's EXR file.
+    record : CaptureRecord or None
+        The capture's record; ``analytic`` and ``robust`` need it, and a kernel file is
+        checked against its sensor size.
+
+    Returns
+    -------
+    CapturePSF
+        The kernel, its file (None when computed), its origin (``pinhole`` or ``t0``) and the
+        t = 0 image's offset from the pinhole image, px.
+
+    Raises
+    ------
+    ParameterError
+        If the record is missing, the file is missing or unreadable, or the kernel was made for
+        another sensor size.
+    """
+    capture = Path(capture)
+    if psf in ("analytic", "robust"):
+        if record is None:
+            path = capture.with_suffix(".json")
+            raise ParameterError(f"`psf` {psf} needs the capture's parameters in {path}")
+        k = analytic_psf(record) if psf == "analytic" else robust_psf(record)
+        return CapturePSF(k, None, "pinhole", 0.0)
+    path = psf_path(psf, capture)
+    if psf == "rendered" and not path.is_file():
+        raise ParameterError(
+            f"`psf` rendered reads {path}, which does not exist; make it with pacam psf "
+            f"`render` `out` {capture.parent} ... at the capture's depth and mode, or use "
+            "`psf` analytic"
+        )
+    meta = psf_sidecar(path)
+    check_psf_scale(path, meta, capture, record)
+    origin, offset = psf_origin(path, meta)
+    if path.suffix == ".npy":
+        return CapturePSF(load_npy_psf(path), path, origin, offset)
+    layers = read_exr(path)
+    if "psf" in layers:
+        return CapturePSF(layers["psf"], path, origin, offset)
+    if len(layers) == 1:
+        return CapturePSF(next(iter(layers.values())), path, origin, offset)
+    raise ParameterError(f"{path} has no 'psf' layer; it has: {', '.join(sorted(layers))}")
+
+
+def psf_sidecar(path: Path) -> dict | None:
+    """The ``psf.json`` that ``pacam psf`` wrote beside an EXR kernel, or None."""
+    sidecar = path.parent / "psf.json"
+    if path.suffix == ".npy" or not sidecar.is_file():
+        return None
+    try:
+        meta = json.loads(sidecar.read_text())
+    except json.JSONDecodeError:
+        return None
+    return meta if isinstance(meta, dict) else None
+
+
+def psf_origin(path: Path, meta: dict | None) -> tuple[str, float]:
+    """The kernel's origin and t = 0 offset (px) from its psf.json. A kernel without one is
+    taken as centred like the capture (the pinhole image); an older t0 file, which lacks the
+    offset, is used as it is, with a note."""
+    from ..psf.origin import recorded_origin
+
+    origin, offset = recorded_origin(meta or {})
+    if origin == "t0" and offset is None:
+        warnings.warn(
+            f"{path} is centred on the t = 0 image but its psf.json (from an older pacam) does "
+            "not record how far that lies from the pinhole image, so the result is not moved "
+            "onto the capture's registration; remake it with pacam psf `like` CAPTURE.exr",
+            PacamWarning,
+            stacklevel=2,
+        )
+        return "pinhole", 0.0
+    return origin or "pinhole", offset or 0.0
+
+
+def check_psf_scale(
+    path: Path, meta: dict | None, capture: Path, record: CaptureRecord | None
+) -> None:
+    """Refuse a kernel made for another sensor size than the capture's (px scale differs); a
+    kernel that records no size gets a note."""
+    sidecar = path.parent / "psf.json"
+    if not isinstance(meta, dict) or "width_px" not in meta:
+        warnings.warn(
+            f"{path} records no sensor size: make sure it was made at the capture's scale "
+            f"(pacam psf `like` {capture})",
+            PacamWarning,
+            stacklevel=2,
+        )
+        return
+    if record is None or "width_px" not in record.camera:
+        return
+    made = (meta["width_px"], meta.get("height_px"))
+    needed = (record.camera["width_px"], record.camera.get("height_px"))
+    if made != needed:
+        raise ParameterError(
+            f"`psf` {path} was made for a {made[0]}x{made[1]} sensor ({sidecar}), the capture "
+            f"for {needed[0]}x{needed[1]}: its px are a different size; make the kernel with "
+            f"pacam psf `like` {capture} ..."
+        )
+
+
+def load_npy_psf(path: Path) -> np.ndarray:
+    """A kernel from a ``.npy`` file: numbers only (never unpickle a file from elsewhere)."""
+    if not path.is_file():
+        raise ParameterError(f"`psf` file {path} does not exist")
+    try:
+        k = np.load(path, allow_pickle=False)
+    except (ValueError, EOFError) as exc:  # object arrays, an empty file, or not a .npy file
+        why = "holds Python objects" if "allow_pickle" in str(exc) else f"is not readable ({exc})"
+        raise ParameterError(
+            f"`psf` file {path} {why}; save the kernel as numbers: "
+            "np.save(path, np.asarray(kernel, dtype=float))"
+        ) from None
+    if not isinstance(k, np.ndarray) or k.dtype.kind not in "biuf":
+        raise ParameterError(f"`psf` file {path} holds {k.dtype} values, not real numbers")
+    if k.size == 0:
+        raise ParameterError(f"`psf` file {path} holds an empty array (shape {k.shape})")
+    return k
