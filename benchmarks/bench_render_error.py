@@ -50,7 +50,9 @@ from common import record
 from matplotlib.ticker import ScalarFormatter
 
 from pacam_render.exposure import integrate, progress
-from pacam_render.exposure.capture import CaptureSpec, capture_design, render_capture
+from pacam_render.exposure.capture import render_capture
+from pacam_render.exposure.capture_camera import capture_design
+from pacam_render.exposure.capture_spec import CaptureSpec
 from pacam_render.render.samplers import DEFAULT_SAMPLER, SAMPLERS
 from pacam_render.scenes import load_scene, psf_scene
 from pacam_render.sensor.apply import SensorTarget

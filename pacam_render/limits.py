@@ -8,6 +8,7 @@ are :class:`PacamWarning`: the CLI prints each as one ``note:`` line.
 from __future__ import annotations
 
 import os
+import warnings
 
 from .errors import ParameterError
 
@@ -20,6 +21,11 @@ coded train render reaches on 2 cores."""
 
 class PacamWarning(UserWarning):
     """Something the user should know that does not stop the work."""
+
+
+def note(message: str, stacklevel: int = 2) -> None:
+    """Warn with a :class:`PacamWarning`: a note for the user; the work goes on."""
+    warnings.warn(message, PacamWarning, stacklevel=stacklevel + 1)
 
 
 def available_bytes() -> int:

@@ -13,8 +13,8 @@ import pytest
 
 import pacam_render
 from pacam_render.errors import ParameterError
-from pacam_render.exposure.capture import MODES as CAPTURE_MODES
-from pacam_render.exposure.capture import mode_camera
+from pacam_render.exposure.capture_camera import mode_camera
+from pacam_render.exposure.capture_spec import CaptureSpec
 from pacam_render.exposure.psf_setup import RENDER_MODES, mode_setup
 from pacam_render.exposure.record import CaptureRecord, SensorRecord
 from pacam_render.model import paper
@@ -153,7 +153,9 @@ def test_both_plugins_follow_variant_switches():
 
 
 def test_every_mode_is_in_the_one_table():
-    assert set(CAPTURE_MODES) == set(MODES)
+    assert [CaptureSpec(mode=m).mode for m in MODES] == list(MODES)  # captures take them all
+    with pytest.raises(ParameterError, match="valid: normal, coded"):
+        CaptureSpec(mode="blurry")
     assert set(RENDER_MODES) == set(MODES_WITH_PSF) == {m for m in MODES if MODES[m].psf}
     assert "reference" in MODES and "reference" not in MODES_WITH_PSF
     with pytest.raises(ParameterError, match="valid: normal, coded"):

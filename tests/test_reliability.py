@@ -16,12 +16,8 @@ import pytest
 
 from pacam_render.cli import main
 from pacam_render.errors import ParameterError
-from pacam_render.exposure.capture import (
-    CaptureInterrupted,
-    CaptureSpec,
-    check_budget,
-    render_capture,
-)
+from pacam_render.exposure.capture import CaptureInterrupted, check_budget, render_capture
+from pacam_render.exposure.capture_spec import CaptureSpec
 from pacam_render.exposure.checkpoint import Checkpoint
 from pacam_render.exposure.steps import plan_steps
 from pacam_render.io.exr import read_layer, write_exr

@@ -9,7 +9,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pacam_render.exposure.capture import CaptureInterrupted, CaptureSpec, render_capture
+from pacam_render.exposure.capture import CaptureInterrupted, render_capture
+from pacam_render.exposure.capture_spec import CaptureSpec
 from pacam_render.limits import PacamWarning
 from pacam_render.study.spec import parse_study
 

@@ -218,7 +218,8 @@ def _schedule(path):
     ],
 )
 def test_a_schedule_the_mode_does_not_show_is_noted_and_recorded_unused(mode, match, tmp_path):
-    from pacam_render.exposure.capture import CaptureSpec, render_capture
+    from pacam_render.exposure.capture import render_capture
+    from pacam_render.exposure.capture_spec import CaptureSpec
 
     spec = CaptureSpec(mode=mode, width=32, height=24, spp=4, schedule=_schedule(tmp_path / "s"))
     with warnings.catch_warnings(record=True) as caught:

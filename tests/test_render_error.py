@@ -15,7 +15,9 @@ import pytest
 
 from pacam_render.cli import main
 from pacam_render.exposure import integrate as integ
-from pacam_render.exposure.capture import CaptureSpec, capture_design, render_capture
+from pacam_render.exposure.capture import render_capture
+from pacam_render.exposure.capture_camera import capture_design
+from pacam_render.exposure.capture_spec import CaptureSpec
 from pacam_render.exposure.estimate import (
     AbsoluteTarget,
     PassGroup,

@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 
 from pacam_render.errors import ParameterError
-from pacam_render.exposure.capture import CaptureSpec, render_capture, write_capture
+from pacam_render.exposure.capture import render_capture, write_capture
+from pacam_render.exposure.capture_spec import CaptureSpec
 from pacam_render.limits import PacamWarning
 from pacam_render.sensor.apply import add_sensor_layers
 from pacam_render.sensor.model import SensorModel

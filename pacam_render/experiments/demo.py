@@ -24,7 +24,8 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import ParameterError
-from ..exposure.capture import CaptureSpec, render_capture, write_capture
+from ..exposure.capture import render_capture, write_capture
+from ..exposure.capture_spec import CaptureSpec
 from ..exposure.record import analytic_psf
 from ..io.outputs import prepare_out_dir, write_text
 from ..model import paper

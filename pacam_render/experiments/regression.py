@@ -33,7 +33,9 @@ import numpy as np
 from scipy.ndimage import uniform_filter
 
 from ..errors import ParameterError
-from ..exposure.capture import CaptureSpec, capture_design, render_capture
+from ..exposure.capture import render_capture
+from ..exposure.capture_camera import capture_design
+from ..exposure.capture_spec import CaptureSpec
 
 FOLDER = Path(__file__).resolve().parents[2] / "tests" / "regression"
 SIZE = {"width": 120, "height": 90, "spp": 64}

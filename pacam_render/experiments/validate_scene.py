@@ -89,7 +89,9 @@ class Plan:
 def plan(check: SceneCheck, description=None) -> Plan:
     """Build and check everything before any rendering (every error names its flag);
     ``description`` is a scene to use instead of ``check.scene``."""
-    from ..exposure.capture import CaptureSpec, capture_design, check_budget, mode_camera
+    from ..exposure.capture import check_budget
+    from ..exposure.capture_camera import capture_design, mode_camera
+    from ..exposure.capture_spec import CaptureSpec
     from ..model.camera import preset
     from ..psf.scene import window_reach_px
     from ..scenes import load_scene

@@ -26,6 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..io.lock import output_lock
 from ..io.outputs import atomic_save
 from ..limits import PacamWarning
 
@@ -169,6 +170,14 @@ class Checkpoint:
     def clear(self) -> None:
         if self.folder is not None and self.folder.exists():
             shutil.rmtree(self.folder)
+
+
+def partial_lock(partial_dir):
+    """The lock of the folder that holds ``partial_dir`` (none without one), held while a
+    capture writes its checkpoint there (:func:`~pacam_render.io.lock.output_lock`)."""
+    if partial_dir is None:
+        return contextlib.nullcontext()
+    return output_lock(Path(partial_dir).parent)
 
 
 @contextlib.contextmanager

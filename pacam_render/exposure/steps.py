@@ -29,7 +29,8 @@ from typing import Any
 
 import numpy as np
 
-from ..limits import DEFAULT_MAX_STEPS, check_count
+from ..limits import DEFAULT_MAX_STEPS, check_count, note
+from ..render.samplers import quantum
 
 
 @dataclass(frozen=True)
@@ -203,3 +204,26 @@ class Exposure:
     def steps_per_pass(self, spp: int) -> int:
         """How many renders a pass of ``spp`` samples per pixel takes."""
         return len(self.steps(spp)) if self.moving else 1
+
+
+def plan_exposure(scene, sensor, desc, design, cam, spec, max_steps: int = DEFAULT_MAX_STEPS):
+    """The :class:`Exposure` of a capture, and the fastest image speed (px/ms).
+
+    A static scene, or the reference, is one render per pass (no windows, speed 0); a moving
+    scene gets the time steps of :func:`plan_windows` at the fastest image speed of any of its
+    shapes over the paper's t in [-T, T].
+    """
+    from ..scenes import fastest_image_speed_px_per_ms
+
+    w, h = spec.image_size
+    exp = Exposure(scene, sensor, quantum=quantum(spec.sampler), pixels=w * h)
+    if desc.is_static or spec.mode == "reference":  # one render per pass, no geometry update
+        if spec.per_pattern:
+            note("--per-pattern keeps nothing here: a static scene or the reference is one pass")
+        return exp, 0.0
+    exposure = cam.exposure_ms
+    speed = fastest_image_speed_px_per_ms(desc, design, (-0.5 * exposure, 0.5 * exposure))
+    plan = sensor.plan
+    exp.windows = plan_windows(plan.pattern_edges, plan.is_open, speed, spec.max_step_px, max_steps)
+    exp.animator, exp.mid_ms = desc.animator(scene), 0.5 * exposure
+    return exp, speed

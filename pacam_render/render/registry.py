@@ -228,13 +228,13 @@ def sensor_entry(spec, design: CameraDesign, params: dict, exposure_ms: float) -
     Parameters
     ----------
     spec : CaptureSpec
-        The capture (:class:`~pacam_render.exposure.capture.CaptureSpec`): uses ``mode``,
+        The capture (:class:`~pacam_render.exposure.capture_spec.CaptureSpec`): uses ``mode``,
         ``width`` and ``height`` (px), ``crop`` and ``sampler``.
     design : CameraDesign
         The mode's camera (its field of view, deg).
     params : dict
         The sensor's schedule parameters
-        (:func:`~pacam_render.exposure.capture.mode_camera`).
+        (:func:`~pacam_render.exposure.capture_camera.mode_camera`).
     exposure_ms : float
         The exposure 2T, ms: the shutter is open over [0, exposure_ms], and the paper's time is
         t = shutter time - T.

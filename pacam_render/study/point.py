@@ -94,7 +94,7 @@ def _status(exc: Exception) -> str:
 
 def capture_inputs(render: dict, p: Point):
     """The CaptureSpec and scene description of a point (its speed and depth applied)."""
-    from ..exposure.capture import CaptureSpec
+    from ..exposure.capture_spec import CaptureSpec
     from ..model.camera import preset
     from ..scenes import load_scene
     from ..scenes.edit import at_depth, moving_depth_mm, scene_speed_px_per_ms, with_speed

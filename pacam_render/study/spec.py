@@ -261,7 +261,7 @@ def _keys(table: dict, where: str, valid: set) -> None:
 
 
 def _check_render(r: dict) -> dict:
-    from ..exposure.capture import CaptureSpec
+    from ..exposure.capture_spec import CaptureSpec
 
     if r["crop"] in (False, None):
         r["crop"] = None
@@ -362,7 +362,7 @@ def parse_design(text: str) -> dict:
 
 
 def _check_point(v: dict) -> dict:
-    from ..exposure.capture import MODES
+    from ..model.modes import MODES
     from ..restore.deconvolve import METHODS
     from ..scenes.builtin import BUILTIN_SCENES
 
@@ -397,7 +397,8 @@ def _check_point(v: dict) -> dict:
 
 def _check_designs(points: list[Point], render: dict) -> None:
     """Every design can be built (the solver names the limit it hits), before any render."""
-    from ..exposure.capture import CaptureSpec, capture_design
+    from ..exposure.capture_camera import capture_design
+    from ..exposure.capture_spec import CaptureSpec
 
     for text in sorted({p.design for p in points}):
         try:

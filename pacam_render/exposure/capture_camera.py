@@ -1,0 +1,140 @@
+"""The camera a capture uses: the preset's design at the capture's size (solved to cover a
+speed, or read from a schedule file), the mode's camera and sensor parameters from the table of
+:mod:`pacam_render.model.modes`, and notes on what the mode leaves unused.
+"""
+
+from __future__ import annotations
+
+from ..limits import note
+from ..model.camera import CameraDesign, preset
+from ..model.modes import DESIGNED_REFUSED, MODES, capture_camera, mode, sensor_params
+from .capture_spec import CaptureSpec
+
+
+def capture_design(spec: CaptureSpec) -> CameraDesign:
+    """The preset's optics at the capture's resolution (pixel quantities scale with width).
+
+    With ``cover_px_per_ms`` (a speed in the preset's own pixels), the design solver first
+    picks the defocus that makes that speed motion-invariant at the preset's F-number, or at
+    ``f_number``, or with the defocus radius ``r_px`` (preset px). ``object_depth_mm`` is the
+    depth the design is made for (default the preset's: 500 mm for the prototype).
+
+    Parameters
+    ----------
+    spec : CaptureSpec
+        Uses ``preset``, ``cover_px_per_ms`` (px/ms) and ``width`` and ``height`` (px).
+
+    Returns
+    -------
+    CameraDesign
+        The coded design, with ``width_px = spec.width`` and ``height_px = spec.height``.
+
+    Raises
+    ------
+    ParameterError
+        If the preset is unknown, or the solver cannot cover the speed (it names the limit).
+
+    Notes
+    -----
+    The solver (:func:`~pacam_render.model.design.solve`) makes the invariant range
+    |s| <= |a_i| T cover the speed, with a_i = beta a_a (Eq. 18) and the defocus radius
+    r = |beta| R (Eq. 12), so |a_i| = 4 r (R_max / R - 1) / T^2; the exposure is 2T.
+    """
+    depth = {} if spec.object_depth_mm is None else {"object_depth_mm": spec.object_depth_mm}
+    base = preset(spec.preset, **depth)
+    if spec.cover_px_per_ms is not None:
+        from ..model.design import solve
+
+        base = solve(spec.cover_px_per_ms, f_number=spec.f_number, r_px=spec.r_px, base=base)
+    if spec.schedule is not None:
+        from ..model.schedule_file import apply_schedule, read_schedule
+
+        sched = read_schedule(spec.schedule)
+        if spec.object_depth_mm is None and "object_depth_mm" in sched:
+            base = base.with_(object_depth_mm=sched["object_depth_mm"])
+        base = apply_schedule(base, sched, spec.schedule)
+    return base.with_(width_px=spec.width, height_px=spec.height)
+
+
+def mode_camera(design: CameraDesign, mode: str) -> tuple[CameraDesign, dict]:
+    """The camera a mode uses (for its analytic PSF) and the sensor's schedule parameters,
+    both from the table of :mod:`pacam_render.model.modes`.
+
+    Parameters
+    ----------
+    design : CameraDesign
+        The coded design (:func:`capture_design`).
+    mode : str
+        A capture mode, one of :data:`~pacam_render.model.modes.MODES`.
+
+    Returns
+    -------
+    cam : CameraDesign
+        :func:`~pacam_render.model.modes.capture_camera`: the design with the mode's focus,
+        opening and exposure; its analytic PSF is ``design_psf(cam, mode)``.
+    params : dict
+        :func:`~pacam_render.model.modes.sensor_params`: the ``programmable_aperture``
+        parameters (lengths in mm) that show the mode; empty for ``reference``.
+
+    Raises
+    ------
+    ParameterError
+        If ``mode`` is unknown (the message lists the valid ones), or a mode with a moving
+        aperture gets a design without parallax (beta = 0).
+    """
+    unused = _schedule_unused(mode) if design.designed else []
+    if "openings" in unused:  # the mode shows none of them: its camera leaves them out
+        text = f"{design.name}, its {_words(unused)} not used"
+        design = design.with_(pattern_centres_mm=None, name=text)
+    cam = capture_camera(design, mode)
+    return cam, sensor_params(cam, mode)
+
+
+def _schedule_unused(name: str) -> list[str]:
+    """The parts of a designed schedule that a ``name`` capture does not use."""
+    m = mode(name)
+    if name in DESIGNED_REFUSED:  # refused where the design is made
+        return []
+    if m.schedule is None:  # the pinhole reference
+        return ["openings", "focus", "radius", "exposure"]
+    unused = [] if m.needs_parallax else ["openings"]
+    unused += ["focus"] if m.refocus else []
+    unused += ["radius"] if m.full_opening else []
+    return unused + (["exposure"] if m.exposure_ms is not None else [])
+
+
+def _words(items: list[str]) -> str:
+    """``a, b and c``."""
+    return " and ".join(items) if len(items) < 3 else f"{', '.join(items[:-1])} and {items[-1]}"
+
+
+def note_ignored_options(spec: CaptureSpec) -> None:
+    """Options the mode does not use: say so rather than drop them silently."""
+    if spec.cover_px_per_ms is not None and mode(spec.mode).refocus:
+        note(
+            f"--cover has no effect in {spec.mode} mode: it focuses on the object, so the "
+            "solved defocus is not used (it applies to coded, coded_continuous and levin)"
+        )
+    unused = _schedule_unused(spec.mode) if spec.schedule is not None else []
+    if unused:  # recorded in the capture's notes; its camera leaves the openings out
+        used = {"radius", "exposure"} - set(unused)
+        note(
+            f"--schedule's {_words(unused)} are not used in {spec.mode} mode ("
+            f"{MODES[spec.mode].summary}): "
+            + (f"only its {_words(sorted(used))} are" if used else "it has no effect")
+        )
+
+
+def note_binning(spec: CaptureSpec, cam: CameraDesign) -> None:
+    """A coded capture whose blur is sub-pixel is a binned camera: say so, and what to do."""
+    full = preset(spec.preset)
+    if not mode(spec.mode).needs_parallax or cam.r_px >= 1.0:
+        return
+    binned = full.width_px / spec.width
+    note(
+        f"at {spec.width}x{spec.height} px the sensor is the preset's {full.width_px}x"
+        f"{full.height_px} binned {binned:.3g}x: the coded blur is sub-pixel (r = "
+        f"{cam.r_px:.3g} px, a_i = {cam.a_i_px_per_ms2:.3g} px/ms^2, invariant |s| <= "
+        f"{cam.velocity_range_px_per_ms:.3g} px/ms at this size); to see the camera at its real "
+        f"pixel scale, render a window of the full sensor with --crop X,Y,W,H"
+    )

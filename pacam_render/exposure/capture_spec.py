@@ -1,0 +1,121 @@
+"""What a capture renders: :class:`CaptureSpec`, checked on construction, and its sensor crop.
+
+Sizes are in px of the capture's sensor, ``max_step_px`` in px of image motion between time
+steps; the spec's :meth:`~CaptureSpec.key` hashes everything that changes the image, so a
+stopped capture resumes only into the same one.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import ParameterError, check_positive
+from ..model.modes import mode
+from ..render.samplers import DEFAULT_SAMPLER, check_sampler
+from .estimate import check_passes
+
+
+@dataclass(frozen=True)
+class CaptureSpec:
+    """What to capture. Sizes in px, ``max_step_px`` in px of motion between time steps.
+
+    ``width`` and ``height`` are the sensor's resolution: below the preset's (1280x960 for the
+    prototype) the sensor has fewer, larger pixels, and every px quantity (r, a_i, speeds)
+    shrinks with it. ``crop`` = (x, y, w, h) renders only that window of the sensor, in its
+    pixels (Mitsuba's film crop): the optics stay those of the whole sensor, so a crop of the
+    full-resolution sensor is the prototype's camera at its real pixel scale.
+
+    ``spp`` is shared among ``passes`` independent passes (at least 2: their spread measures the
+    Monte Carlo error); ``sampler`` is Mitsuba's sample generator (:mod:`~..render.samplers`).
+    """
+
+    scene: str = "train"
+    mode: str = "coded"
+    width: int = 320
+    height: int = 240
+    spp: int = 64
+    seed: int = 0
+    max_step_px: float = 0.5
+    per_pattern: bool = False
+    preset: str = "prototype"
+    cover_px_per_ms: float | None = None
+    crop: tuple[int, int, int, int] | None = None
+    f_number: float | None = None
+    r_px: float | None = None
+    object_depth_mm: float | None = None
+    schedule: str | None = None
+    passes: int = 2
+    sampler: str = DEFAULT_SAMPLER
+
+    def __post_init__(self) -> None:
+        mode(self.mode)  # raises, listing the valid modes
+        if self.crop is not None:
+            object.__setattr__(self, "crop", check_crop(self.crop, self.width, self.height))
+        for k, lo in (("width", 2), ("height", 2), ("spp", 1)):
+            v = getattr(self, k)
+            if not isinstance(v, (int, np.integer)) or v < lo:
+                raise ParameterError(f"{k} must be an integer >= {lo}, got {v!r}")
+        if not isinstance(self.seed, (int, np.integer)) or not 0 <= self.seed < 2**31:
+            raise ParameterError(f"seed must be an integer in [0, 2^31), got {self.seed!r}")
+        check_positive("max_step_px", self.max_step_px, "px")
+        check_passes(self.passes)
+        check_sampler(self.sampler)
+        if self.cover_px_per_ms is not None:
+            check_positive("cover_px_per_ms", self.cover_px_per_ms, "px/ms")
+        if self.object_depth_mm is not None:
+            check_positive("object_depth_mm", self.object_depth_mm, "mm")
+        if (self.f_number is not None or self.r_px is not None) and self.cover_px_per_ms is None:
+            raise ParameterError("f_number and r_px size a covering design: they need --cover")
+        if self.schedule is not None and self.cover_px_per_ms is not None:
+            raise ParameterError("give --cover or --schedule, not both: each sets the design")
+
+    @property
+    def image_size(self) -> tuple[int, int]:
+        """(width, height) of the rendered image, px: the crop's, or the whole sensor's."""
+        return (self.crop[2], self.crop[3]) if self.crop else (self.width, self.height)
+
+    def key(self) -> str:
+        """A hash of everything that changes the image (for resuming).
+
+        Returns
+        -------
+        str
+            The first 16 hex digits of the SHA-256 of the spec's fields as sorted JSON, and of
+            the contents of the schedule file it names (a file rewritten in place is another
+            capture).
+        """
+        h = hashlib.sha256(json.dumps(asdict(self), sort_keys=True).encode())
+        if self.schedule is not None and Path(self.schedule).is_file():
+            h.update(Path(self.schedule).read_bytes())
+        return h.hexdigest()[:16]
+
+
+def check_crop(crop, width: int, height: int) -> tuple[int, int, int, int]:
+    """(x, y, w, h) as ints inside a width x height sensor, or ParameterError."""
+    try:
+        x, y, w, h = (int(v) for v in crop)
+        ok = all(int(v) == v for v in crop)
+    except (TypeError, ValueError):
+        ok = False
+    if not ok or w < 2 or h < 2 or x < 0 or y < 0 or x + w > width or y + h > height:
+        raise ParameterError(
+            f"--crop must be X,Y,W,H: integers with W, H >= 2 and the window inside the "
+            f"{width}x{height} sensor (X + W <= {width}, Y + H <= {height}), got {crop!r}"
+        )
+    return x, y, w, h
+
+
+def parse_crop(text: str) -> tuple[int, int, int, int]:
+    """``"X,Y,W,H"`` (the ``--crop`` flag) as four ints, or ParameterError."""
+    parts = text.split(",")
+    try:
+        if len(parts) != 4:
+            raise ValueError
+        return tuple(int(p) for p in parts)  # type: ignore[return-value]
+    except ValueError:
+        raise ParameterError(f"--crop must be X,Y,W,H (four integers), got {text!r}") from None
