@@ -15,10 +15,10 @@ from collections.abc import Sequence
 
 from ..errors import FileKeyError, ParameterError
 from ..exposure.capture import CaptureInterrupted
-from . import deconvolve, demo, design, optimize, psf, render, reproduce, study, validate
+from . import deconvolve, demo, design, optimize, psf, render, reproduce, sensor, study, validate
 from .common import check_common, note_printer, terminate_as_interrupt, user_words
 
-COMMANDS = (design, psf, deconvolve, reproduce, render, optimize, validate, study, demo)
+COMMANDS = (design, psf, deconvolve, reproduce, render, sensor, optimize, validate, study, demo)
 """The command modules, in the order ``pacam --help`` lists them."""
 
 
