@@ -116,7 +116,7 @@ def test_a_scheduler_that_is_not_dask_is_a_clear_error(not_dask, monkeypatch):
     monkeypatch.setattr(engine, "CONNECT_TIMEOUT_S", 1.0)
     exc = _bounded(lambda: engine.run_tasks(abs, [1, 2], lambda t, r: None, scheduler=not_dask))
     assert isinstance(exc, ParameterError), repr(exc)
-    assert str(exc).startswith(f"--scheduler {not_dask}: no Dask scheduler answered within 1 s")
+    assert str(exc).startswith(f"`scheduler` {not_dask}: no Dask scheduler answered within 1 s")
 
 
 @pytest.mark.parametrize("not_dask", ["answers-http"], indirect=True)  # main() needs the main

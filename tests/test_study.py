@@ -263,14 +263,14 @@ def test_unreachable_scheduler_is_a_clear_error_within_the_timeout(monkeypatch):
 
     monkeypatch.setattr(E, "CONNECT_TIMEOUT_S", 2.0)
     t0 = time.perf_counter()
-    with pytest.raises(ParameterError, match="--scheduler tcp://127.0.0.1:9: no Dask scheduler"):
+    with pytest.raises(ParameterError, match="`scheduler` tcp://127.0.0.1:9: no Dask scheduler"):
         E.run_tasks(abs, [1], lambda t, r: None, scheduler="tcp://127.0.0.1:9")
     assert time.perf_counter() - t0 < 15
 
 
 @pytest.mark.parametrize("address", ["foo", "tcp://", "nonsense:::"])
 def test_a_malformed_scheduler_address_is_refused_at_once(address):
-    with pytest.raises(ParameterError, match="--scheduler must be a Dask scheduler's address"):
+    with pytest.raises(ParameterError, match="`scheduler` must be a Dask scheduler's address"):
         E.check_scheduler(address)
 
 

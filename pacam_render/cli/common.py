@@ -44,6 +44,7 @@ FLAGS = {
     "quantum_px": "--quantum",
     "per_pattern": "--per-pattern",
     "velocity_px_per_ms": "--velocity",
+    "velocity": "--velocity",
     "spp": "--spp",
     "seed": "--seed",
     "size": "--size",

@@ -286,9 +286,9 @@ def check_size(width: int | None, height: int | None, spp: int) -> None:
     of --width and --height or neither."""
     for k, v in (("width", width), ("height", height), ("spp", spp)):
         if v is not None and v < 16:
-            raise ParameterError(f"--{k} must be >= 16 for the demo, got {v}")
+            raise ParameterError(f"`{k}` must be >= 16 for the demo, got {v}")
     if (width is None) != (height is None):  # one alone would change the sensor's shape
         raise ParameterError(
-            "--width and --height go together (a binned sensor's size, e.g. --width 320 "
-            "--height 240); without either, the demo renders a window of the full sensor"
+            "`width` and `height` go together (a binned sensor's size, e.g. `width` 320 "
+            "`height` 240); without either, the demo renders a window of the full sensor"
         )

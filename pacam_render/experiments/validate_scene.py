@@ -68,7 +68,7 @@ class SceneCheck:
         check_range("quantum_px", self.quantum_px, *QUANTUM_RANGE_PX, "px")
         if self.crop is not None and min(self.crop[2:]) < MIN_WINDOW_SIDE_PX:
             raise ParameterError(
-                f"--crop window must be at least {MIN_WINDOW_SIDE_PX}x{MIN_WINDOW_SIDE_PX} px "
+                f"`crop` window must be at least {MIN_WINDOW_SIDE_PX}x{MIN_WINDOW_SIDE_PX} px "
                 f"for validate-scene (regions away from the moving edges need room), got "
                 f"{self.crop[2]}x{self.crop[3]}"
             )
@@ -158,7 +158,7 @@ def default_window(desc, cam, margin: int, quick: bool) -> tuple[int, int, int, 
     if box[2] * box[3] > MAX_WINDOW_PX:
         raise ParameterError(
             f"the moving objects span a {box[2]}x{box[3]} px window, more than "
-            f"{MAX_WINDOW_PX} px; give --crop X,Y,W,H"
+            f"{MAX_WINDOW_PX} px; give a `crop` window X,Y,W,H"
         )
     return box
 
@@ -317,7 +317,7 @@ def run(
     if not rows:
         raise ParameterError(
             "every pixel of the window lies within the PSFs' reach of the rendered truth's "
-            "border (the sensor's edge): move or enlarge --crop"
+            "border (the sensor's edge): move or enlarge `crop`"
         )
     reach = max((c.reach_px for c in built[0].cells if c.moving), default=0.0)
     profile = [

@@ -105,7 +105,7 @@ def film_for(design: CameraDesign, centre_px: float, shape, film_mode: str) -> F
     if h > H - 1 or w > W - 1:
         raise ParameterError(
             f"a rendered PSF must fit the {W}x{H} film: kernel side at most {W - 1} x "
-            f"{H - 1} px (odd), got {w} x {h}; lower --size, --velocity or the defocus"
+            f"{H - 1} px (odd), got {w} x {h}; lower `size`, `velocity` or the defocus"
         )
     Z, f = design.object_depth_mm, design.focal_length_px
     if film_mode == "window":
@@ -124,7 +124,7 @@ def film_for(design: CameraDesign, centre_px: float, shape, film_mode: str) -> F
     if ox < 0 or oy < 0 or ox + w > W or oy + h > H:
         raise ParameterError(
             f"the {w}x{h} kernel around film pixel ({j0}, {i0}) leaves the {W}x{H} film; "
-            f"lower --size or use film='window'"
+            f"lower `size` or use `film` 'window'"
         )
     fov = design.fov_deg
     return Film("crop", W, H, (h, w), fov, (ox, oy), (x_mm, y_mm), (j0 + 0.5, i0 + 0.5))

@@ -70,14 +70,14 @@ def _is_int_in(x, lo: int, hi: int) -> bool:
 def check_spp(spp) -> int:
     """spp (samples per film pixel and window) as an int, or ParameterError."""
     if not _is_int_in(spp, 1, MAX_SPP):
-        raise ParameterError(f"spp (--spp) must be an integer in [1, {MAX_SPP}], got {spp!r}")
+        raise ParameterError(f"`spp` must be an integer in [1, {MAX_SPP}], got {spp!r}")
     return int(spp)
 
 
 def check_seed(seed) -> int:
     """A seed in [0, 2^32) as an int, or ParameterError."""
     if not _is_int_in(seed, 0, 2**32 - 1):
-        raise ParameterError(f"seed (--seed) must be an integer in [0, 2^32), got {seed!r}")
+        raise ParameterError(f"`seed` must be an integer in [0, 2^32), got {seed!r}")
     return int(seed)
 
 

@@ -219,7 +219,7 @@ def plan_exposure(scene, sensor, desc, design, cam, spec, max_steps: int = DEFAU
     exp = Exposure(scene, sensor, quantum=quantum(spec.sampler), pixels=w * h)
     if desc.is_static or spec.mode == "reference":  # one render per pass, no geometry update
         if spec.per_pattern:
-            note("--per-pattern keeps nothing here: a static scene or the reference is one pass")
+            note("per_pattern keeps nothing here: a static scene or the reference is one pass")
         return exp, 0.0
     exposure = cam.exposure_ms
     speed = fastest_image_speed_px_per_ms(desc, design, (-0.5 * exposure, 0.5 * exposure))

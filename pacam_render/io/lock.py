@@ -21,7 +21,7 @@ _held: dict[Path, int] = {}
 
 
 @contextlib.contextmanager
-def output_lock(folder: str | os.PathLike, flag: str = "--out") -> Iterator[Path]:
+def output_lock(folder: str | os.PathLike, flag: str = "`out`") -> Iterator[Path]:
     """Hold the folder's lock for the ``with`` block.
 
     Parameters

@@ -20,12 +20,12 @@ def check_writable(path: str | os.PathLike, force: bool, flag: str = "") -> Path
     if p.is_dir():
         raise ParameterError(f"{name} is a folder; give a file name")
     if p.exists() and not force:
-        raise ParameterError(f"{name} already exists; pass --force (force=True) to overwrite it")
+        raise ParameterError(f"{name} already exists; pass `force=True` to overwrite it")
     writable_dir(p.parent, flag)
     return p
 
 
-def writable_dir(path: str | os.PathLike, flag: str = "--out", create: bool = True) -> Path:
+def writable_dir(path: str | os.PathLike, flag: str = "`out`", create: bool = True) -> Path:
     """Prove a folder writable with a probe file, or raise; create it if ``create``.
 
     Parameters
@@ -101,9 +101,11 @@ def prepare_out_dir(path: str | os.PathLike, force: bool) -> Path:
     result written creates it. Refused if it already holds files, unless forced."""
     d = Path(path)
     if d.exists() and not d.is_dir():
-        raise ParameterError(f"--out {d} exists and is not a folder")
+        raise ParameterError(f"`out` {d} exists and is not a folder")
     if d.is_dir() and any(p.name != ".pacam.lock" for p in d.iterdir()) and not force:
-        raise ParameterError(f"--out {d} already holds results; pass --force to overwrite them")
+        raise ParameterError(
+            f"`out` {d} already holds results; pass `force=True` to overwrite them"
+        )
     return writable_dir(d, create=False)
 
 

@@ -75,7 +75,7 @@ def make_grid(s_max, depth_range_mm, n_speeds: int, n_depths: int, extent_px, r_
     if lx > 8192 or ly > 1024:
         raise ParameterError(
             f"the PSFs this range allows span {extent_px:.0f} x {2 * r_max_px:.0f} px: too wide "
-            "to optimise (lower --max-velocity or narrow --depth-range)"
+            "to optimise (lower max_velocity_px_per_ms or narrow depth_range_mm)"
         )
     return Grid(speeds, depths, n_z // 2, n_s // 2, (ly, lx))
 

@@ -49,28 +49,28 @@ def middle_depth_mm(depth_range_mm) -> float:
 
 
 def check_problem(p: Problem) -> None:
-    """Every input in range, before any work; messages name the flag."""
-    s = check_positive("--max-velocity", p.max_velocity_px_per_ms, "px/ms")
+    """Every input in range, before any work; messages name the parameter."""
+    s = check_positive("max_velocity_px_per_ms", p.max_velocity_px_per_ms, "px/ms")
     near, far = p.depth_range_mm
     for v in (near, far):
         if not (math.isfinite(v) and v >= MIN_FOCUS_MM):
             raise ParameterError(
-                f"--depth-range must be NEAR,FAR with {MIN_FOCUS_MM:g} <= NEAR <= FAR mm, got "
+                f"depth_range_mm must be NEAR,FAR with {MIN_FOCUS_MM:g} <= NEAR <= FAR mm, got "
                 f"{near:g},{far:g}"
             )
     if near > far:
         raise ParameterError(
-            f"--depth-range must be NEAR,FAR with NEAR <= FAR, got {near:g},{far:g}"
+            f"depth_range_mm must be NEAR,FAR with NEAR <= FAR, got {near:g},{far:g}"
         )
     base = preset(p.preset, object_depth_mm=middle_depth_mm(p.depth_range_mm))
-    check_pattern_count(p.n_patterns, base.exposure_ms, "--n-patterns")
+    check_pattern_count(p.n_patterns, base.exposure_ms, "n_patterns")
     model = SensorModel.from_preset(p.sensor)
     if p.light_level is not None:
-        check_positive("--light-level", p.light_level, "photons/px/ms")
+        check_positive("light_level", p.light_level, "photons/px/ms")
         if not model.shot_noise:
             raise ParameterError(
-                f"--light-level: sensor {p.sensor!r} adds noise relative to white whatever the "
-                "light (no shot noise); leave --light-level out or pick a physical sensor"
+                f"light_level: sensor {p.sensor!r} adds noise relative to white whatever the "
+                "light (no shot noise); leave light_level out or pick a physical sensor"
             )
     _check_coverable(base, s)
 
@@ -83,9 +83,10 @@ def _check_coverable(base: CameraDesign, s_max: float) -> None:
     reach = 4.0 * beta_max * (base.R_max_mm - r_min) / base.T_ms
     if s_max > reach:
         raise ParameterError(
-            f"--max-velocity {s_max:g} px/ms: no opening covers it. Even a {MIN_OPENING_LCOS_PX:g}"
-            f"-LCoS-px opening with the focus at its limit moves the image by |a_i| T = "
-            f"{reach:.3g} px/ms at {z0:g} mm (Eq. 18); lower the speed or lengthen the exposure"
+            f"max_velocity_px_per_ms {s_max:g} px/ms: no opening covers it. Even a "
+            f"{MIN_OPENING_LCOS_PX:g}-LCoS-px opening with the focus at its limit moves the image "
+            f"by |a_i| T = {reach:.3g} px/ms at {z0:g} mm (Eq. 18); lower the speed or lengthen "
+            "the exposure"
         )
 
 
@@ -191,9 +192,9 @@ def multi_start(obj: Objective, n_starts: int, iterations: int, seed: int, progr
     from tqdm import tqdm
 
     if int(n_starts) != n_starts or n_starts < 1:
-        raise ParameterError(f"--starts must be an integer >= 1, got {n_starts!r}")
+        raise ParameterError(f"`starts` must be an integer >= 1, got {n_starts!r}")
     if int(iterations) != iterations or iterations < 1:
-        raise ParameterError(f"--iterations must be an integer >= 1, got {iterations!r}")
+        raise ParameterError(f"`iterations` must be an integer >= 1, got {iterations!r}")
     t_begin = time.perf_counter()
     starts = []
     total = n_starts * iterations

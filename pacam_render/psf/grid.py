@@ -49,7 +49,7 @@ def kernel_shape(size, lo: float, hi: float, r: float) -> tuple[int, int]:
     h, w = (size, size) if np.isscalar(size) else size
     if int(h) != h or int(w) != w or h < 1 or w < 1:
         raise ParameterError(f"size must be a positive int or (h, w), got {size!r}")
-    check_memory(f"a {h}x{w} kernel", 32.0 * h * w, "the kernel size (--size)")
+    check_memory(f"a {h}x{w} kernel", 32.0 * h * w, "the kernel size (`size`)")
     return int(h), int(w)
 
 

@@ -39,7 +39,7 @@ def aligned_speed_psf(design, mode: str, s: float, size=None, origin: str = "t0"
     if design.designed:
         raise ParameterError(
             "a designed schedule has no parabola vertex to align speeds on: use its s = 0 PSF "
-            "(--psf analytic), the kernel pacam optimize designed it for"
+            "(`psf` analytic), the kernel pacam optimize designed it for"
         )
     segments, r = design_trajectory(design, mode, s, origin)
     dx = -vertex_shift_px(s, a_i)

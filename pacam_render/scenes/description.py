@@ -182,7 +182,7 @@ def load_scene_file(
     if "<sensor" in text:
         warnings.warn(
             f"the <sensor> of {path.name} is not used: pacam renders through its own camera "
-            "(--mode, --preset); only the scene's shapes, emitters and integrator are kept",
+            "(`mode`, `preset`); only the scene's shapes, emitters and integrator are kept",
             PacamWarning,
             stacklevel=3,
         )

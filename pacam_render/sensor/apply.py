@@ -130,7 +130,7 @@ def add_sensor_layers(
     if saturated > SATURATION_NOTE:
         note = (
             f"{100 * saturated:.3g} % of the pixel values saturate the sensor (above "
-            f"{model.saturation_e:.4g} e-); lower the light level (--light-level)"
+            f"{model.saturation_e:.4g} e-); lower the light level (light_level)"
         )
         warnings.warn(note, PacamWarning, stacklevel=2)
         rec.notes.append(note)

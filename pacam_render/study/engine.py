@@ -86,7 +86,7 @@ def check_scheduler(address: str | None) -> str | None:
             parse_host_port(loc)  # raises without a port
     except ValueError as exc:
         raise ParameterError(
-            f"--scheduler must be a Dask scheduler's address, e.g. tcp://host:8786, got "
+            f"`scheduler` must be a Dask scheduler's address, e.g. tcp://host:8786, got "
             f"{address!r} ({exc})"
         ) from None
     return address
@@ -130,7 +130,7 @@ def probe_scheduler(address: str | None, timeout: float | None = None) -> None:
             kind = f"it answers in another protocol: {type(exc).__name__} reading its reply"
     if kind != "Scheduler":
         raise ParameterError(
-            f"--scheduler {address}: no Dask scheduler answered within {limit:g} s ({kind})"
+            f"`scheduler` {address}: no Dask scheduler answered within {limit:g} s ({kind})"
         )
 
 
@@ -276,7 +276,7 @@ def _client(workers: int, scheduler: str | None) -> Iterator:
             client = Client(scheduler, timeout=CONNECT_TIMEOUT_S)
         except (OSError, TimeoutError, ValueError, MemoryError) as exc:
             raise ParameterError(
-                f"--scheduler {scheduler}: no Dask scheduler answered within "
+                f"`scheduler` {scheduler}: no Dask scheduler answered within "
                 f"{CONNECT_TIMEOUT_S:g} s ({type(exc).__name__}: {exc})"
             ) from None
         with client:

@@ -40,14 +40,16 @@ class Results:
             old = _read_json(self.meta_path)
             if old.get("key") != meta["key"]:
                 raise ParameterError(
-                    f"--out {out} holds results of another study ({old.get('name')!r}, or the "
-                    "same study with other settings); pass --force to start afresh there, or "
-                    "choose another --out"
+                    f"`out` {out} holds results of another study ({old.get('name')!r}, or the "
+                    "same study with other settings); pass `force=True` to start afresh there, "
+                    "or choose another `out`"
                 )
             self.rows = _resumed_rows(self.path)
             self.resumed = len(self.done())
         elif self.path.exists() and not force:
-            raise ParameterError(f"--out {out} holds a {RESULTS} of unknown origin; pass --force")
+            raise ParameterError(
+                f"`out` {out} holds a {RESULTS} of unknown origin; pass `force=True`"
+            )
         write_json(self.meta_path, {**meta, "source": spec.source}, force=True)
         if not self.rows:
             self._write()
@@ -77,7 +79,7 @@ def _read_json(path: Path) -> dict:
     try:
         return json.loads(path.read_text())
     except (OSError, ValueError) as exc:
-        raise ParameterError(f"{path} is not readable JSON ({exc}); pass --force") from None
+        raise ParameterError(f"{path} is not readable JSON ({exc}); pass `force=True`") from None
 
 
 def _resumed_rows(path: Path) -> dict[int, dict]:
@@ -92,10 +94,10 @@ def _resumed_rows(path: Path) -> dict[int, dict]:
         return {}
     except (KeyError, TypeError, ValueError) as exc:  # no point column, not an integer, binary
         raise ParameterError(
-            f"{path} is unreadable ({type(exc).__name__}: {exc}); pass --force to start afresh"
+            f"{path} is unreadable ({type(exc).__name__}: {exc}); pass `force=True` to start afresh"
         ) from None
     if any(k < 0 for k in rows):
-        raise ParameterError(f"{path} is unreadable (a negative point); pass --force")
+        raise ParameterError(f"{path} is unreadable (a negative point); pass `force=True`")
     return rows
 
 
