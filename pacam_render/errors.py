@@ -1,7 +1,10 @@
 """The one exception type users see for bad input.
 
 Every check raises :class:`ParameterError` with the parameter's name and its valid range, so the
-CLI can print one clear line instead of a traceback.
+CLI can print one clear line instead of a traceback. A message names parameters, never flags: a
+name with an underscore bare (``max_step_px``), a one-word name in backticks (``"`spp`"``,
+``"`force=True`"``), so that prose such as "64 spp" stays prose; the CLI alone shows them as its
+flags (:data:`pacam_render.cli.common.FLAGS`).
 """
 
 from __future__ import annotations

@@ -1,5 +1,5 @@
 """Bounded work: estimate memory and effort before a long computation, and refuse what cannot
-finish, naming the flag that raises the limit.
+finish, naming the parameter that raises the limit (the CLI shows it as its flag).
 
 Warnings that do not stop the work (more samples than asked, clipped pixels, ignored options)
 are :class:`PacamWarning`: the CLI prints each as one ``note:`` line.
@@ -54,7 +54,7 @@ def check_memory(what: str, nbytes: float, flags: str) -> None:
     nbytes : float
         The estimate, bytes.
     flags : str
-        The flags that shrink it, for the message.
+        The parameters that shrink it, for the message.
 
     Raises
     ------
@@ -70,7 +70,8 @@ def check_memory(what: str, nbytes: float, flags: str) -> None:
 
 
 def check_count(what: str, count: float, limit: int, flag: str, hint: str = "") -> None:
-    """Refuse ``count`` units of work above ``limit``, naming the flag that raises it."""
+    """Refuse ``count`` units of work above ``limit``, naming the parameter (``flag``) that
+    raises it."""
     if count > limit:
         raise ParameterError(
             f"{what}: {count:.4g}, above the limit of {limit} ({flag} raises it){hint}"

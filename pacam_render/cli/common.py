@@ -1,9 +1,9 @@
 """What the commands share: the common flags, written once, and the one place where a library
 message's parameter names become the flags a user typed.
 
-Library messages name parameters (``max_step_px``, ```spp```): a name with an underscore bare,
-a one-word name in backticks (so that "64 spp" stays prose). :func:`user_words` maps both
-through :data:`FLAGS`; ```force=True``` becomes ``--force``.
+Library messages name parameters (:mod:`pacam_render.errors`): a name with an underscore bare
+(``max_step_px``), a one-word name in backticks (``"`spp`"``), so that "64 spp" stays prose.
+:func:`user_words` maps both through :data:`FLAGS`; ``"`force=True`"`` becomes ``--force``.
 """
 
 from __future__ import annotations
