@@ -19,7 +19,7 @@ from ..io.preview import srgb8, write_png
 from ..psf.origin import to_pinhole
 from ..restore.capture_noise import check_noise_sigma, deblur_layer, deblur_noise, sparse_options
 from ..restore.deconvolve import BM3D_LICENCE, METHODS, deconvolve
-from .common import add_force
+from .common import add_force, add_out
 
 _FILE_SUFFIXES = {".txt", ".json", ".npy", ".tif", ".tiff", ".jpg", ".jpeg", ".hdr", ".pfm"}
 """An --out with one of these is a mistyped file name, not a folder."""
@@ -58,10 +58,8 @@ def add(sub) -> None:
         help="noise std in the layer's units (default: the sensor's, recorded in the capture's "
         "JSON, for the noisy layer; otherwise estimated)",
     )
-    p.add_argument(
-        "--out",
-        required=True,
-        metavar="DIR",
+    add_out(
+        p,
         help="folder for deconvolved.exr, .png and .json (method, PSF, noise, seconds and the "
         "score against sharp); a path ending in .exr or .png writes that one file, as before",
     )

@@ -18,12 +18,12 @@ from ..model.camera import CameraDesign, preset
 from ..model.modes import MODES_WITH_PSF
 from ..psf.analytic import design_psf
 from ..psf.origin import origin_record
-from .common import add_force, add_out, add_quiet
+from .common import add_force, add_out, add_preset, add_quiet
 
 
 def add(sub) -> None:
     p = sub.add_parser("psf", help="write an analytic PSF (EXR, PNG preview, JSON)")
-    p.add_argument("--preset", default="prototype")
+    add_preset(p, help=None)
     p.add_argument("--depth", type=float, required=True, metavar="MM", help="point depth, mm")
     p.add_argument("--velocity", type=float, required=True, metavar="PX_PER_MS")
     p.add_argument("--mode", default="coded", choices=MODES_WITH_PSF)

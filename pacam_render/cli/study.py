@@ -8,7 +8,7 @@ from pathlib import Path
 
 from ..errors import check_positive
 from ..exposure.capture import CaptureInterrupted
-from .common import add_engine_args, add_force, add_quiet
+from .common import add_engine_args, add_force, add_out, add_quiet
 
 
 def add(sub) -> None:
@@ -16,7 +16,7 @@ def add(sub) -> None:
         "study", help="a rendered sweep (capture, sensor, deconvolution, scores) on Dask"
     )
     p.add_argument("spec", metavar="SPEC", help="a study TOML file, or crossover or speed")
-    p.add_argument("--out", required=True, metavar="DIR", help="results.csv, report.md, plots")
+    add_out(p, help="results.csv, report.md, plots")
     p.add_argument("--quick", action="store_true", help="the study's small version")
     add_engine_args(p)
     p.add_argument("--keep-images", action="store_true", help="keep each point's EXR layers")
