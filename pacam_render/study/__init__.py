@@ -104,8 +104,6 @@ def run_study(
     KeyboardInterrupt
         On Ctrl-C; every finished point is already in ``results.csv``.
     """
-    from tqdm import tqdm
-
     from ..io.lock import output_lock
     from ..io.outputs import writable_dir
     from .report import write_report
@@ -121,22 +119,40 @@ def run_study(
         summary = StudySummary(spec.name, len(spec.points), skipped=len(results.done()))
         cluster = open_client(workers, scheduler, client) if tasks else nullcontext()
         with cluster as dask_client:
-            summary.dashboard = dashboard_link(dask_client)
-            if summary.dashboard and progress:
-                tqdm.write(f"Dask dashboard: {summary.dashboard}", file=sys.stderr)
-            own = scheduler is None and client is None and dask_client is not None
-            threads = threads or (threads_per_worker(workers) if own else None)
-            run = partial(run_tasks, workers=workers, threads=threads, client=dask_client)
+            own = scheduler is None and client is None
+            run = _runner(dask_client, workers, threads, own, summary, progress)
             if spec.render.get("noise_ratio") and tasks:
-                share = workers if scheduler is None and client is None else 1
-                summary.estimate_s = _estimate(tasks, run, share, progress)
-                if on_estimate is not None:
-                    on_estimate(summary)
-                _check_budget(summary.estimate_s, budget_hours)
+                share = workers if own else 1
+                _estimate_within_budget(
+                    tasks, run, share, summary, budget_hours, on_estimate, progress
+                )
             _render_all(tasks, run, results, summary, spec.name, progress)
         summary.files = write_report(spec, out)
     summary.seconds = time.perf_counter() - t0
     return summary
+
+
+def _runner(dask_client, workers: int, threads: int | None, own: bool, summary, progress: bool):
+    """``run_tasks`` bound to the client and the threads per worker (default cores / workers
+    on a cluster of our own); the dashboard's address goes to ``summary`` and is printed."""
+    from tqdm import tqdm
+
+    summary.dashboard = dashboard_link(dask_client)
+    if summary.dashboard and progress:
+        tqdm.write(f"Dask dashboard: {summary.dashboard}", file=sys.stderr)
+    threads = threads or (threads_per_worker(workers) if own and dask_client is not None else None)
+    return partial(run_tasks, workers=workers, threads=threads, client=dask_client)
+
+
+def _estimate_within_budget(
+    tasks, run, share: int, summary, budget_hours, on_estimate, progress: bool
+) -> None:
+    """The estimate and budget step: the pilot passes predict the renders' wall time
+    (``summary.estimate_s``), shown to ``on_estimate``, then refused over ``budget_hours``."""
+    summary.estimate_s = _estimate(tasks, run, share, progress)
+    if on_estimate is not None:
+        on_estimate(summary)
+    _check_budget(summary.estimate_s, budget_hours)
 
 
 def _render_all(tasks: list, run, results, summary, name: str, progress: bool) -> None:
