@@ -14,7 +14,7 @@ import warnings
 from collections.abc import Sequence
 
 from ..errors import FileKeyError, ParameterError
-from ..exposure.capture import CaptureInterrupted
+from ..exposure.integrate import CaptureInterrupted
 from . import deconvolve, demo, design, optimize, psf, render, reproduce, sensor, study, validate
 from .common import check_common, note_printer, terminate_as_interrupt, user_words
 

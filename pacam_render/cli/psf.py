@@ -157,7 +157,7 @@ def _psf_geometry(args: argparse.Namespace) -> tuple[CameraDesign, dict | None]:
     base = base.with_(width_px=width, height_px=height)
     if args.crop is None:
         return base, None
-    from ..exposure.capture import check_crop, parse_crop
+    from ..exposure.capture_spec import check_crop, parse_crop
 
     x, y, w, h = check_crop(parse_crop(args.crop), width, height)
     crop = {"x": x, "y": y, "width": w, "height": h}

@@ -121,7 +121,8 @@ def add(sub) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..exposure.capture import CaptureSpec, check_budget, render_capture
+    from ..exposure.capture import check_budget, render_capture
+    from ..exposure.capture_spec import CaptureSpec
     from ..io.lock import output_lock
 
     target = _noise_target(args)
@@ -141,7 +142,7 @@ def run(args: argparse.Namespace) -> int:
         sampler=args.sampler,
     )
     if args.schedule is not None:  # read and check it before any rendering
-        from ..exposure.capture import capture_design
+        from ..exposure.capture_camera import capture_design
 
         capture_design(spec)
     model = _sensor_model(args.sensor) if args.sensor else None
@@ -249,6 +250,6 @@ def _sensor_size(args: argparse.Namespace) -> dict:
     if args.crop is None:
         return {"width": args.width or 320, "height": args.height or 240}
     width, height = args.width or full.width_px, args.height or full.height_px
-    from ..exposure.capture import parse_crop
+    from ..exposure.capture_spec import parse_crop
 
     return {"width": width, "height": height, "crop": parse_crop(args.crop)}

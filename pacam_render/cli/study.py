@@ -7,7 +7,7 @@ import sys
 from pathlib import Path
 
 from ..errors import check_positive
-from ..exposure.capture import CaptureInterrupted
+from ..exposure.integrate import CaptureInterrupted
 from .common import add_engine_args, add_force, add_out, add_quiet
 
 

@@ -89,7 +89,7 @@ def run_psf(args: argparse.Namespace) -> int:
 def run_scene(args: argparse.Namespace) -> int:
     from ..experiments import scene_report
     from ..experiments import validate_scene as vs
-    from ..exposure.capture import parse_crop
+    from ..exposure.capture_spec import parse_crop
 
     if args.speed is not None:
         check_positive("--speed", args.speed, "px/ms")
