@@ -16,6 +16,7 @@ from pacam_render import scenes as S
 from pacam_render.errors import ParameterError
 from pacam_render.model.camera import prototype
 from pacam_render.scenes import assets as sa
+from pacam_render.scenes import layout, meshes
 from pacam_render.scenes.motion import _mi
 
 W, H = 64, 48
@@ -72,7 +73,7 @@ def test_assets_are_deterministic(cache, tmp_path):
 
 def test_closed_meshes_are_watertight_and_outward(cache):
     d = sa.asset_dir(cache)
-    for name in sa.CLOSED_MESHES:
+    for name in meshes.CLOSED_MESHES:
         m = trimesh.load(d / f"{name}.ply", process=False)
         merged = trimesh.Trimesh(m.vertices, m.faces)  # merges the UV-seam duplicates
         assert merged.is_watertight and merged.is_winding_consistent, name
@@ -110,7 +111,7 @@ def test_ball_and_walker_depths(cache):
     lo, hi = np.min([p[0] for p in parts], 0), np.max([p[1] for p in parts], 0)
     assert (lo[2] + hi[2]) / 2 == pytest.approx(3000, abs=1)
     assert 1600 < hi[1] - lo[1] < 1800  # a person-sized proxy, feet on the floor
-    assert 0 <= lo[1] - sa.WALKER_FLOOR_Y_MM < 5  # a toe on (not in) the floor
+    assert 0 <= lo[1] - layout.WALKER_FLOOR_Y_MM < 5  # a toe on (not in) the floor
 
 
 def test_train_speeds_in_prototype_pixels(train, cache):
@@ -140,10 +141,11 @@ def test_other_scene_speeds(cache):
 def test_limb_keyframes_follow_the_gait(cache):
     leg = S.load_scene("walker", cache_dir=cache).motions["walker_leg_near"]
     t = 7.5  # between keyframes (5 ms apart)
-    dtheta = sa.limb_angle_rad("walker_leg_near", t) - sa.limb_angle_rad("walker_leg_near", 0)
+    angle = layout.limb_angle_rad
+    dtheta = angle("walker_leg_near", t) - angle("walker_leg_near", 0)
     m = leg.matrix_at(t)
     assert math.atan2(m[1, 0], m[0, 0]) == pytest.approx(dtheta, abs=1e-4)
-    hip = np.array(sa.walker_pivots()["walker_leg_near"])
+    hip = np.array(layout.walker_pivots()["walker_leg_near"])
     assert np.allclose(leg.apply(hip[None], t)[0], hip + (1.4 * t, 0, 0))  # the hip rides along
     with pytest.raises(ParameterError, match="t_ms"):
         leg.matrix_at(1000.0)

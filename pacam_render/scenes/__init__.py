@@ -8,7 +8,9 @@ looking down +z.
 * :mod:`.builtin`: the built-in train set, soccer ball and walker, a PSF generator, and
   :func:`load_scene`, by name or from a file.
 * :mod:`.files`: XML and motion JSON export of the built-in scenes.
-* :mod:`.assets`: the meshes and textures the built-in scenes use.
+* :mod:`.layout` (where the built-in scenes' objects stand, the walker's gait), :mod:`.meshes`
+  and :mod:`.textures` (their geometry and pictures), and :mod:`.assets`, the cache that
+  holds them as files.
 * :mod:`.units`: the check, before a capture renders, that a scene is in mm, not metres.
 
 Importing this package does not import Mitsuba; functions that need it import it when called.

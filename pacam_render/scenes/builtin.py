@@ -15,6 +15,7 @@ import numpy as np
 from ..errors import ParameterError, check_finite, check_positive
 from ..model.camera import CameraDesign, prototype
 from . import assets as sa
+from . import layout
 from .description import SceneDescription, load_scene_file
 from .motion import Motion, image_to_scene_velocity, look_at
 
@@ -85,8 +86,8 @@ def train_scene(
     check_positive("near_speed_px_per_ms", near_speed_px_per_ms, "px/ms")
     assets = sa.ensure_assets(cache_dir)
     cam = prototype()
-    v_far = image_to_scene_velocity(far_speed_px_per_ms, sa.FAR_TRACK_Z_MM, cam)
-    v_near = image_to_scene_velocity(-near_speed_px_per_ms, sa.NEAR_TRACK_Z_MM, cam)
+    v_far = image_to_scene_velocity(far_speed_px_per_ms, layout.FAR_TRACK_Z_MM, cam)
+    v_near = image_to_scene_velocity(-near_speed_px_per_ms, layout.NEAR_TRACK_Z_MM, cam)
     shapes = {
         "backdrop": _mesh(assets, "backdrop", "backdrop"),
         "far_track": _mesh(assets, "far_track", "track"),
@@ -106,12 +107,12 @@ def train_scene(
         motions={"far_train": Motion(tuple(v_far)), "near_train": Motion(tuple(v_near))},
         bboxes_mm=_bboxes(assets, shapes),
         depths_mm={
-            "backdrop": sa.BACKDROP_Z_MM,
-            "far_track": sa.FAR_TRACK_Z_MM,
-            "far_train": sa.FAR_TRACK_Z_MM,
-            "near_track": sa.NEAR_TRACK_Z_MM,
-            "near_train": sa.NEAR_TRACK_Z_MM,
-            "car": sa.CAR_Z_MM,
+            "backdrop": layout.BACKDROP_Z_MM,
+            "far_track": layout.FAR_TRACK_Z_MM,
+            "far_train": layout.FAR_TRACK_Z_MM,
+            "near_track": layout.NEAR_TRACK_Z_MM,
+            "near_train": layout.NEAR_TRACK_Z_MM,
+            "car": layout.CAR_Z_MM,
         },
         info={
             "image_speed_px_per_ms (prototype)": {
@@ -130,7 +131,7 @@ def soccer_scene(
     of a brick wall at 1600 mm; default 1.0 px/ms in the prototype's image (0.66 m/s)."""
     check_positive("speed_px_per_ms", speed_px_per_ms, "px/ms")
     assets = sa.ensure_assets(cache_dir)
-    z = sa.BALL_CENTRE_MM[2]
+    z = layout.BALL_CENTRE_MM[2]
     v = image_to_scene_velocity(speed_px_per_ms, z, prototype())
     wall = _mesh(assets, "soccer_wall", "brick")
     ball = _mesh(assets, "soccer_ball", "soccer_ball", smooth=True)
@@ -147,7 +148,7 @@ def soccer_scene(
             "ball": _bboxes(assets, ["soccer_ball"])["soccer_ball"],
             "wall": _bboxes(assets, ["soccer_wall"])["soccer_wall"],
         },
-        depths_mm={"ball": z, "wall": sa.SOCCER_WALL_Z_MM},
+        depths_mm={"ball": z, "wall": layout.SOCCER_WALL_Z_MM},
         info={
             "image_speed_px_per_ms (prototype)": speed_px_per_ms,
             "depth convention": "centre of the ball",
@@ -158,7 +159,7 @@ def soccer_scene(
 def _limb_keyframes(name: str, t_max_ms: float, step_ms: float):
     """Rotation about the z axis from the t = 0 angle, sampled every ``step_ms``."""
     ts = np.arange(-t_max_ms, t_max_ms + step_ms / 2, step_ms)
-    d = sa.limb_angle_rad(name, ts) - sa.limb_angle_rad(name, 0.0)
+    d = layout.limb_angle_rad(name, ts) - layout.limb_angle_rad(name, 0.0)
     out = []
     for t, a in zip(ts, d):
         m = np.eye(4)
@@ -181,17 +182,17 @@ def walker_scene(
     check_positive("keyframe_step_ms", keyframe_step_ms, "ms")
     assets = sa.ensure_assets(cache_dir)
     v = (speed_mm_per_ms, 0.0, 0.0)  # +x: towards the image's left
-    parts = ["walker_body", *sa.walker_pivots()]
+    parts = ["walker_body", *layout.walker_pivots()]
     shapes = {
         "wall": _mesh(assets, "walker_wall", "brick"),
         "floor": _mesh(assets, "walker_floor", "grass"),
     }
     shapes.update({p: _mesh(assets, p, "walker") for p in parts})
     motions = {"walker_body": Motion(v)}
-    for name, pivot in sa.walker_pivots().items():
+    for name, pivot in layout.walker_pivots().items():
         kf = _limb_keyframes(name, keyframe_range_ms, keyframe_step_ms)
         motions[name] = Motion(v, kf, pivot)
-    z, f_px = sa.WALKER_Z_MM, prototype().focal_length_px
+    z, f_px = layout.WALKER_Z_MM, prototype().focal_length_px
     lights = [
         _Light((1500.0, 2000.0, 800.0), 1200.0),
         _Light((-1500.0, 2000.0, 800.0), 1200.0),
@@ -204,11 +205,11 @@ def walker_scene(
         scene_dict={"type": "scene", **shapes, **_lights(lights, (0, 0, z))},
         motions=motions,
         bboxes_mm=bb,
-        depths_mm={"walker": z, "wall": sa.WALKER_WALL_Z_MM},
+        depths_mm={"walker": z, "wall": layout.WALKER_WALL_Z_MM},
         info={
             "speed_mm_per_ms": speed_mm_per_ms,
             "image_speed_px_per_ms (prototype)": -speed_mm_per_ms * f_px / z,
-            "gait_period_ms": sa.GAIT_PERIOD_MS,
+            "gait_period_ms": layout.GAIT_PERIOD_MS,
             "depth convention": "centre of the body",
         },
     )
