@@ -40,8 +40,6 @@ from ..render.registry import sensor_entry
 from .capture_camera import capture_design, mode_camera, note_binning, note_ignored_options
 from .capture_record import build_record, record_design_fit, render_error_summary, versions
 from .capture_spec import CaptureSpec
-from .capture_spec import check_crop as check_crop  # re-exported: the CLI imports it from here
-from .capture_spec import parse_crop as parse_crop  # re-exported: the CLI imports it from here
 from .checkpoint import deferred_signals, partial_lock
 from .integrate import CaptureInterrupted, Run
 from .record import CaptureRecord, layer_unit
