@@ -4,6 +4,7 @@ designed schedule through the model, the plugin and the CLI, and bad input."""
 from __future__ import annotations
 
 import json
+import re
 
 import numpy as np
 import pytest
@@ -13,7 +14,7 @@ from pacam_render.errors import ParameterError
 from pacam_render.experiments import simulate as E
 from pacam_render.model.camera import prototype
 from pacam_render.model.schedule_file import apply_schedule, read_schedule
-from pacam_render.optimize.objective import PRIOR_C, Objective, make_grid
+from pacam_render.optimize.objective import PRIOR_C, SOFTMAX_DB, Objective, make_grid
 from pacam_render.optimize.search import Problem, build_objective, multi_start, reference_design
 from pacam_render.psf.analytic import design_psf
 
@@ -219,6 +220,13 @@ def test_optimize_cli_writes_every_output(tmp_path, capsys):
     m = iio.imread(out / "lcos" / "pattern_00.png")
     assert m.shape == (1024, 1280) and set(np.unique(m)) <= {0, 255}
     assert all((out / f).is_file() for f in ("report.md", "psnr.png", "psf.png", "schedule.png"))
+    # the report's soft worst case is the log-sum-exp of the grid it prints (schedule.json)
+    report = (out / "report.md").read_text()
+    p = np.asarray(doc["predicted_psnr_db"])
+    soft = -SOFTMAX_DB * np.log(np.mean(np.exp(-p / SOFTMAX_DB)))
+    printed = re.search(r"([0-9.]+) dB at the best start's end", report)
+    assert printed and float(printed.group(1)) == pytest.approx(soft, abs=0.006)
+    assert p.min() <= soft <= p.min() + SOFTMAX_DB * np.log(p.size)
     assert main([*args, "--quiet", "--out", str(out)]) == 2  # no overwrite without --force
     sched = read_schedule(out / "schedule.json")
     cam = apply_schedule(prototype(), sched)
@@ -244,3 +252,23 @@ def test_rendered_designed_psf_matches_analytic():
         b = render_psf(designed, "coded", s, size=k.shape, spp=64, seed=2).kernel
         floor = rel_l1(a, b)
         assert rel_l1(a, k) < 1.5 * floor, (s, rel_l1(a, k), floor)
+
+
+def test_report_explains_a_focus_at_infinity_only_there():
+    """The far-focus note gives |beta_0| = f_px / Z_0 at the bound and its defocus."""
+    from types import SimpleNamespace
+
+    from pacam_render.optimize.outputs import _reading_notes
+
+    doc = dict(speeds_px_per_ms=[-1.0, 0.0, 1.0], depths_mm=[500.0], best_start=0,
+               predicted_psnr_db=[[20.0, 25.0, 21.0]], object_depth_mm=500.0,
+               parabola_predicted_psnr_db=[[22.0, 24.0, 19.0]], radius_mm=0.766,
+               parabola={"r_px": 2.0})  # fmt: skip
+    start = SimpleNamespace(index=0, iterations=[(0, 0.0, -20.1)], worst_db=20.0)
+    f_px = 1507.7455
+    far = dict(doc, focus_distance_mm=5e5, beta_px_per_mm=-0.999 * f_px / 500, r_px=2.31)
+    text = "\n".join(_reading_notes(far, [start]))
+    assert "s = -1.00 px/ms" in text and "s = 1.00 px/ms" in text  # each schedule's worst
+    assert "Focus at infinity" in text and f"({0.999 * f_px / 500:.2f} px/mm here)" in text
+    near = dict(doc, focus_distance_mm=3717.4, beta_px_per_mm=-2.61, r_px=2.0)
+    assert "Focus at infinity" not in "\n".join(_reading_notes(near, [start]))
