@@ -392,19 +392,19 @@ def test_deconvolve_explains_an_object_npy_psf_and_a_missing_rendered_psf(tmp_pa
 @pytest.mark.render
 def test_ignored_options_get_a_note(tmp_path):
     tiny = {"width": 32, "height": 24, "spp": 4}
-    with pytest.warns(PacamWarning, match="--cover has no effect in normal mode"):
+    with pytest.warns(PacamWarning, match="cover_px_per_ms has no effect in normal mode"):
         cap = render_capture(
             CaptureSpec(mode="normal", cover_px_per_ms=1.0, **tiny), progress=False
         )
-    assert "--cover" in cap.record.notes[0]
-    with pytest.warns(PacamWarning, match="--per-pattern keeps nothing"):
+    assert "cover_px_per_ms" in cap.record.notes[0]
+    with pytest.warns(PacamWarning, match="per_pattern keeps nothing"):
         render_capture(CaptureSpec(mode="reference", per_pattern=True, **tiny), progress=False)
-    with warnings.catch_warnings(record=True) as caught:  # coded uses --cover: no note on it
+    with warnings.catch_warnings(record=True) as caught:  # coded uses the cover: no note on it
         warnings.simplefilter("always", PacamWarning)
         render_capture(
             CaptureSpec(mode="coded", cover_px_per_ms=1.0, **{**tiny, "spp": 16}), progress=False
         )
-    assert caught and not any("--cover" in str(w.message) for w in caught)
+    assert caught and not any("cover_px_per_ms" in str(w.message) for w in caught)
     xml = tmp_path / "s.xml"
     xml.write_text(
         "<scene version='3.0.0'><sensor type='perspective'/>"

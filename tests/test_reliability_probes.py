@@ -225,7 +225,7 @@ def test_a_schedule_the_mode_does_not_show_is_noted_and_recorded_unused(mode, ma
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", PacamWarning)
         rec = render_capture(spec, progress=False, truth=False).record.to_json()
-    notes = [str(w.message) for w in caught if "--schedule" in str(w.message)]
+    notes = [str(w.message) for w in caught if "`schedule`" in str(w.message)]
     if match is None:  # coded shows the schedule: no note, and its camera has the openings
         assert not notes and rec["optics"]["schedule"] == "designed"
         return

@@ -37,7 +37,7 @@ def test_a_crop_equals_the_same_window_of_the_whole_frame():
 
 def test_crop_must_lie_inside_the_sensor():
     for crop in ((0, 0, 1281, 10), (-1, 0, 10, 10), (0, 0, 1, 10), (0.5, 0, 10, 10)):
-        with pytest.raises(ParameterError, match="--crop must be X,Y,W,H"):
+        with pytest.raises(ParameterError, match="`crop` must be X,Y,W,H"):
             CaptureSpec(width=1280, height=960, crop=crop)
     assert CaptureSpec(width=1280, height=960, crop=(1270, 950, 10, 10)).image_size == (10, 10)
 

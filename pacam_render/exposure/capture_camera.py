@@ -112,14 +112,14 @@ def note_ignored_options(spec: CaptureSpec) -> None:
     """Options the mode does not use: say so rather than drop them silently."""
     if spec.cover_px_per_ms is not None and mode(spec.mode).refocus:
         note(
-            f"--cover has no effect in {spec.mode} mode: it focuses on the object, so the "
+            f"cover_px_per_ms has no effect in {spec.mode} mode: it focuses on the object, so the "
             "solved defocus is not used (it applies to coded, coded_continuous and levin)"
         )
     unused = _schedule_unused(spec.mode) if spec.schedule is not None else []
     if unused:  # recorded in the capture's notes; its camera leaves the openings out
         used = {"radius", "exposure"} - set(unused)
         note(
-            f"--schedule's {_words(unused)} are not used in {spec.mode} mode ("
+            f"`schedule`'s {_words(unused)} are not used in {spec.mode} mode ("
             f"{MODES[spec.mode].summary}): "
             + (f"only its {_words(sorted(used))} are" if used else "it has no effect")
         )
@@ -136,5 +136,5 @@ def note_binning(spec: CaptureSpec, cam: CameraDesign) -> None:
         f"{full.height_px} binned {binned:.3g}x: the coded blur is sub-pixel (r = "
         f"{cam.r_px:.3g} px, a_i = {cam.a_i_px_per_ms2:.3g} px/ms^2, invariant |s| <= "
         f"{cam.velocity_range_px_per_ms:.3g} px/ms at this size); to see the camera at its real "
-        f"pixel scale, render a window of the full sensor with --crop X,Y,W,H"
+        f"pixel scale, render a window of the full sensor with `crop` X,Y,W,H"
     )

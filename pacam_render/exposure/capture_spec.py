@@ -70,9 +70,13 @@ class CaptureSpec:
         if self.object_depth_mm is not None:
             check_positive("object_depth_mm", self.object_depth_mm, "mm")
         if (self.f_number is not None or self.r_px is not None) and self.cover_px_per_ms is None:
-            raise ParameterError("f_number and r_px size a covering design: they need --cover")
+            raise ParameterError(
+                "f_number and r_px size a covering design: they need cover_px_per_ms"
+            )
         if self.schedule is not None and self.cover_px_per_ms is not None:
-            raise ParameterError("give --cover or --schedule, not both: each sets the design")
+            raise ParameterError(
+                "give cover_px_per_ms or `schedule`, not both: each sets the design"
+            )
 
     @property
     def image_size(self) -> tuple[int, int]:
@@ -104,7 +108,7 @@ def check_crop(crop, width: int, height: int) -> tuple[int, int, int, int]:
         ok = False
     if not ok or w < 2 or h < 2 or x < 0 or y < 0 or x + w > width or y + h > height:
         raise ParameterError(
-            f"--crop must be X,Y,W,H: integers with W, H >= 2 and the window inside the "
+            f"`crop` must be X,Y,W,H: integers with W, H >= 2 and the window inside the "
             f"{width}x{height} sensor (X + W <= {width}, Y + H <= {height}), got {crop!r}"
         )
     return x, y, w, h
@@ -118,4 +122,4 @@ def parse_crop(text: str) -> tuple[int, int, int, int]:
             raise ValueError
         return tuple(int(p) for p in parts)  # type: ignore[return-value]
     except ValueError:
-        raise ParameterError(f"--crop must be X,Y,W,H (four integers), got {text!r}") from None
+        raise ParameterError(f"`crop` must be X,Y,W,H (four integers), got {text!r}") from None
