@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from pacam_render.cli import main
+from pacam_render.experiments import fig6, fig7, fig8, fig9
 from pacam_render.experiments import reproduce as R
 from pacam_render.experiments import simulate as E
 from pacam_render.restore import metrics
@@ -58,7 +59,7 @@ def curves(path, model):
 def test_fig6_higher_acceleration_flattens_and_lowers_peak(quick_dir):
     c = curves(quick_dir / "fig6.csv", "Eq. 14 (continuous)")
     peaks = [v[:, 1].max() for v in c.values()]
-    falls = [R.flattening_db(v) for v in c.values()]
+    falls = [fig6.flattening_db(v) for v in c.values()]
     assert all(np.diff(peaks) < 0)  # lower peak with every step up in a_i
     assert falls[-1] < falls[0] / 2  # much flatter at the highest a_i
     assert c[0.256][-1, 1] > c[0.008][-1, 1] + 2  # and better for the fastest objects
@@ -73,8 +74,8 @@ def test_fig9_peaks_at_zero_displacement_and_widens(quick_dir):
     widths = []
     for Za, pts in sorted(by.items()):
         c = np.array(pts)
-        assert R.peak_gap_db(c, Za) < 0.25
-        lo, hi = R.tolerated_range_mm(c)
+        assert fig9.peak_gap_db(c, Za) < 0.25
+        lo, hi = fig9.tolerated_range_mm(c)
         assert lo <= Za <= hi
         widths.append((hi - lo) / Za)
     assert widths == sorted(widths) and widths[-1] > 3 * widths[0]
@@ -96,7 +97,7 @@ def test_alignment_recovers_a_known_shift():
 
 def test_tolerated_range_interpolates():
     c = np.array([[100.0, 0.0], [200.0, 10.0], [400.0, 0.0]])
-    lo, hi = R.tolerated_range_mm(c, drop_db=5.0)
+    lo, hi = fig9.tolerated_range_mm(c, drop_db=5.0)
     assert lo == pytest.approx(np.exp(0.5 * (np.log(100) + np.log(200))))
     assert hi == pytest.approx(np.exp(0.5 * (np.log(200) + np.log(400))))
 
@@ -112,7 +113,7 @@ def test_fig7_interior_peak_moves_with_acceleration(quick_dir):
         c = np.array(pts)
         k = int(np.argmax(c[:, 1]))
         assert 0 < k < len(c) - 1  # an interior optimum: too little light vs too much defocus
-        peaks.append(R.peak_radius_px(c))
+        peaks.append(fig7.peak_radius_px(c))
     assert peaks == sorted(peaks)  # the best r grows with a_i, as in the paper
 
 
@@ -125,7 +126,7 @@ def test_fig8_ratio_rises_with_noise_and_crosses_one(quick_dir):
     for (curve, a), pts in by.items():
         c = np.array(pts)
         assert c[-1, 1] > 1 > c[0, 1], (curve, a)  # short exposure wins when bright only
-        assert np.isfinite(R.crossing_noise_level(c))
+        assert np.isfinite(fig8.crossing_noise_level(c))
         assert np.all(np.diff(c[:, 1]) > -0.05), (curve, a)  # rises (up to MC wiggle)
-    for a in R.FIG7_A:  # Levin's camera, with no defocus, does better at high noise
+    for a in fig7.FIG7_A:  # Levin's camera, with no defocus, does better at high noise
         assert by[("Levin (same aperture)", a)][-1][1] > by[("proposed", a)][-1][1]
