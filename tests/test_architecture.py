@@ -227,6 +227,27 @@ def test_record_round_trips_through_json():
     assert back.known_noise_sigma == 0.005
 
 
+def test_record_writes_a_repeated_design_once_and_reads_both_forms():
+    """capture.json holds each value once (issue 27 item 7): a coded capture's optics are its
+    coded design, so coded_design is left out and read back as optics; a normal capture's
+    camera differs from the design in a few values, which are all coded_design keeps; older
+    files with both full blocks still read."""
+    coded = prototype().summary()
+    normal = prototype().with_(R_mm=prototype().R_max_mm).summary()
+    rec = _record(optics=coded, coded_design=dict(coded))
+    d = json.loads(json.dumps(rec.to_json()))
+    assert "coded_design" not in d and d["optics"] == coded
+    assert CaptureRecord.from_json(d) == rec
+    assert CaptureRecord.from_json({**d, "coded_design": dict(coded)}) == rec  # older files
+    assert rec.to_json(compact=False)["coded_design"] == coded
+    other = _record(mode="normal", optics=normal, coded_design=coded)
+    d = json.loads(json.dumps(other.to_json()))
+    assert d["optics"] == normal
+    assert d["coded_design"] == {k: v for k, v in coded.items() if normal[k] != v} != {}
+    assert CaptureRecord.from_json(d) == other
+    assert CaptureRecord.from_json({**d, "coded_design": coded}) == other  # older files
+
+
 def test_record_reads_the_older_demo_sensor_block():
     d = _record().to_json()
     d["sensor"] = {"preset": "grasshopper-icx285", "light_level": 300.0, "seed": 0,

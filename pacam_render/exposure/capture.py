@@ -61,8 +61,10 @@ class Capture:
 
     @property
     def meta(self) -> dict:
-        """The record as the JSON sidecar holds it (a fresh dict: change ``record``)."""
-        return self.record.to_json()
+        """The record as a dict, ``optics`` and ``coded_design`` both filled (a fresh dict:
+        change ``record``); the sidecar (:meth:`.CaptureRecord.to_json`) writes a repeated
+        design once."""
+        return self.record.to_json(compact=False)
 
 
 def render_capture(

@@ -129,9 +129,21 @@ class CaptureRecord:
     extra: dict = field(default_factory=dict)
     """Keys this version does not know (kept, and written back)."""
 
-    def to_json(self) -> dict:
-        """The JSON-ready dict; optional fields that are unset are left out."""
+    def to_json(self, compact: bool = True) -> dict:
+        """The JSON-ready dict; optional fields that are unset are left out.
+
+        ``compact`` (the sidecar's form) writes each value once: ``coded_design`` holds only
+        the values that differ from ``optics`` (a ``normal`` or ``short`` capture's focus,
+        r and a_i; nothing for a coded capture, whose camera is its design: the key is left
+        out). :meth:`from_json` reads it over ``optics``, as it reads older files' full block.
+        """
         out = {k: v for k, v in asdict(self).items() if k not in ("extra", "sensor")}
+        if compact:
+            same = self.optics
+            differs = {k: v for k, v in self.coded_design.items() if k not in same or same[k] != v}
+            out["coded_design"] = differs
+            if not differs:
+                del out["coded_design"]
         optional = ("resumed_from_step", "fastest_image_speed_px_per_ms", "noise_sigma")
         for key in (*optional, "crop", "objects", "design_fit", "units", "render_error"):
             if out[key] is None:
@@ -159,8 +171,9 @@ class CaptureRecord:
         kw: dict[str, Any] = {k: d[k] for k in known if k in d}
         kw.setdefault("light_factor", 1.0)
         kw.setdefault("exposure_ms", d["camera"].get("exposure_ms", paper.EXPOSURE_MS))
-        for k in ("spec", "optics", "coded_design", "sensor_params", "versions"):
+        for k in ("spec", "optics", "sensor_params", "versions"):
             kw.setdefault(k, {})
+        kw["coded_design"] = {**kw["optics"], **kw.get("coded_design", {})}  # each value once
         kw.setdefault("reference_exposure_ms", paper.EXPOSURE_MS)
         kw.setdefault("render_seconds", 0.0)
         kw.setdefault("variant", "unknown")

@@ -289,7 +289,7 @@ def _keep(cap, est, p: Point, folder: Path) -> None:
     layers = {"estimate": est, "noisy": cap.extra_layers["noisy"], "capture": cap.image}
     layers.update({k: cap.extra_layers[k] for k in ("sharp", "depth", "object_id", "velocity")})
     write_exr(folder / f"point_{p.index:05d}.exr", layers, force=True)
-    write_json(folder / f"point_{p.index:05d}.json", cap.meta, force=True)
+    write_json(folder / f"point_{p.index:05d}.json", cap.record.to_json(), force=True)
 
 
 def point_row(p: Point, values: dict, status: str, render_s: float, total_s: float) -> dict:
