@@ -206,6 +206,8 @@ def run_demo(
 
 
 def _figure(panels: list[Panel], ref: np.ndarray, path: Path, crops: dict, shift: int) -> None:
+    """Full frames above, magnified crops below (one row each, named at the left); every
+    panel but the reference's carries its PSNR against it, the crops' at their best shift."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -213,25 +215,31 @@ def _figure(panels: list[Panel], ref: np.ndarray, path: Path, crops: dict, shift
 
     from ..io.outputs import save_figure
 
-    n = len(panels)
-    fig, axes = plt.subplots(1 + len(crops), n, figsize=(2.6 * n, 2.2 * (1 + len(crops))))
+    h, w = ref.shape[:2]
+    ratios = [h / w] + [(f[1] - f[0]) * h / ((f[3] - f[2]) * w) for f in crops.values()]
+    n, col_in = len(panels), 2.3
+    fig, axes = plt.subplots(1 + len(crops), n, figsize=(col_in * n, col_in * sum(ratios) + 1.6),
+                             gridspec_kw={"height_ratios": ratios})  # fmt: skip
     for j, p in enumerate(panels):
         img = np.clip(p.image, 0, 1) ** (1 / 2.2)  # display gamma only
         axes[0, j].imshow(img)
-        full = psnr(p.image, ref, 1.0)
-        title = textwrap.fill(p.title, 26) + ("" if j == 0 else f"\n{full:.1f} dB")
-        axes[0, j].set_title(title, fontsize=7)
-        for i, (cname, frac) in enumerate(crops.items(), start=1):
+        full = "" if j == 0 else f"\n{psnr(p.image, ref, 1.0):.1f} dB"
+        axes[0, j].set_title(textwrap.fill(p.title, 24) + full, fontsize=10)
+        for i, frac in enumerate(crops.values(), start=1):
             axes[i, j].imshow(crop(img, frac), interpolation="nearest")
-            label = cname
             if j:
-                label += f": {aligned_psnr(p.image, ref, frac, shift):.1f} dB"
-            axes[i, j].set_title(label, fontsize=7)
+                score = aligned_psnr(p.image, ref, frac, shift)
+                axes[i, j].set_title(f"{score:.1f} dB", fontsize=10, pad=2)
+    axes[0, 0].set_ylabel(f"whole image\n{w}x{h} px", fontsize=10)
+    for i, cname in enumerate(crops, start=1):
+        axes[i, 0].set_ylabel(cname, fontsize=11)
     for ax in axes.ravel():
         ax.set_xticks([])
         ax.set_yticks([])
+    fig.suptitle(f"PSNR against the reference (dB): whole image unaligned, crops at their "
+                 f"best horizontal shift within +-{shift} px", fontsize=11)  # fmt: skip
     fig.tight_layout()
-    save_figure(fig, path, 80)
+    save_figure(fig, path, 90)
 
 
 def _table(panels, ref, caps, spp, seconds) -> str:
