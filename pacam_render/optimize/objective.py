@@ -38,7 +38,7 @@ PRIOR_C = 3.0e-4
 power spectrum of the 13 photographs of :mod:`pacam_render.experiments.simulate` (256^2, mean
 removed, Hann window) over c g(f), geometric mean over 0.02 < |f| < 0.5 cycles/px. With it the
 parabola's predicted PSNR is within 1.6 dB of Fig. 6's image-domain Wiener, dips included
-(tests/test_optimize.py)."""
+(tests/optimize/test_optimize.py)."""
 MEAN_LEVEL = 0.42
 """The grey level the noise is taken at (white = 1): the mean of the same 13 photographs."""
 SOFTMAX_DB = 0.25
