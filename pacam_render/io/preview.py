@@ -32,3 +32,42 @@ def write_png(path: str | os.PathLike, image8: np.ndarray, force: bool = False) 
         iio.imwrite(tmp, image8, extension=".png")
 
     return atomic_save(path, save, force)
+
+
+def psf_extent(shape: tuple[int, ...]) -> tuple[float, float, float, float]:
+    """The (left, right, bottom, top) of a kernel's pixels in px from its centre pixel
+    (h // 2, w // 2), x right and y down, for matplotlib's ``imshow(extent=...)``."""
+    h, w = shape[:2]
+    return (-(w // 2) - 0.5, w - w // 2 - 0.5, h - h // 2 - 0.5, -(h // 2) - 0.5)
+
+
+def write_psf_preview(
+    path: str | os.PathLike, kernel: np.ndarray, title: str = "", force: bool = False
+) -> Path:
+    """A PSF's PNG preview with its scale: axes in px from the centre pixel and a colour bar
+    of the fraction of the point's light per px (a colour kernel is shown as its mean).
+
+    Raises
+    ------
+    ParameterError
+        If ``kernel`` is not 2-D or 3-D, or holds NaN or infinite values.
+    """
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    k = np.asarray(kernel, dtype=float)
+    if k.ndim not in (2, 3) or not np.all(np.isfinite(k)):
+        raise ParameterError("`kernel` must be a finite 2-D (or H x W x C) PSF")
+    k = k.mean(axis=2) if k.ndim == 3 else k
+    h, w = k.shape
+    fig, ax = plt.subplots(figsize=(6.0, float(np.clip(4.4 * h / w + 1.2, 2.2, 6.0))))
+    im = ax.imshow(k, cmap="magma", interpolation="nearest", extent=psf_extent(k.shape))
+    ax.set(xlabel="x (px)", ylabel="y (px)", title=title or f"PSF, {w}x{h} px")
+    fig.colorbar(im, ax=ax, label="fraction of the point's light per px", shrink=0.85)
+    fig.tight_layout()
+    try:
+        return atomic_save(path, lambda tmp: fig.savefig(tmp, dpi=100, format="png"), force)
+    finally:
+        plt.close(fig)
