@@ -594,11 +594,17 @@ def _example_picks(rows: list[dict], examples: dict) -> list[tuple]:
 
 
 def _plot_examples(plt, out_dir: Path, examples: dict, picks: list[tuple]) -> str:
-    """Rendered, discrete and Eq. 14 kernels of the ``picks``, with their column sums."""
-    fig, ax = plt.subplots(len(picks), 4, figsize=(12, 3 * len(picks)), squeeze=False)
+    """Rendered, discrete and Eq. 14 kernels of the ``picks`` (px from the centre pixel, one
+    colour scale per row), with their column sums."""
+    from ..io.preview import psf_extent
+
+    fig, ax = plt.subplots(
+        len(picks), 4, figsize=(13, 3 * len(picks)), squeeze=False, layout="constrained"
+    )
     for i, key in enumerate(picks):
         ks = examples[key]
         vmax = max(ks["discrete"].max(), ks["mean"].max())
+        where = f"{key[0]:g} mm F{key[1]:g}, s = {key[2]:g}x the range"
         for j, (title, img) in enumerate(
             (
                 ("rendered", ks["mean"]),
@@ -606,11 +612,12 @@ def _plot_examples(plt, out_dir: Path, examples: dict, picks: list[tuple]) -> st
                 ("Eq. 14", ks["continuous"]),
             )
         ):
-            ax[i, j].imshow(img, cmap="magma", vmin=0, vmax=vmax)
-            ax[i, j].set_title(f"{title}\n{key[0]:g} mm F{key[1]:g} s={key[2]:g}x", fontsize=8)
-            ax[i, j].axis("off")
-        h = ks["mean"].shape[0] // 2
-        x = np.arange(ks["mean"].shape[1]) - h
+            im = ax[i, j].imshow(img, cmap="magma", vmin=0, vmax=vmax, extent=psf_extent(img.shape))
+            ax[i, j].set_title(f"{title}\n{where}", fontsize=8)
+            ax[i, j].set_xlabel("x (px)", fontsize=8)
+            ax[i, j].set_ylabel("y (px)", fontsize=8)
+        fig.colorbar(im, ax=list(ax[i, :3]), label="light per px (fraction)", shrink=0.85)
+        x = np.arange(ks["mean"].shape[1]) - ks["mean"].shape[1] // 2
         for name_, img, lw, alpha in (
             ("rendered", ks["mean"], 3.0, 0.45),
             ("discrete", ks["discrete"], 1.0, 1.0),
@@ -618,6 +625,7 @@ def _plot_examples(plt, out_dir: Path, examples: dict, picks: list[tuple]) -> st
         ):
             ax[i, 3].plot(x, img.sum(axis=0), lw=lw, alpha=alpha, label=name_)
         ax[i, 3].set_title("column sums", fontsize=8)
+        ax[i, 3].set_xlabel("x (px)", fontsize=8)
+        ax[i, 3].set_ylabel("light per column (fraction)", fontsize=8)
         ax[i, 3].legend(fontsize=7)
-    fig.tight_layout()
     return _save_figure(plt, fig, out_dir, "validate_psf_examples.png", 100)
