@@ -102,7 +102,7 @@ def _figure(out: Path, r, predicted: dict, z: dict, reg, summary: dict) -> str:
         im = ax.imshow(img, interpolation="nearest", **style)
         ax.set_title(title, fontsize=9)
         if style:
-            fig.colorbar(im, ax=ax, fraction=0.046, pad=0.02)
+            fig.colorbar(im, ax=ax, fraction=0.046, pad=0.02, label="error / local noise sigma")
     cmap = ListedColormap(REGION_COLOURS)
     axes[0, 2].imshow(reg, cmap=cmap, vmin=-0.5, vmax=len(REGIONS) - 0.5, interpolation="nearest")
     axes[0, 2].set_title("regions", fontsize=9)
