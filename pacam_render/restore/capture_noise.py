@@ -17,7 +17,7 @@ from .noise import estimate_noise_sigma
 NOISE_SIGMA_MAX = 1e3
 """The largest ``noise_sigma``, in multiples of the layer's peak (or of white, 1, if the peak
 is lower): beyond it the image is all noise, and its square overflows."""
-SIGMA_METHODS = ("wiener", "hl", "tv", "bm3d")
+SIGMA_METHODS = ("wiener", "hl", "tv", "bm3d", "pnp")
 """The methods that take a noise sigma."""
 
 

@@ -1,5 +1,6 @@
 """Non-blind deconvolution of coded captures: Wiener (ours), Richardson-Lucy and unsupervised
-Wiener (scikit-image), and BM3D deblurring (optional ``bm3d`` package).
+Wiener (scikit-image), BM3D deblurring (optional ``bm3d`` package), and the dispatcher to every
+method (the sparse priors of :mod:`.sparse`, plug-and-play of :mod:`.pnp`).
 
 All methods share the same boundary handling: the image is reflect-padded by the PSF's extent and
 the pad is tapered with a raised cosine towards the image mean, so the padded image is periodic
@@ -29,9 +30,10 @@ from ..errors import ParameterError
 from .fourier import WORKERS, check_image, check_psf, pad_width, psf_to_otf, taper_pad
 from .metrics import psnr
 from .noise import SIGMA_FLOOR, check_sigma, estimate_noise_sigma
+from .pnp import pnp_deconvolve
 from .sparse import sparse_deconvolve
 
-METHODS = ("wiener", "hl", "tv", "rl", "uwiener", "bm3d")
+METHODS = ("wiener", "hl", "tv", "rl", "uwiener", "bm3d", "pnp")
 BM3D_LICENCE = (
     "bm3d (Tampere University) is free for non-commercial use only; see the bm3d package licence"
 )
@@ -430,13 +432,15 @@ def deconvolve(image, psf, method: str = "hl", **kwargs):
         Blurred, noisy image, (H, W) or (H, W, C).
     psf : array_like
         PSF, px: (h, w) or (h, w, C), origin at the centre pixel (h//2, w//2).
-    method : {"hl", "wiener", "tv", "rl", "uwiener", "bm3d"}, optional
+    method : {"hl", "wiener", "tv", "rl", "uwiener", "bm3d", "pnp"}, optional
         ``hl`` (hyper-Laplacian prior, the default, as ``pacam deconvolve``'s) or ``tv`` (total
         variation), :func:`~.sparse.sparse_deconvolve`; :func:`wiener`;
-        :func:`richardson_lucy`, :func:`unsupervised_wiener` or :func:`bm3d_deblur`.
+        :func:`richardson_lucy`, :func:`unsupervised_wiener`, :func:`bm3d_deblur` or
+        :func:`~.pnp.pnp_deconvolve` (plug-and-play with a CNN denoiser).
     **kwargs
-        Passed on to the method: e.g. ``noise_sigma`` (wiener, hl, tv, bm3d), ``nsr`` and
-        ``scale`` (wiener), ``alpha`` (hl), ``iterations`` (rl), ``seed`` (uwiener).
+        Passed on to the method: e.g. ``noise_sigma`` (wiener, hl, tv, bm3d, pnp), ``nsr`` and
+        ``scale`` (wiener), ``alpha`` (hl), ``iterations`` (rl, hl, tv, pnp), ``seed``
+        (uwiener), ``lam`` (pnp).
 
     Returns
     -------
@@ -455,6 +459,7 @@ def deconvolve(image, psf, method: str = "hl", **kwargs):
         "rl": richardson_lucy,
         "uwiener": unsupervised_wiener,
         "bm3d": bm3d_deblur,
+        "pnp": pnp_deconvolve,
     }
     if method not in funcs:
         raise ParameterError(f"unknown method {method!r}; valid: {', '.join(METHODS)}")
