@@ -113,7 +113,7 @@ def _summary_train(rows, w, h, spp, spp_psf, caps) -> str:
             f"(coded) to {get('deconvolved (analytic PSF), prototype', 'backdrop'):.1f} dB "
             "(deconvolved): Wiener assumes white noise, and a demosaicked Bayer capture's noise "
             "is neither white nor equal across colours, so the filter's balance is only "
-            "approximate here (BM3D deblurring, the paper's choice, is `--method bm3d`).",
+            "approximate here (BM3D deblurring, the paper's choice, is the `bm3d` method).",
             "",
             "Alignment: a motion-invariant PSF moves each object by -s^2 / (2 a_i) (the trains by "
             "different amounts, the background not at all), so each crop is scored at its best "

@@ -56,7 +56,9 @@ def run(
     for n in names:  # refuse before computing anything
         for ext in ("csv", "png", "md"):
             if (out / f"{n}.{ext}").exists() and not force:
-                raise ParameterError(f"{out / f'{n}.{ext}'} exists; pass --force to overwrite it")
+                raise ParameterError(
+                    f"{out / f'{n}.{ext}'} exists; pass `force=True` to overwrite it"
+                )
     done: dict[str, Figure] = {}
 
     def write(task, fig) -> None:
@@ -64,7 +66,7 @@ def run(
             raise fig
         write_text(out / f"{fig.name}.csv", csv_text(fig.rows), force=True)
         fig.plot(out / f"{fig.name}.png")
-        stamp = f"\n\nComputed in {fig.seconds:.1f} s ({'--quick' if quick else 'full'} run).\n"
+        stamp = f"\n\nComputed in {fig.seconds:.1f} s ({'quick' if quick else 'full'} run).\n"
         write_text(out / f"{fig.name}.md", fig.summary + stamp, force=True)
         done[fig.name] = fig
 

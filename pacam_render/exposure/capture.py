@@ -202,11 +202,11 @@ def check_budget(
     w, h = spec.image_size
     pixels = w * h
     per_px = 208 + (24 * paper.N_PATTERNS if spec.per_pattern else 0) + (96 if truth else 0)
-    check_memory(f"a {w}x{h} capture", per_px * pixels, "--width/--height or --crop")
+    check_memory(f"a {w}x{h} capture", per_px * pixels, "`width`/`height` or `crop`")
     if pixels > MAX_WAVEFRONT:
         raise ParameterError(
             f"a {w}x{h} image has more than Mitsuba's {MAX_WAVEFRONT} samples per pass at 1 "
-            "spp; reduce --width/--height or --crop"
+            "spp; reduce `width`/`height` or `crop`"
         )
     if not targeted:
         check_count(
