@@ -37,9 +37,9 @@ from .fourier import WORKERS, check_image, check_psf, pad_width, psf_to_otf, tap
 from .noise import check_sigma, estimate_noise_sigma
 
 VARIANT = "6N"
-"""scico's DnCNN variant: 6 layers with a noise-level input. On the grey 256x256 camera image
-(prototype's coded kernel, sigma 0.01) it scored 30.59 dB in 5.4 s at 8 iterations against
-17N's 30.33-30.42 dB in 27 s (benchmarks/bench_pnp.py)."""
+"""scico's DnCNN variant: 6 layers with a noise-level input. On 4 grey photographs (256 px,
+the prototype's coded kernel, sigma 0.01) it scored 30.40 dB in 4.2 s per image; 17N, 3.3x
+slower, diverged at :data:`LAMBDA` (18.6 dB; benchmarks/bench_pnp.py --variants)."""
 SIGMA_START = 49.0 / 255.0
 """The denoiser's noise level at the first iteration, on the [0, 1] scale (DPIR's 49/255)."""
 SIGMA_TRAINED = 0.2
@@ -48,9 +48,11 @@ SIGMA_MIN = 1.0 / 1000.0
 """The smallest noise level used, on the [0, 1] scale: a noiseless input would make rho 0 and
 the x-step an inverse filter, which divides by the kernel's spectral zeros."""
 LAMBDA = 0.35
-"""lam in rho_i = lam sigma^2 / sigma_i^2, chosen on benchmarks/bench_pnp.py."""
+"""lam in rho_i = lam sigma^2 / sigma_i^2: the best of 0.23, 0.35, 0.5 and 1 at 8 iterations on
+the astronaut, brick, camera and chelsea photographs (benchmarks/bench_pnp.py)."""
 ITERATIONS = 8
-"""Steps of the schedule (DPIR's 8 for deblurring)."""
+"""Steps of the schedule (DPIR's 8 for deblurring). 4 score the same on 4 photographs (30.46
+against 30.40 dB), 12 lose 0.8 dB and 24 lose 7.9 (benchmarks/bench_pnp.py)."""
 INSTALL = "pip install 'pacam_render[pnp]'"
 
 
