@@ -15,9 +15,9 @@ The x-step is exact in the Fourier domain on the tapered, padded grid of :mod:`.
 z-step is scico's DnCNN (Zhang et al. 2017) with a noise-level input (variant ``6N``: 6 layers,
 trained on [0, 1] images at noise sigma 0 to 0.2), whose weights ship inside the scico wheel,
 so nothing is downloaded. sigma_i falls geometrically from :data:`SIGMA_START` to the noise
-level over the iterations. The image is divided by its peak |y|, into the range the network was
-trained on, and scaled back. Not by a percentile, as :mod:`.sparse` does: values past 1 cost
-1.0 dB on a 256 px photograph whose 99.5th percentile was 0.9.
+level over the iterations (:data:`ITERATIONS`). The image is divided by its peak |y|, into the
+range the network was trained on, and scaled back. Not by a percentile, as :mod:`.sparse`
+does: values past 1 cost 1.0 dB on a 256 px photograph whose 99.5th percentile was 0.9.
 
 Optional extra: ``pip install 'pacam_render[pnp]'`` (scico, with jax and flax; about 480 MB
 installed). Colour images are restored per channel (the network is single-channel); the
@@ -39,7 +39,7 @@ from .noise import check_sigma, estimate_noise_sigma
 VARIANT = "6N"
 """scico's DnCNN variant: 6 layers with a noise-level input. On 4 grey photographs (256 px,
 the prototype's coded kernel, sigma 0.01) it scored 30.40 dB in 4.2 s per image; 17N, 3.3x
-slower, diverged at :data:`LAMBDA` (18.6 dB; benchmarks/bench_pnp.py --variants)."""
+slower, diverged at :data:`LAMBDA` (18.6 dB; benchmarks/bench_pnp.py --variants, 8 steps)."""
 SIGMA_START = 49.0 / 255.0
 """The denoiser's noise level at the first iteration, on the [0, 1] scale (DPIR's 49/255)."""
 SIGMA_TRAINED = 0.2
@@ -48,11 +48,12 @@ SIGMA_MIN = 1.0 / 1000.0
 """The smallest noise level used, on the [0, 1] scale: a noiseless input would make rho 0 and
 the x-step an inverse filter, which divides by the kernel's spectral zeros."""
 LAMBDA = 0.35
-"""lam in rho_i = lam sigma^2 / sigma_i^2: the best of 0.23, 0.35, 0.5 and 1 at 8 iterations on
+"""lam in rho_i = lam sigma^2 / sigma_i^2: the best of 0.23, 0.35, 0.5 and 1 at 8 steps on
 the astronaut, brick, camera and chelsea photographs (benchmarks/bench_pnp.py)."""
-ITERATIONS = 8
-"""Steps of the schedule (DPIR's 8 for deblurring). 4 score the same on 4 photographs (30.46
-against 30.40 dB), 12 lose 0.8 dB and 24 lose 7.9 (benchmarks/bench_pnp.py)."""
+ITERATIONS = 4
+"""Steps of the schedule. DPIR takes 8, but this small network's errors accumulate at low
+sigma: over the 13 grey photographs of benchmarks/bench_pnp.py, 4 steps score 30.95 dB, 6
+30.79 and 8 30.50 (24 lose 7.9 dB on 4 of them); the Hubble deep field 26.9, 25.3 and 23.4."""
 INSTALL = "pip install 'pacam_render[pnp]'"
 
 
