@@ -18,7 +18,7 @@ from ..io.outputs import check_writable, prepare_out_dir, write_json
 from ..io.preview import srgb8, write_png
 from ..psf.origin import to_pinhole
 from ..restore.capture_noise import check_noise_sigma, deblur_layer, deblur_noise, sparse_options
-from ..restore.deconvolve import BM3D_LICENCE, METHODS, deconvolve
+from ..restore.deconvolve import BM3D_LICENCE, METHODS, deconvolve, require_method
 from .common import add_force, add_out
 
 _FILE_SUFFIXES = {".txt", ".json", ".npy", ".tif", ".tiff", ".jpg", ".jpeg", ".hdr", ".pfm"}
@@ -38,8 +38,8 @@ def add(sub) -> None:
         "--method",
         default="hl",
         choices=METHODS,
-        help="default hl (hyper-Laplacian prior); bm3d is optional: pip install bm3d "
-        f"({BM3D_LICENCE})",
+        help="default hl (hyper-Laplacian prior); pnp (a CNN prior) is optional: pip install "
+        f"'pacam_render[pnp]'; bm3d is optional: pip install bm3d ({BM3D_LICENCE})",
     )
     p.add_argument(
         "--colour",
@@ -68,6 +68,7 @@ def add(sub) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    require_method(args.method)  # an optional package missing: said before reading anything
     capture = Path(args.capture)
     psf_file = psf_path(args.psf, capture)
     inputs = [capture] if psf_file is None else [capture, psf_file]

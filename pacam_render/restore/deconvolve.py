@@ -20,6 +20,7 @@ Images are float (H, W) or (H, W, C) on any linear scale; PSFs are 2-D (shared) 
 
 from __future__ import annotations
 
+import importlib.util
 import warnings
 
 import numpy as np
@@ -30,6 +31,7 @@ from ..errors import ParameterError
 from .fourier import WORKERS, check_image, check_psf, pad_width, psf_to_otf, taper_pad
 from .metrics import psnr
 from .noise import SIGMA_FLOOR, check_sigma, estimate_noise_sigma
+from .pnp import INSTALL as PNP_INSTALL
 from .pnp import pnp_deconvolve
 from .sparse import sparse_deconvolve
 
@@ -37,6 +39,35 @@ METHODS = ("wiener", "hl", "tv", "rl", "uwiener", "bm3d", "pnp")
 BM3D_LICENCE = (
     "bm3d (Tampere University) is free for non-commercial use only; see the bm3d package licence"
 )
+
+
+# The methods whose package is an optional extra: (the module to import, what to install).
+_OPTIONAL = {
+    "bm3d": (
+        "bm3d",
+        "method 'bm3d' needs the optional bm3d package: pip install 'pacam_render[bm3d]' "
+        f"({BM3D_LICENCE})",
+    ),
+    "pnp": ("scico", f"method 'pnp' needs the optional scico package (its DnCNN): {PNP_INSTALL}"),
+}
+
+
+def require_method(method: str) -> None:
+    """Raise before any work if ``method``'s optional package is not installed.
+
+    Parameters
+    ----------
+    method : str
+        One of :data:`METHODS` (others pass: :func:`deconvolve` names them).
+
+    Raises
+    ------
+    ParameterError
+        Naming the method and the install command (bm3d, pnp).
+    """
+    module, message = _OPTIONAL.get(method, (None, ""))
+    if module is not None and importlib.util.find_spec(module) is None:
+        raise ParameterError(message)
 
 
 def _per_channel(image: np.ndarray, psf: np.ndarray, fn) -> np.ndarray:
@@ -400,10 +431,7 @@ def bm3d_deblur(image, psf, noise_sigma: float | None = None):
     try:
         import bm3d as _bm3d
     except ImportError as exc:
-        raise ParameterError(
-            "method 'bm3d' needs the optional bm3d package: pip install 'pacam_render[bm3d]' "
-            f"({BM3D_LICENCE})"
-        ) from exc
+        raise ParameterError(_OPTIONAL["bm3d"][1]) from exc
     if not hasattr(np, "trapz"):  # bm4d calls np.trapz, which numpy 2.4 removed
         np.trapz = np.trapezoid  # noqa: NPY201 (restoring the name bm4d needs)
     y = check_image(image)

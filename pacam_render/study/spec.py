@@ -363,7 +363,7 @@ def parse_design(text: str) -> dict:
 
 def _check_point(v: dict) -> dict:
     from ..model.modes import MODES
-    from ..restore.deconvolve import METHODS
+    from ..restore.deconvolve import METHODS, require_method
     from ..scenes.builtin import BUILTIN_SCENES
 
     where = f"point {json.dumps(v, default=str)}"
@@ -379,6 +379,10 @@ def _check_point(v: dict) -> dict:
         raise ParameterError(
             f"{where}: unknown method {v['method']!r}; valid: {', '.join(METHODS)}, none"
         )
+    try:  # an optional package missing fails here, not after the render
+        require_method(v["method"])
+    except ParameterError as exc:
+        raise ParameterError(f"{where}: {exc}") from None
     parse_design(v["design"])
     for key, lo in (("speed_px_per_ms", 0.0), ("depth_mm", 1.0), ("light_level", 0.0)):
         x = v[key]

@@ -140,3 +140,32 @@ def test_pnp_refuses_bad_input_before_any_work():
         deconvolve(y, BOX, "pnp", iterations=0)
     with pytest.raises(ParameterError, match="lam"):
         deconvolve(y, BOX, "pnp", lam=0.0)
+
+
+@pytest.mark.parametrize(("method", "module"), [("pnp", "scico"), ("bm3d", "bm3d")])
+def test_a_missing_optional_package_is_refused_before_any_work(
+    monkeypatch, tmp_path, capsys, method, module
+):
+    """Study files and ``pacam deconvolve`` check the method's package up front: a study naming
+    pnp without scico fails at load, not after its renders; the CLI before reading the capture
+    (which here does not even exist)."""
+    import importlib.util
+
+    from pacam_render.cli import main
+    from pacam_render.restore.deconvolve import require_method
+    from pacam_render.study import load_study
+
+    real = importlib.util.find_spec
+    monkeypatch.setattr(
+        importlib.util, "find_spec", lambda name, *a: None if name == module else real(name, *a)
+    )
+    with pytest.raises(ParameterError, match=rf"'{method}'.*pip install"):
+        require_method(method)
+    require_method("hl")  # no optional package: passes
+    spec = tmp_path / "s.toml"
+    spec.write_text(f'[study]\nname = "s"\n[grid]\nmode = ["coded"]\nmethod = ["{method}"]\n')
+    with pytest.raises(ParameterError, match=rf"point .*'{method}'.*pip install"):
+        load_study(str(spec))
+    argv = ["deconvolve", str(tmp_path / "none.exr"), "--method", method]
+    assert main([*argv, "--out", str(tmp_path / "o")]) == 2
+    assert "pip install" in capsys.readouterr().err
