@@ -12,7 +12,7 @@ from ..errors import ParameterError, check_finite, check_positive
 from ..exposure.record import read_record
 from ..io.exr import write_exr
 from ..io.outputs import prepare_out_dir, write_json
-from ..io.preview import srgb8, write_png
+from ..io.preview import write_psf_preview
 from ..limits import DEFAULT_MAX_SAMPLES, PacamWarning
 from ..model.camera import CameraDesign, preset
 from ..model.modes import MODES_WITH_PSF
@@ -97,7 +97,8 @@ def run(args: argparse.Namespace) -> int:
     r = _rendered_psf(cam, k, seed, args) if args.render else None
     # nothing is written before the render ends: an interrupt leaves no half set of files
     write_exr(out / "psf_analytic.exr", {"psf": k}, force=args.force)
-    write_png(out / "psf_analytic.png", srgb8(k), force=args.force)
+    what = f"{args.mode}, s = {args.velocity:g} px/ms"
+    write_psf_preview(out / "psf_analytic.png", k, f"analytic PSF, {what}", force=args.force)
     meta = {
         **cam.summary(),
         "mode": args.mode,
@@ -114,7 +115,8 @@ def run(args: argparse.Namespace) -> int:
         from ..restore.metrics import rel_l1
 
         write_exr(out / "psf_rendered.exr", {"psf": r.kernel}, force=args.force)
-        write_png(out / "psf_rendered.png", srgb8(r.kernel), force=args.force)
+        title = f"rendered PSF, {what}"
+        write_psf_preview(out / "psf_rendered.png", r.kernel, title, force=args.force)
         meta["rendered"] = {**r.to_json(), "l1_vs_analytic": rel_l1(r.kernel, k)}
         written += ", psf_rendered.exr, psf_rendered.png"
         print(
