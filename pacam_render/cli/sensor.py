@@ -40,7 +40,7 @@ def add(sub) -> None:
     )
     add_out(p, help="a new capture folder: capture.exr, capture.json, capture.png")
     add_force(p, "overwrite a capture in DIR")
-    p.add_argument("--quiet", action="store_true", help="print nothing but notes and errors")
+    p.add_argument("--quiet", action="store_true", help="print only the summary line and notes")
     p.set_defaults(func=run)
 
 
@@ -69,8 +69,8 @@ def run(args: argparse.Namespace) -> int:
     cap = sensor_on_capture(exr, args.sensor, args.light_level, args.seed)
     with new_folder(out), output_lock(out):
         paths = write_or_rescue(cap, out, args.force, cap.mc_sigma is not None)
+    print(_summary(cap, exr, paths))  # as render --quiet does, the summary always
     if not args.quiet:
-        print(_summary(cap, exr, paths))
         print("layers: " + ", ".join(["capture", *cap.extra_layers]))
     return 0
 
