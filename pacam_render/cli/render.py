@@ -38,6 +38,40 @@ def add(sub) -> None:
         help="render only this window of the sensor, in its px: the camera at its real scale",
     )
     add_preset(p)
+    _add_sampling(p)
+    p.add_argument("--per-pattern", action="store_true", help="also keep per-pattern images")
+    p.add_argument(
+        "--no-truth",
+        action="store_true",
+        help="leave out the ground-truth layers sharp, depth, object_id and velocity",
+    )
+    p.add_argument(
+        "--cover",
+        type=float,
+        metavar="PX_PER_MS",
+        help="coded/levin: solve the design so this speed (preset px) is motion-invariant",
+    )
+    p.add_argument(
+        "--schedule",
+        metavar="SCHEDULE.json",
+        help="coded: show a designed schedule (pacam optimize's schedule.json)",
+    )
+    p.add_argument(
+        "--depth",
+        type=float,
+        metavar="MM",
+        help="the object depth the design is made for (default: the preset's, 500 mm)",
+    )
+    _add_sensor(p)
+    add_limit_args(p)
+    add_out(p)
+    add_force(p, "overwrite an existing capture")
+    add_quiet(p)
+    p.set_defaults(func=run)
+
+
+def _add_sampling(p: argparse.ArgumentParser) -> None:
+    """How many samples, drawn how, and to what Monte Carlo error."""
     p.add_argument(
         "--spp", type=int, metavar="N", help="samples per pixel, over all passes (default 64)"
     )
@@ -79,29 +113,10 @@ def add(sub) -> None:
         metavar="PX",
         help="largest image motion between time steps (default 0.5 px)",
     )
-    p.add_argument("--per-pattern", action="store_true", help="also keep per-pattern images")
-    p.add_argument(
-        "--no-truth",
-        action="store_true",
-        help="leave out the ground-truth layers sharp, depth, object_id and velocity",
-    )
-    p.add_argument(
-        "--cover",
-        type=float,
-        metavar="PX_PER_MS",
-        help="coded/levin: solve the design so this speed (preset px) is motion-invariant",
-    )
-    p.add_argument(
-        "--schedule",
-        metavar="SCHEDULE.json",
-        help="coded: show a designed schedule (pacam optimize's schedule.json)",
-    )
-    p.add_argument(
-        "--depth",
-        type=float,
-        metavar="MM",
-        help="the object depth the design is made for (default: the preset's, 500 mm)",
-    )
+
+
+def _add_sensor(p: argparse.ArgumentParser) -> None:
+    """The image sensor's layers and their light level."""
     p.add_argument(
         "--sensor",
         metavar="PRESET",
@@ -113,11 +128,6 @@ def add(sub) -> None:
         metavar="L",
         help="photons/px/ms of white through the full aperture (default 7000)",
     )
-    add_limit_args(p)
-    add_out(p)
-    add_force(p, "overwrite an existing capture")
-    add_quiet(p)
-    p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
