@@ -153,12 +153,7 @@ def pnp_deconvolve(
     planes = y[None] / scale if y.ndim == 2 else np.moveaxis(y, -1, 0) / scale
     sigma = estimate_noise_sigma(y) if sigma is None else sigma
     sigma = max(sigma / scale, SIGMA_MIN)
-    padded = [taper_pad(p, pad_width(k.shape)) for p in planes]
-    z, keep = np.stack([p for p, _ in padded]), padded[0][1]
-    kernels = [k if k.ndim == 2 else k[..., c] for c in range(len(z))]
-    otf = np.stack([psf_to_otf(kc, z.shape[1:]) for kc in kernels])
-    h2 = (otf * otf.conj()).real
-    hy = otf.conj() * sfft.rfft2(z, workers=WORKERS)
+    z, keep, h2, hy = _data_term(planes, k)
 
     def crop(x: np.ndarray) -> np.ndarray:
         out = scale * x[(slice(None), *keep)]
@@ -172,6 +167,15 @@ def pnp_deconvolve(
         if callback is not None:
             callback(i, crop(z))
     return crop(z)
+
+
+def _data_term(planes: np.ndarray, k: np.ndarray):
+    """The tapered, padded planes (C, H', W'), the crop back, |H|^2 and H* Y of the x-step."""
+    padded = [taper_pad(p, pad_width(k.shape)) for p in planes]
+    z, keep = np.stack([p for p, _ in padded]), padded[0][1]
+    kernels = [k if k.ndim == 2 else k[..., c] for c in range(len(z))]
+    otf = np.stack([psf_to_otf(kc, z.shape[1:]) for kc in kernels])
+    return z, keep, (otf * otf.conj()).real, otf.conj() * sfft.rfft2(z, workers=WORKERS)
 
 
 def _checked(image, psf, noise_sigma, iterations, lam):
