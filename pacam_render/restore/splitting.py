@@ -8,8 +8,9 @@ with phi(g) = |g|^alpha per channel, or (sum_c g_c^2)^(alpha / 2) when the chann
 prior (edges fall at the same place in every colour). Two auxiliary variables split it:
 
 - g = d x, with a penalty beta / 2 ||g - d x||^2 and no dual: half-quadratic splitting, beta
-  raised geometrically from :data:`BETA_START` to :data:`BETA_STOP` over the iterations
-  (Krishnan & Fergus 2009's schedule: 6 steps of 2 sqrt(2)). Stopping at a finite beta leaves a
+  raised geometrically from :data:`BETA_START` to a last beta over the iterations (by default
+  Krishnan & Fergus 2009's schedule, 6 steps of 2 sqrt(2) to :data:`BETA_STOP`; the sparse
+  methods stop higher, :data:`.sparse.SCHEDULE`). Stopping at a finite beta leaves a
   Huber-like prior, which scores higher than the exact minimiser of E: on 4 photographs at
   sigma 0.01, running ADMM on g to convergence lost 0.6 dB;
 - z = k * x, with a scaled dual u (ADMM, Afonso et al. 2010's SALSA form), so that the per-pixel
@@ -31,7 +32,8 @@ import scipy.fft as sfft
 from .fourier import WORKERS, psf_to_otf
 
 BETA_START, BETA_STOP = 1.0, 256.0
-"""The prior's penalty at the first and the last iteration (Krishnan & Fergus 2009)."""
+"""The prior's penalty at the first and the last iteration (Krishnan & Fergus 2009); the sparse
+methods stop higher (:data:`.sparse.SCHEDULE`)."""
 ITERATIONS = 1 + round(math.log(BETA_STOP / BETA_START) / math.log(2.0 * math.sqrt(2.0)))
 """6: beta rises by 2 sqrt(2) per iteration. More iterations approach the exact minimiser of E
 and score lower (``benchmarks/bench_deconvolve.py``, PSNR against iterations)."""
@@ -150,11 +152,13 @@ def solve(
     x0: np.ndarray,
     iterations: int = ITERATIONS,
     callback: Callable[[int, np.ndarray], None] | None = None,
+    beta_stop: float = BETA_STOP,
 ) -> np.ndarray:
     """Minimise from ``x0`` (C, Hp, Wp); ``callback(i, x)`` sees each iterate. Returns x.
 
-    The data split's penalty rho is the mean weight, so with uniform weights z - u = y after
-    every step and this is exactly half-quadratic splitting.
+    The prior's penalty rises geometrically from :data:`BETA_START` to ``beta_stop`` over the
+    ``iterations``. The data split's penalty rho is the mean weight, so with uniform weights
+    z - u = y after every step and this is exactly half-quadratic splitting.
     """
     dx, dy = gradient_otfs(p.shape)
     h2 = (p.otf * p.otf.conj()).real
@@ -163,7 +167,7 @@ def solve(
     rho = float(np.mean(observed)) if observed.size else 1.0
     wy = p.weight * p.y
     X, u = p.fft(x0), np.zeros_like(x0)
-    for i, beta in enumerate(np.geomspace(BETA_START, BETA_STOP, iterations)):
+    for i, beta in enumerate(np.geomspace(BETA_START, beta_stop, iterations)):
         kx = p.ifft(p.otf * X)
         z = (wy + rho * (kx + u)) / (p.weight + rho)
         u += kx - z

@@ -85,7 +85,7 @@ def test_solver_is_deterministic_and_lowers_the_objective(method, colour):
     a = sparse.sparse_deconvolve(y, K_SMALL, method, 0.01, colour=colour, callback=record)
     b = sparse.sparse_deconvolve(y, K_SMALL, method, 0.01, colour=colour)
     assert np.array_equal(a, b)
-    assert len(objective) == splitting.ITERATIONS
+    assert len(objective) == sparse.SCHEDULE[method][1]
     # E of the first guess and of the estimate after each iteration, on the problem the solver
     # built: it falls at every step (not guaranteed by half-quadratic splitting, which changes
     # its penalty each step, but what a converging run shows)
@@ -102,7 +102,8 @@ def _energies(y, method, colour):
     a = sparse.exponent(method, None)
     p, _, x0 = sparse._padded_problem(planes, w, K_SMALL, a, colour == "joint")
     out = [p.objective(x0)]
-    splitting.solve(p, x0, callback=lambda i, x: out.append(p.objective(x)))
+    stop, n = sparse.SCHEDULE[method]
+    splitting.solve(p, x0, n, lambda i, x: out.append(p.objective(x)), beta_stop=stop)
     return out
 
 
