@@ -467,8 +467,9 @@ def deconvolve(image, psf, method: str = "hl", **kwargs):
         :func:`~.pnp.pnp_deconvolve` (plug-and-play with a CNN denoiser).
     **kwargs
         Passed on to the method: e.g. ``noise_sigma`` (wiener, hl, tv, bm3d, pnp), ``nsr`` and
-        ``scale`` (wiener), ``alpha`` (hl), ``iterations`` (rl, hl, tv, pnp), ``seed``
-        (uwiener), ``lam`` (pnp).
+        ``scale`` (wiener), ``alpha`` (hl), ``iterations`` (rl, hl, tv, pnp),
+        ``lambda_scale`` (hl, tv; ``"sure"`` picks it per image), ``seed`` (uwiener), ``lam``
+        (pnp).
 
     Returns
     -------
