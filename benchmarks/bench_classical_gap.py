@@ -23,7 +23,7 @@ from contextlib import contextmanager
 
 import numpy as np
 import scipy.fft as sfft
-from bench_deconvolve import PHOTOS, SIGMA, K, grey_capture, photo, sensor_capture
+from bench_deconvolve import PHOTOS, SIGMA, K, blur, grey_capture, photo, sensor_capture
 from common import record
 
 from pacam_render.restore import sparse
@@ -273,6 +273,27 @@ def per_photo_rows(caps) -> list[dict]:
     return rows
 
 
+def sigma_rows(caps) -> list[dict]:
+    """SURE's weight (its factor chosen at sigma 0.01) at other noise levels, against the fixed
+    lambda sigma^2: whether the choice carries over."""
+    rows = []
+    for sigma in (0.005, 0.02):
+        noisy = [(x, blur(x) + np.random.default_rng(0).normal(0, sigma, x.shape)) for x, _ in caps]
+        for method in ("hl", "tv"):
+            for lam in (None, "sure"):
+                fn = lambda y, m=method, lam=lam, s=sigma: sparse.sparse_deconvolve(  # noqa: E731
+                    y, K, m, s, lambda_scale=lam
+                )
+                got, seconds = score(noisy, fn)
+                cam = PHOTOS.index("camera")
+                rows.append(
+                    {"sigma": sigma, "method": method, "weight": lam or "default"}
+                    | {"mean dB": float(got.mean()), "camera dB": float(got[cam])}
+                    | {"s per image": seconds}
+                )
+    return rows
+
+
 def colour_rows(names) -> list[dict]:
     """The schedule's change and SURE on colour ICX285 captures (the sensor's noise model)."""
     caps = []
@@ -317,6 +338,11 @@ SECTIONS = {
         "a per-image weight by SURE",
         sure_rows,
         "lambda = factor x the weight of least SURE; seconds: lambda_scale='sure'",
+    ),
+    "sigma": (
+        "SURE's weight at other noise levels",
+        sigma_rows,
+        "captures as above at sigma 0.005 and 0.02 (seed 0); default: LAMBDA_SCALE",
     ),
     "photos": (
         "hl/tv against BM3D and Wiener per photo",
