@@ -10,12 +10,13 @@ Poisson-Gaussian model. Also: hl/tv's options on (b) (colour joint or per channe
 Poisson-Gaussian noise); PSNR against iterations and seconds; the speed-robust kernel on
 objects at 0, 0.5 and 1.0 times the invariant range.
 
-    python benchmarks/bench_deconvolve.py [--no-bm3d]
+    python benchmarks/bench_deconvolve.py [--no-bm3d] [--no-pnp] [--only-methods]
 """
 
 from __future__ import annotations
 
 import argparse
+import importlib.util
 import time
 
 import numpy as np
@@ -89,25 +90,42 @@ def sensor_capture(x: np.ndarray, seed: int = 0):
     return y, white, {"noise": noise}
 
 
-def methods(bm3d: bool) -> dict:
+def methods(bm3d: bool, pnp: bool) -> dict:
+    """Every method of ``deconvolve``, and hl/tv's per-image weight: label -> fn(y, white,
+    own), where white holds the white sigma and own the noise a method should assume."""
     runs = {
         "none (blurred input)": lambda y, w, s: y,
         "wiener": lambda y, w, s: D.wiener(y, K, **w),
+        "uwiener": lambda y, w, s: D.unsupervised_wiener(y, K, seed=0),
         "hl": lambda y, w, s: sparse_deconvolve(y, K, "hl", **s),
         "tv": lambda y, w, s: sparse_deconvolve(y, K, "tv", **s),
+        "hl, lambda_scale sure": lambda y, w, s: sparse_deconvolve(
+            y, K, "hl", lambda_scale="sure", **s
+        ),
+        "tv, lambda_scale sure": lambda y, w, s: sparse_deconvolve(
+            y, K, "tv", lambda_scale="sure", **s
+        ),
         "richardson-lucy 30 it": lambda y, w, s: D.richardson_lucy(np.clip(y, 0, None), K, 30),
     }
     if bm3d:
         runs["bm3d deblurring"] = lambda y, w, s: D.bm3d_deblur(y, K, w["noise_sigma"])
+    if pnp:
+        runs["pnp"] = lambda y, w, s: D.deconvolve(y, K, "pnp", **w)
     return runs
 
 
-def quality_rows(capture, rgb: bool, bm3d: bool) -> list[dict]:
+def quality_rows(capture, rgb: bool, bm3d: bool, pnp: bool, per_photo: list) -> list[dict]:
+    """Mean, min and max PSNR, SSIM and seconds per method; ``per_photo`` gets a row of PSNR
+    per photograph."""
     scores: dict[str, list] = {}
+    if pnp:  # jax compiles the network for this shape before any timing
+        y, white, _ = capture(photo(PHOTOS[0], rgb))
+        D.deconvolve(y, K, "pnp", **white)
     for name in PHOTOS:
         x = photo(name, rgb)
         y, white, own = capture(x)
-        for label, fn in methods(bm3d).items():
+        per_photo.append({"photo": name})
+        for label, fn in methods(bm3d, pnp).items():
             t0 = time.perf_counter()
             est = fn(y, white, own)
             dt = time.perf_counter() - t0
@@ -115,6 +133,7 @@ def quality_rows(capture, rgb: bool, bm3d: bool) -> list[dict]:
                 np.clip(est, 0, 1), x, data_range=1.0, channel_axis=2 if rgb else None
             )
             scores.setdefault(label, []).append((psnr(est, x), ssim, dt))
+            per_photo[-1][label] = psnr(est, x)
     rows = []
     for label, v in scores.items():
         a = np.array(v)
@@ -219,39 +238,55 @@ def speed_rows(repeat: int = 5) -> list[dict]:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--no-bm3d", action="store_true", help="leave out BM3D (minutes)")
+    ap.add_argument("--no-pnp", action="store_true", help="leave out pnp (minutes)")
     ap.add_argument("--skip-grey", action="store_true", help="leave out the speed and grey runs")
+    ap.add_argument("--only-methods", action="store_true", help="only the two method tables")
     args = ap.parse_args()
-    try:
-        import bm3d  # noqa: F401
-
-        bm3d_ok = not args.no_bm3d
-    except ImportError:
-        bm3d_ok = False
+    bm3d_ok = not args.no_bm3d and importlib.util.find_spec("bm3d") is not None
+    pnp_ok = not args.no_pnp and importlib.util.find_spec("scico") is not None
     if not args.skip_grey:
-        grey_sections(bm3d_ok)
-    colour_sections(bm3d_ok)
+        grey_sections(bm3d_ok, pnp_ok, args.only_methods)
+    colour_sections(bm3d_ok, pnp_ok, args.only_methods)
 
 
-def grey_sections(bm3d_ok: bool) -> None:
-    record(
-        "Deconvolution speed: pacam Wiener vs skimage.restoration.wiener",
-        speed_rows(),
-        notes="grey, prototype coded PSF 25x25; ours pads and tapers, skimage wraps",
+def method_sections(title: str, capture, rgb: bool, bm3d_ok: bool, pnp_ok: bool, notes: str):
+    """The mean table of every method and the per-photograph PSNR table, recorded."""
+    per_photo: list[dict] = []
+    record(title, quality_rows(capture, rgb, bm3d_ok, pnp_ok, per_photo), notes=notes)
+    record(f"{title}: PSNR dB per photograph", per_photo, notes=notes)
+
+
+def grey_sections(bm3d_ok: bool, pnp_ok: bool, only_methods: bool) -> None:
+    if not only_methods:
+        record(
+            "Deconvolution speed: pacam Wiener vs skimage.restoration.wiener",
+            speed_rows(),
+            notes="grey, prototype coded PSF 25x25; ours pads and tapers, skimage wraps",
+        )
+    method_sections(
+        f"(a) Deconvolution of 13 photographs, grey, sigma = {SIGMA} (issues 16, 29)",
+        grey_capture,
+        False,
+        bm3d_ok,
+        pnp_ok,
+        "256x256 each, prototype coded PSF (s = 0), every method told sigma; seconds per "
+        "image on 2 shared cores, side by side",
     )
-    record(
-        f"(a) Deconvolution of 13 photographs, grey, sigma = {SIGMA} (issue 16)",
-        quality_rows(grey_capture, False, bm3d_ok),
-        notes="256x256 each, prototype coded PSF (s = 0); times per image on 2 cores",
-    )
 
 
-def colour_sections(bm3d_ok: bool) -> None:
-    record(
+def colour_sections(bm3d_ok: bool, pnp_ok: bool, only_methods: bool) -> None:
+    method_sections(
         f"(a) Deconvolution of 13 photographs, colour, ICX285 at {LIGHT:g} photons/px/ms",
-        quality_rows(sensor_capture, True, bm3d_ok),
-        notes="Bayer RGGB, bilinear demosaic, coded opening F9.85, 45 ms; hl/tv get the "
-        "sensor's Poisson-Gaussian model, wiener/bm3d the sigma at the mean level",
+        sensor_capture,
+        True,
+        bm3d_ok,
+        pnp_ok,
+        "Bayer RGGB, bilinear demosaic, coded opening F9.85, 45 ms; hl/tv get the "
+        "sensor's Poisson-Gaussian model, wiener/bm3d/pnp the sigma at the mean level; "
+        "pnp per channel",
     )
+    if only_methods:
+        return
     record(
         "hl/tv options on the ICX285 captures (issue 16)",
         option_rows(),
@@ -261,7 +296,8 @@ def colour_sections(bm3d_ok: bool) -> None:
     record(
         "PSNR against iterations and run time (issue 16)",
         iteration_rows(),
-        notes=f"4 grey photographs, sigma {SIGMA}; hl/tv: beta from 1 to 256 in n steps",
+        notes=f"4 grey photographs, sigma {SIGMA}; hl/tv: beta geometric from BETA_START to "
+        "the method's sparse.SCHEDULE stop in n steps",
     )
     record(
         "Speed-robust kernel against the s = 0 kernel (issue 16)",

@@ -8,7 +8,7 @@ shared machine slows them alike: compare the seconds as ratios. pnp's network is
 (jax) by a warm-up call before any timing. The issue's goal: pnp >= BM3D + 0.3 dB at <= 3x
 BM3D's seconds.
 
-    python benchmarks/bench_pnp.py [--variants] [--colour]
+    python benchmarks/bench_pnp.py [--variants] [--colour] [--sweep]
 """
 
 from __future__ import annotations
@@ -55,23 +55,49 @@ def side_by_side_rows(capture=grey_capture, rgb: bool = False, names=PHOTOS) -> 
     return rows
 
 
+def _mean_runs(xs, ys, **kw) -> tuple[float, float]:
+    """Mean PSNR and seconds per image of pnp with ``kw`` over the captures."""
+    runs = [timed(y, "pnp", noise_sigma=SIGMA, **kw) for y in ys]
+    return np.mean([psnr(e, x) for (e, _), x in zip(runs, xs)]), np.mean([t for _, t in runs])
+
+
 def iteration_rows(names=PHOTOS[:4]) -> list[dict]:
+    """PSNR against iterations (at the default lam) and lam (at the default iterations)."""
     xs = [photo(n, False) for n in names]
     ys = [grey_capture(x)[0] for x in xs]
     rows = []
-    for n, lam in [(2, 0.35), (4, 0.35), (8, 0.35), (12, 0.35), (16, 0.35), (24, 0.35)] + [
-        (8, 0.23),
-        (8, 0.5),
-        (8, 1.0),
-    ]:
-        got, secs = [], []
-        for x, y in zip(xs, ys):
-            est, dt = timed(y, "pnp", noise_sigma=SIGMA, iterations=n, lam=lam)
-            got.append(psnr(est, x))
-            secs.append(dt)
-        rows.append(
-            {"iterations": n, "lam": lam, "mean dB": np.mean(got), "s per image": np.mean(secs)}
-        )
+    runs = [(n, pnp.LAMBDA) for n in (2, 3, 4, 5, 6, 8, 12)]
+    runs += [(pnp.ITERATIONS, lam) for lam in (0.2, 0.5, 1.0)]
+    for n, lam in runs:
+        db, secs = _mean_runs(xs, ys, iterations=n, lam=lam)
+        rows.append({"iterations": n, "lam": lam, "mean dB": db, "s per image": secs})
+    return rows
+
+
+SWEEP_PHOTOS = ("camera", "brick", "hubble_deep_field", "rocket", "clock")
+"""The camera and the four photographs on which pnp lost most to BM3D before the sweep."""
+
+
+def sweep_rows(names=SWEEP_PHOTOS) -> list[dict]:
+    """One knob at a time from the defaults: the self-ensemble, the schedule's end (in
+    multiples of sigma) and the window of the residual's mean (0: not put back)."""
+    xs = [photo(n, False) for n in names]
+    ys = [grey_capture(x)[0] for x in xs]
+    knobs = [("ensemble", n) for n in pnp.ENSEMBLES]
+    knobs += [("END_FACTOR", f) for f in (1.0, 2.0, 3.0, 4.0)]
+    knobs += [("MEAN_WINDOW_PX", w) for w in (0.0, 2.0, 4.0, 8.0)]
+    rows = []
+    for knob, value in knobs:
+        kw = {"ensemble": value} if knob == "ensemble" else {}
+        saved = getattr(pnp, knob, None)
+        if knob != "ensemble":
+            setattr(pnp, knob, value)
+        try:
+            db, secs = _mean_runs(xs, ys, **kw)
+        finally:
+            if knob != "ensemble":
+                setattr(pnp, knob, saved)
+        rows.append({"knob": knob, "value": value, "mean dB": db, "s per image": secs})
     return rows
 
 
@@ -101,6 +127,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--variants", action="store_true", help="also DnCNN 17N (minutes)")
     ap.add_argument("--colour", action="store_true", help="also 4 colour ICX285 captures")
+    ap.add_argument("--sweep", action="store_true", help="also ensemble, end, window (minutes)")
     args = ap.parse_args()
     note = (
         "256x256 grey, prototype coded PSF (s = 0), sigma 0.01, every method told it; "
@@ -108,6 +135,12 @@ def main() -> None:
     )
     record("pnp against BM3D, hl and Wiener, 13 photographs (issue 29)", side_by_side_rows(), note)
     record("pnp: PSNR against iterations and lam, 4 photographs (issue 29)", iteration_rows(), note)
+    if args.sweep:
+        record(
+            "pnp: self-ensemble, schedule end and residual mean, 5 photographs (issue 29)",
+            sweep_rows(),
+            note + f"; photographs {', '.join(SWEEP_PHOTOS)}; one knob moved at a time",
+        )
     if args.variants:
         record("pnp: DnCNN 6N against 17N, 4 photographs (issue 29)", variant_rows(), note)
     if args.colour:

@@ -49,7 +49,7 @@ def test_missing_scico_names_the_method_and_the_install(monkeypatch):
 
 @needs_scico
 def test_pnp_beats_wiener_on_a_photograph():
-    """192 px astronaut, prototype's coded kernel, sigma 0.01: measured pnp 27.20 dB, Wiener
+    """192 px astronaut, prototype's coded kernel, sigma 0.01: measured pnp 27.17 dB, Wiener
     25.86 dB (bench_pnp.py has the 256 px figures)."""
     k = design_psf(prototype(), "coded", 0.0)
     x = _photo(192)
@@ -62,10 +62,11 @@ def test_pnp_beats_wiener_on_a_photograph():
 def test_pnp_zero_constant_and_per_channel():
     for shape in ((24, 24), (24, 24, 3)):
         assert np.array_equal(deconvolve(np.zeros(shape), BOX, "pnp"), np.zeros(shape))
-    # the network's bias on a flat image: measured 0.8 % at sigma 0.01
+    # the residual's local mean is put back, so a flat image comes back exactly (the
+    # network alone biased it by 0.8 to 1.8 %)
     for sigma in (0.01, None):
         flat = deconvolve(np.full((24, 24), 0.3), BOX, "pnp", noise_sigma=sigma)
-        assert np.allclose(flat, 0.3, rtol=0.01)
+        assert np.allclose(flat, 0.3, rtol=1e-9)
     grey = _blur(_photo(32), BOX)
     one = deconvolve(grey, BOX, "pnp", noise_sigma=0.01)
     three = deconvolve(np.stack([grey] * 3, axis=-1), BOX, "pnp", noise_sigma=0.01)
@@ -99,7 +100,7 @@ def test_pnp_on_a_saturated_image():
 @pytest.mark.parametrize("sigma", [0.0, 1e-12, 1e-4])
 def test_pnp_with_sigma_near_zero(sigma):
     """Noiseless input: the schedule ends at SIGMA_MIN, not at 0 (an inverse filter). Measured
-    at 0: pnp 27.18 dB, Wiener 25.16, blurred 23.79."""
+    at 0: pnp 26.78 dB, Wiener 25.16, blurred 23.79."""
     x = _photo(64)
     y = _blur(x, BOX)
     out = deconvolve(y, BOX, "pnp", noise_sigma=sigma)
@@ -110,7 +111,7 @@ def test_pnp_with_sigma_near_zero(sigma):
 @needs_scico
 def test_pnp_with_a_very_large_sigma():
     """sigma 0.5 on a [0, 1] image, past the network's training (0.2): it is asked for 0.2.
-    Measured 15.8 dB against the input's 5.9."""
+    Measured 16.7 dB against the input's 5.9."""
     x = _photo(64)
     y = _blur(x, BOX) + np.random.default_rng(2).normal(0, 0.5, x.shape)
     out = deconvolve(y, BOX, "pnp", noise_sigma=0.5)
@@ -120,14 +121,53 @@ def test_pnp_with_a_very_large_sigma():
 @needs_scico
 def test_pnp_on_an_image_smaller_than_the_receptive_field():
     """10 x 10 px against 6 layers of 3 x 3 filters (13 px): a flat image stays flat, a noisy
-    ramp comes back within 3 sigma (measured RMS error 0.019)."""
+    ramp comes back within 3 sigma (measured RMS error 0.025)."""
     flat = deconvolve(np.full((10, 10), 0.3), BOX, "pnp", noise_sigma=0.01)
-    assert np.allclose(flat, 0.3, rtol=0.01)
+    assert np.allclose(flat, 0.3, rtol=1e-9)
     yy, xx = np.mgrid[0:10, 0:10] / 10.0
     x = 0.2 + 0.5 * xx + 0.2 * yy
     y = _blur(x, BOX) + np.random.default_rng(3).normal(0, 0.01, x.shape)
     out = deconvolve(y, BOX, "pnp", noise_sigma=0.01)
     assert out.shape == x.shape and np.sqrt(np.mean((out - x) ** 2)) < 0.03
+
+
+def _turns(planes, k):
+    """The k-th of the 8 flips and quarter turns, written out by hand."""
+    p = planes[..., ::-1] if k % 2 else planes
+    return np.rot90(p, k // 2, axes=(1, 2))
+
+
+@pytest.mark.parametrize("n", pnp.ENSEMBLES)
+def test_self_ensemble_against_brute_force(n):
+    """A denoiser that does not commute with the turns (a one-pixel shift plus a ramp, on a
+    non-square image): the mean of the inverse-turned outputs, computed here by hand; one that
+    commutes (a symmetric 3x3 mean with wrap-around) gives its own output."""
+    planes = np.random.default_rng(4).random((2, 6, 9))
+
+    def shift(p, level):
+        return np.roll(p, 1, axis=2) + level * np.arange(p.shape[2])
+
+    want = np.zeros_like(planes)
+    for k in range(n):
+        out = np.rot90(shift(_turns(planes, k).copy(), 0.1), -(k // 2), axes=(1, 2))
+        want += out[..., ::-1] if k % 2 else out
+    assert np.allclose(pnp.self_ensemble(shift, planes, 0.1, n), want / n)
+
+    def box(p, level):
+        from scipy.ndimage import uniform_filter
+
+        return uniform_filter(p, size=(1, 3, 3), mode="wrap")
+
+    assert np.allclose(pnp.self_ensemble(box, planes, 0.1, n), box(planes, 0.1))
+
+
+def test_schedule_ends_at_end_factor_times_sigma():
+    levels = pnp.schedule(0.01, 5)
+    assert np.isclose(levels[0], pnp.SIGMA_START) and np.isclose(levels[-1], pnp.END_FACTOR * 0.01)
+    assert np.allclose(np.diff(np.log(levels)), np.log(levels[1] / levels[0]))  # geometric
+    # never raised past the network's training, nor below sigma: then constant
+    assert np.allclose(pnp.schedule(0.1, 3), pnp.SIGMA_TRAINED)
+    assert np.allclose(pnp.schedule(0.3, 3), 0.3)
 
 
 def test_pnp_refuses_bad_input_before_any_work():
@@ -140,6 +180,9 @@ def test_pnp_refuses_bad_input_before_any_work():
         deconvolve(y, BOX, "pnp", iterations=0)
     with pytest.raises(ParameterError, match="lam"):
         deconvolve(y, BOX, "pnp", lam=0.0)
+    for bad in (3, 0, True, 2.5):
+        with pytest.raises(ParameterError, match=r"ensemble must be one of \(1, 2, 4, 8\)"):
+            deconvolve(y, BOX, "pnp", ensemble=bad)
 
 
 @pytest.mark.parametrize(("method", "module"), [("pnp", "scico"), ("bm3d", "bm3d")])
