@@ -49,6 +49,8 @@ class StudySummary:
     """The cost of the renders still to do, predicted from their pilot passes, s."""
     dashboard: str | None = None
     """The address of the Dask dashboard that showed the run (None: serial, or no bokeh)."""
+    set_aside: int = 0
+    """Rows of an edited spec's earlier run that no point has now, kept in a backup CSV."""
 
 
 def run_study(
@@ -117,6 +119,7 @@ def run_study(
         results = Results(out, spec, force)
         tasks = _tasks(spec, results.done(), out, keep_images)
         summary = StudySummary(spec.name, len(spec.points), skipped=len(results.done()))
+        summary.set_aside = results.set_aside
         cluster = open_client(workers, scheduler, client) if tasks else nullcontext()
         with cluster as dask_client:
             own = scheduler is None and client is None
@@ -181,7 +184,7 @@ def _tasks(spec: StudySpec, done: set[int], out: Path, keep: bool) -> list:
         if todo:
             where = str(out / "images" / f"render_{k:04d}") if keep else None
             partial = str(out / ".renders" / f"render_{k:04d}" / ".partial")
-            tasks.append(Task(spec.render, todo, where, partial, spec.decompose))
+            tasks.append(Task(spec.render, todo, where, partial, spec.decompose, group))
     return tasks
 
 

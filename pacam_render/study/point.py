@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .spec import Point, parse_design
+from .spec import Point, parse_design, target_sensors
 
 STILL_KERNEL_MODES = ("normal", "short")
 """Modes restored with a delta kernel: denoised, not deblurred (see :func:`kernel`)."""
@@ -29,6 +29,7 @@ COLUMNS = (
     "noise_sigma", "render_noise_sigma", "render_noise_ratio", "sharp_noise_sigma",
     "model_sigma", "deconv_sigma", "render_spp", "psnr_moving_no_model_sigma_db",
     "psnr_moving_floor_db", "psnr_moving_exact_model_db", "render_s", "total_s", "status",
+    "point_key",
 )  # fmt: skip
 """The columns of ``results.csv``, in order. Speeds are in the preset's own pixels (px/ms of
 the full sensor); r, a_i and the invariant range are the capture camera's at the study's
@@ -38,19 +39,24 @@ the one over the other, ``sharp_noise_sigma`` the truth's own, ``model_sigma`` t
 measured departure from its deconvolver's model (:mod:`.model_error`), and ``deconv_sigma``
 the root sum of squares of the three that the deconvolver is told. ``render_spp`` and
 ``render_s`` are the shared render of the point's group. The ``psnr_moving_*_db`` columns
-after it decompose the score (:mod:`.plateau`; with ``[study] decompose = true``)."""
+after it decompose the score (:mod:`.plateau`; with ``[study] decompose = true``).
+``point_key`` is the point's :meth:`~pacam_render.study.spec.StudySpec.point_keys`: a resume
+keeps a row whose key a point of the new spec has."""
 
 
 @dataclass(frozen=True)
 class Task:
     """A render and the points scored on it; ``partial_dir`` keeps the render's finished
-    passes (its pilot's, and an interrupted render's), so that a re-run resumes them."""
+    passes (its pilot's, and an interrupted render's), so that a re-run resumes them.
+    ``group`` is every point of the render, done or not (default ``points``): its noise
+    target is theirs, so a render for the points still to do is the one a fresh run makes."""
 
     render: dict
     points: tuple[Point, ...]
     keep_dir: str | None = None
     partial_dir: str | None = None
     decompose: bool = False
+    group: tuple[Point, ...] = ()
 
 
 def run_task(task: Task) -> list[dict]:
@@ -127,7 +133,7 @@ def _render(task: Task):
     from ..exposure.capture import render_capture
 
     spec, desc, info = capture_inputs(task.render, task.points[0])
-    target = render_target(task.render, task.points)
+    target = render_target(task.render, task.group or task.points)
     cap = render_capture(
         spec, _partial(task), progress=False, description=desc, truth=True, target=target
     )
@@ -163,7 +169,7 @@ def pilot_task(task: Task) -> dict:
             progress=False,
             description=desc,
             truth=False,
-            target=render_target(task.render, task.points),
+            target=render_target(task.render, task.group or task.points),
             pilot_only=True,
         )
     err = cap.record.render_error
@@ -186,8 +192,7 @@ def render_target(render: dict, points):
         return None
     from ..sensor.apply import SensorTarget
 
-    sensors = tuple(sorted({(p.sensor, p.light_level) for p in points}))
-    return SensorTarget(float(render["noise_ratio"]), sensors)
+    return SensorTarget(float(render["noise_ratio"]), target_sensors(points))
 
 
 def _model_sigma(cap, desc) -> float:

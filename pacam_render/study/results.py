@@ -4,6 +4,14 @@ study the rows belong to).
 The CSV is rewritten whole, to a temporary file renamed into place, each time a task finishes,
 so it is never half-written and holds every finished point even after Ctrl-C or a crash. A
 re-run of the same study skips the points whose status is ``ok``; failed points run again.
+
+Each row records its ``point_key`` (:meth:`~.spec.StudySpec.point_keys`), a hash of everything
+that determines it. A re-run with an edited spec keeps the rows whose key a point of the new
+spec has (renumbered to that point), and sets the rest aside: the old ``results.csv`` is
+copied to ``results.before-KEY.csv`` (KEY: the old spec's) and an ``images/`` folder is moved
+to ``images.before-KEY``, and a :class:`~pacam_render.limits.PacamWarning` says how many rows
+were kept, how many points are to run and how many rows were set aside, and where. A folder
+written before rows had keys is resumed only by the same spec, as before.
 """
 
 from __future__ import annotations
@@ -11,10 +19,13 @@ from __future__ import annotations
 import csv
 import io
 import json
+import os
+import warnings
 from pathlib import Path
 
 from ..errors import ParameterError
 from ..io.outputs import write_json, write_text
+from ..limits import PacamWarning
 from .point import COLUMNS
 from .spec import StudySpec
 
@@ -22,37 +33,80 @@ RESULTS, STUDY = "results.csv", "study.json"
 
 
 class Results:
-    """The rows of a study's folder, resumed from disk when they belong to the same study.
+    """The rows of a study's folder, resumed from disk: all of them for the same study, those
+    whose ``point_key`` a point of ``spec`` has for an edited one (see the module docstring).
+
+    Attributes
+    ----------
+    set_aside : int
+        Rows of an earlier spec that no point of ``spec`` has, left in ``backup``.
+    backup : pathlib.Path or None
+        Where the old ``results.csv`` was copied before those rows were dropped.
 
     Raises
     ------
     ParameterError
-        If the folder holds results of another study (or of the same study with other
-        settings) and ``force`` is false.
+        If the folder holds results without point keys (written before they were recorded) of
+        another study, or of the same study with other settings, and ``force`` is false.
     """
 
     def __init__(self, out: Path, spec: StudySpec, force: bool = False):
         self.path, self.meta_path = out / RESULTS, out / STUDY
         self.rows: dict[int, dict] = {}
-        self.resumed = 0
+        self.resumed, self.set_aside, self.backup = 0, 0, None
+        self.keys = spec.point_keys()
         meta = {"name": spec.name, "key": spec.key(), "points": len(spec.points)}
         if self.meta_path.exists() and not force:
             old = _read_json(self.meta_path)
-            if old.get("key") != meta["key"]:
+            rows, keyed = _resumed_rows(self.path)
+            if keyed:
+                self._by_key(out, rows, str(old.get("key")), meta["key"], len(spec.points))
+            elif old.get("key") == meta["key"]:  # the same points in the same order: keys follow
+                self.rows = {k: {**r, "point_key": self.keys.get(k, "")} for k, r in rows.items()}
+            else:
                 raise ParameterError(
                     f"`out` {out} holds results of another study ({old.get('name')!r}, or the "
                     "same study with other settings); pass `force=True` to start afresh there, "
                     "or choose another `out`"
                 )
-            self.rows = _resumed_rows(self.path)
             self.resumed = len(self.done())
         elif self.path.exists() and not force:
             raise ParameterError(
                 f"`out` {out} holds a {RESULTS} of unknown origin; pass `force=True`"
             )
+        self._write()  # first: a study.json never names a spec whose numbering the CSV lacks
         write_json(self.meta_path, {**meta, "source": spec.source}, force=True)
-        if not self.rows:
-            self._write()
+
+    def _by_key(self, out: Path, rows: dict, old_key: str, new_key: str, points: int) -> None:
+        """Keep the rows whose key a point of the spec has, under its index. If the spec was
+        edited: copy the old file aside first when a row is dropped, move ``images/`` aside
+        (its files are named by render and point numbers, which an edit may change), and
+        say so."""
+        index = {point_key: k for k, point_key in self.keys.items()}
+        kept = {index[r.get("point_key")]: r for r in rows.values() if r.get("point_key") in index}
+        self.rows = {k: {**r, "point": k} for k, r in kept.items()}
+        self.set_aside = len(rows) - len(kept)
+        renumbered = any(int(r["point"]) != k for k, r in kept.items())
+        if old_key == new_key and not self.set_aside and not renumbered:
+            return  # the same study: nothing to say
+        where = ""
+        if self.set_aside:
+            self.backup = _free_name(out, f"results.before-{old_key}", ".csv")
+            write_text(self.backup, self.path.read_text(encoding="utf-8"))
+            where = f" in {self.backup}"
+        images = out / "images"
+        if images.is_dir():
+            moved = _free_name(out, f"images.before-{old_key}", "")
+            os.replace(images, moved)
+            where += f"; images/ moved to {moved}"
+        done = len(self.done())
+        warnings.warn(
+            f"`out` {out} holds results of another spec: {done} points kept (their point_key "
+            f"is a point's of this one), {points - done} to run, {self.set_aside} old rows set "
+            f"aside{where} (`force=True` starts afresh)",
+            PacamWarning,
+            stacklevel=3,
+        )
 
     def done(self) -> set[int]:
         """Points finished with status ``ok``."""
@@ -61,7 +115,7 @@ class Results:
     def add(self, rows: list[dict]) -> None:
         """Record finished rows (replacing earlier rows of the same points) and save."""
         for r in rows:
-            self.rows[int(r["point"])] = r
+            self.rows[int(r["point"])] = {**r, "point_key": self.keys.get(int(r["point"]), "")}
         self._write()
 
     def ordered(self) -> list[dict]:
@@ -82,23 +136,34 @@ def _read_json(path: Path) -> dict:
         raise ParameterError(f"{path} is not readable JSON ({exc}); pass `force=True`") from None
 
 
-def _resumed_rows(path: Path) -> dict[int, dict]:
-    """The rows of an earlier run by point; refused if the file is not such a table."""
+def _free_name(folder: Path, stem: str, suffix: str) -> Path:
+    """``folder/stem+suffix``, or with ``-2``, ``-3``, ... added: a name nothing has."""
+    path, n = folder / f"{stem}{suffix}", 1
+    while path.exists():
+        n += 1
+        path = folder / f"{stem}-{n}{suffix}"
+    return path
+
+
+def _resumed_rows(path: Path) -> tuple[dict[int, dict], bool]:
+    """The rows of an earlier run by point, and whether they carry point keys (a file
+    without rows does: nothing is lost with it); refused if the file is not such a table."""
     try:
         with open(path, newline="", encoding="utf-8") as f:
             reader = csv.DictReader(f)
             if path.stat().st_size and "point" not in (reader.fieldnames or []):
                 raise KeyError("no 'point' column")
             rows = {int(r["point"]): r for r in reader}
+            keyed = "point_key" in (reader.fieldnames or []) or not rows
     except FileNotFoundError:
-        return {}
+        return {}, True
     except (KeyError, TypeError, ValueError) as exc:  # no point column, not an integer, binary
         raise ParameterError(
             f"{path} is unreadable ({type(exc).__name__}: {exc}); pass `force=True` to start afresh"
         ) from None
     if any(k < 0 for k in rows):
         raise ParameterError(f"{path} is unreadable (a negative point); pass `force=True`")
-    return rows
+    return rows, keyed
 
 
 def read_csv(path: Path) -> list[dict]:

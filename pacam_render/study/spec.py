@@ -113,7 +113,36 @@ class StudySpec:
         if self.decompose:
             blob["decompose"] = True
         blob["files"] = input_digests(self.points)
-        return hashlib.sha256(json.dumps(blob, sort_keys=True).encode()).hexdigest()[:16]
+        return _digest(blob)
+
+    def point_keys(self) -> dict[int, str]:
+        """{index: key} of every point: a hash of everything that determines its row.
+
+        A point's row is a function of its own values (scene, mode, design, speed, depth,
+        light level, sensor, method, seed; not its index), the render settings (the whole
+        ``[render]`` table), ``decompose``, the contents of the files it names
+        (:func:`input_digests`), and, with a ``noise_ratio``, the (sensor, light level) pairs
+        of every point of its render (:func:`target_sensors`), since the render stops at the
+        lowest of their noises (a render for some of them is given that target too,
+        ``Task.group``). Nothing else reaches it: the render is bit-identical for a seed, the
+        sensor's noise is drawn from the point's seed, the capture is applied to each point
+        afresh, and a resumed render's checkpoint is keyed on its target. So, with the same
+        package (which :meth:`key` assumes too), two points of equal key, in this spec or
+        another, give the same row (its timings aside), and a row kept by key is what a fresh
+        run of the point would write. Hashed as :meth:`key` is.
+        """
+        files = input_digests(self.points)
+        out = {}
+        for group in self.groups():
+            sensors = target_sensors(group) if self.render.get("noise_ratio") else None
+            for p in group:
+                blob = {"render": self.render, "point": asdict(p), "target_sensors": sensors}
+                del blob["point"]["index"]
+                if self.decompose:
+                    blob["decompose"] = True
+                blob["files"] = {n: files[n] for n in _named_files(p) if n in files}
+                out[p.index] = _digest(blob)
+        return out
 
     def groups(self) -> list[tuple[Point, ...]]:
         """The points grouped by render, in order of their first point."""
@@ -123,6 +152,25 @@ class StudySpec:
         return [tuple(g) for g in out.values()]
 
 
+def _digest(blob: dict) -> str:
+    """16 hex digits of SHA-256 over ``blob`` as sorted JSON: the one hash of study keys."""
+    return hashlib.sha256(json.dumps(blob, sort_keys=True).encode()).hexdigest()[:16]
+
+
+def target_sensors(points) -> tuple[tuple[str, float], ...]:
+    """The (sensor, light level) pairs whose lowest noise a render that feeds ``points`` is
+    rendered to (:func:`~pacam_render.study.point.render_target`), sorted."""
+    return tuple(sorted({(p.sensor, p.light_level) for p in points}))
+
+
+def _named_files(p: Point) -> list[str]:
+    """The names a point gives that may be files: its scene, sensor and schedule."""
+    paths = [p.scene, p.sensor]
+    if str(p.design).startswith("schedule="):
+        paths.append(str(p.design)[len("schedule=") :])
+    return paths
+
+
 def input_digests(points) -> dict[str, str]:
     """{path: digest} of every file the points name: scene XMLs (with their motion JSON and
     every file they read), ``schedule=PATH`` designs and sensor preset files."""
@@ -130,10 +178,7 @@ def input_digests(points) -> dict[str, str]:
 
     out = {}
     for p in points:
-        paths = [p.scene, p.sensor]
-        if str(p.design).startswith("schedule="):
-            paths.append(str(p.design)[len("schedule=") :])
-        for name in paths:
+        for name in _named_files(p):
             path = Path(name)
             if name in out or not path.is_file():
                 continue

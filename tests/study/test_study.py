@@ -249,10 +249,12 @@ def test_a_failing_point_is_recorded_and_the_rest_finish(tmp_path):
 
 
 def test_another_studys_folder_is_refused_without_force(tmp_path):
+    """Of a folder written before rows had point keys (see test_study_resume.py for the rest)."""
     out = tmp_path / "o"
     from pacam_render.study.results import Results
 
     Results(out if out.mkdir() is None else out, parse_study({"grid": {"light_level": [1]}}))
+    (out / "results.csv").write_text("point,status\n0,ok\n")  # no point_key column
     with pytest.raises(ParameterError, match="holds results of another study"):
         Results(out, parse_study({"grid": {"light_level": [2]}}))
     Results(out, parse_study({"grid": {"light_level": [2]}}), force=True)
