@@ -102,8 +102,8 @@ class Results:
         done = len(self.done())
         warnings.warn(
             f"`out` {out} holds results of another spec: {done} points kept (their point_key "
-            f"is a point's of this one), {points - done} to run, {self.set_aside} old rows set "
-            f"aside{where} (`force=True` starts afresh)",
+            f"unchanged), {points - done} to run, {self.set_aside} old rows set aside{where} "
+            "(`force=True` starts afresh)",
             PacamWarning,
             stacklevel=3,
         )
