@@ -255,3 +255,26 @@ def test_an_edited_study_renders_only_its_new_points_and_equals_a_fresh_run(tmp_
     drop = ("render_s", "total_s")
     strip = lambda rows: [{k: v for k, v in r.items() if k not in drop} for r in rows]  # noqa: E731
     assert strip(rows) == strip(_rows(tmp_path / "fresh" / RESULTS))
+
+
+@pytest.mark.render
+def test_a_point_added_to_a_rendered_group_gets_the_groups_noise_target(tmp_path):
+    """With a noise target, a point added beside kept ones is rendered to the target of its
+    whole render (the lowest noise of 30 and 3000 photons), so its row is a fresh run's: a
+    render for it alone would stop at the noise of 30 photons, with fewer samples."""
+    body = TINY.format(levels="[30.0, 3000.0]", ratio="0.2").replace('"coded", "short"', '"coded"')
+    body = body.replace("spp = 4\n", "")
+    (tmp_path / "a.toml").write_text(body)
+    added = body + '[[points]]\nmode = "coded"\nlight_level = 30.0\nmethod = "none"\n'
+    (tmp_path / "b.toml").write_text(added)
+    out = tmp_path / "o"
+    run_study(load_study(str(tmp_path / "a.toml")), out, workers=0, progress=False)
+    before = _rows(out / RESULTS)
+    with pytest.warns(PacamWarning, match="2 points kept .* 1 to run, 0 old rows set aside"):
+        s = run_study(load_study(str(tmp_path / "b.toml")), out, workers=0, progress=False)
+    assert (s.skipped, s.ran, s.failed) == (2, 1, 0)
+    run_study(load_study(str(tmp_path / "b.toml")), tmp_path / "fresh", workers=0, progress=False)
+    drop = ("render_s", "total_s")
+    strip = lambda rows: [{k: v for k, v in r.items() if k not in drop} for r in rows]  # noqa: E731
+    rows = _rows(out / RESULTS)
+    assert rows[:2] == before and strip(rows) == strip(_rows(tmp_path / "fresh" / RESULTS))
