@@ -8,10 +8,11 @@ re-run of the same study skips the points whose status is ``ok``; failed points 
 Each row records its ``point_key`` (:meth:`~.spec.StudySpec.point_keys`), a hash of everything
 that determines it. A re-run with an edited spec keeps the rows whose key a point of the new
 spec has (renumbered to that point), and sets the rest aside: the old ``results.csv`` is
-copied to ``results.before-KEY.csv`` (KEY: the old spec's) and an ``images/`` folder is moved
-to ``images.before-KEY``, and a :class:`~pacam_render.limits.PacamWarning` says how many rows
-were kept, how many points are to run and how many rows were set aside, and where. A folder
-written before rows had keys is resumed only by the same spec, as before.
+first copied to ``results.before-KEY.csv`` (KEY: the old spec's). An ``images/`` folder, whose
+files are named by render and point numbers, moves to ``images.before-KEY`` on any edit. A
+:class:`~pacam_render.limits.PacamWarning` says how many rows were kept, how many points are
+to run and how many rows were set aside, and where. A folder written before rows had keys is
+resumed only by the same spec, as before.
 """
 
 from __future__ import annotations
