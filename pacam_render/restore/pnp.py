@@ -23,11 +23,16 @@ is divided by its peak |y|, into the range the network was trained on, and scale
 by a percentile, as :mod:`.sparse` does: values past 1 cost 1.0 dB on a 256 px photograph
 whose 99.5th percentile was 0.9. Where the noise would then be past the network's training
 (:data:`SIGMA_TRAINED`), the image is divided by 5 sigma instead: on a 128 px photograph
-denoised at sigma 1 and 2.4, 13.5 and 7.9 dB became 15.0 and 9.4 (hl: 12.1 and 10.7).
+denoised at sigma 1 and 2.4, 13.5 and 7.9 dB became 15.0 and 9.4 (hl: 12.1 and 10.7). Noise
+larger than the signal's range is past what the network can do: a rendered short exposure
+through the ICX285 at 10 photons/px/ms scored 4.8 dB against hl's 14.4
+(docs/studies/crossover_pnp); use hl there.
 
 Optional extra: ``pip install 'pacam_render[pnp]'`` (scico, with jax and flax; about 480 MB
 installed). Colour images are restored per channel (the network is single-channel); the
-channels go through it as one batch.
+channels go through it as one batch. Denoising in an orthonormal opponent space instead (the
+white noise stays white) lost 2.7 to 6.1 dB on 4 ICX285 captures: its chroma planes are
+centred on 0, outside the network's [0, 1] training.
 """
 
 from __future__ import annotations
@@ -55,32 +60,32 @@ SIGMA_MIN = 1.0 / 1000.0
 """The smallest noise level used, on the [0, 1] scale: a noiseless input would make rho 0 and
 the x-step an inverse filter, which divides by the kernel's spectral zeros."""
 LAMBDA = 0.35
-"""lam in rho_i = lam sigma^2 / sigma_i^2: the best of 0.23, 0.35, 0.5 and 1 at 8 steps on
-the astronaut, brick, camera and chelsea photographs (benchmarks/bench_pnp.py)."""
+"""lam in rho_i = lam sigma^2 / sigma_i^2: at the defaults, on the astronaut, brick, camera and
+chelsea photographs, 0.2, 0.35, 0.5 and 1 scored 30.52, 30.86, 30.64 and 29.90 dB
+(benchmarks/bench_pnp.py; 0.35 was also the best at 8 steps without the ensemble)."""
 ITERATIONS = 5
 """Steps of the schedule. DPIR takes 8, but this small network's errors accumulate at low
-sigma: with the schedule ending at the noise level and no ensemble, over the 13 grey
-photographs of benchmarks/bench_pnp.py, 4 steps scored 30.95 dB, 6 30.79 and 8 30.50; the
-Hubble deep field 26.9, 25.3 and 23.4. With :data:`END_FACTOR` and :data:`ENSEMBLE`, 5 steps
-and 6 score alike on the 5 hardest photographs (33.87 and 33.88 dB) and 5 take less time."""
+sigma: on the 4 photographs of :data:`LAMBDA`, 2, 3, 4, 5, 6, 8 and 12 steps scored 30.21,
+30.69, 30.82, 30.86, 30.87, 30.83 and 30.67 dB, in proportional time (benchmarks/bench_pnp.py).
+Before :data:`END_FACTOR`, :data:`ENSEMBLE` and :data:`MEAN_WINDOW_PX`, 24 steps lost 7.9 dB."""
 END_FACTOR = 3.0
 """The schedule ends at this multiple of the noise level, not at it: the x-step's output
 carries the noise amplified by the deblur, more than sigma, and a denoiser told sigma leaves
-it. On the camera, brick, Hubble, rocket and clock photographs (ensemble 4, 5 steps), ending
-at 1, 1.5, 2, 2.5, 3 and 4 sigma scored 33.42 (4 steps), 33.62 (4), 33.68 (4), 33.80, 33.87
-and 33.82 dB (benchmarks/bench_pnp.py --sweep)."""
+it. On the camera, brick, Hubble, rocket and clock photographs (benchmarks/bench_pnp.py
+--sweep), the other knobs at their defaults, ending at 1, 2, 3 and 4 sigma scored
+33.68, 33.84, 33.99 and 33.99 dB."""
 MEAN_WINDOW_PX = 4.0
 """sigma, px, of the Gaussian over which the denoiser's residual x - D(x) is averaged and put
 back into D(x). The residual should be noise, whose mean over the window is near 0; the
 network's is not on flat regions (0.1 at level 0.19 comes out 29 % low, 1.0 at 0.1 1.8 % high,
-the first step's level). On the 5 photographs of :data:`END_FACTOR` it scored 34.02 dB at 4 px,
-34.00 at 8, 33.98 at 16 and 33.87 without; 2 px lost the clock 1.5 dB."""
+the first step's level). On the photographs of :data:`END_FACTOR`, 0 (not put back), 2, 4
+and 8 px scored 33.87, 33.82, 33.99 and 33.97 dB; 2 px loses the clock 1.5 dB."""
 ENSEMBLES = (1, 2, 4, 8)
 """The allowed self-ensemble sizes: the first n of the 8 flips and quarter turns of a square."""
 ENSEMBLE = 4
 """Denoiser calls averaged per step, over flips and quarter turns (DPIR's x8 self-ensemble,
-cut to 4). On the 5 photographs of :data:`END_FACTOR` (4 steps, schedule to sigma) 1, 4 and 8
-scored 33.11, 33.42 and 33.46 dB, in 1, 4 and 8 times the denoiser's time."""
+cut to 4). On the photographs of :data:`END_FACTOR`, 1, 2, 4 and 8 scored 33.65, 33.83,
+33.99 and 34.03 dB, in 1, 1.3, 2.5 and 5.5 times the seconds of 1."""
 INSTALL = "pip install 'pacam_render[pnp]'"
 
 
