@@ -150,6 +150,9 @@ def _done(state) -> int:
 
 DRIVER = """
 import os, signal, sys
+# a shell's background job starts with SIGINT ignored, and Python then installs no handler:
+# the user's Ctrl-C is what the test models
+signal.signal(signal.SIGINT, signal.default_int_handler)
 import mitsuba as mi
 from pacam_render.cli import main
 

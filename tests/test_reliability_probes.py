@@ -185,9 +185,14 @@ def test_psf_interrupted_while_rendering_writes_nothing(how, tmp_path, capsys, m
         return image
 
     monkeypatch.setattr(mi, "render", render)
+    # a shell's background job starts with SIGINT ignored; the test models a user's Ctrl-C
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
     out = tmp_path / "out"
     argv = [*PSF, "--render", "--spp", "16", "--quiet", "--out", str(out)]
-    assert main(argv) == 130
+    try:
+        assert main(argv) == 130
+    finally:
+        signal.signal(signal.SIGINT, previous)
     assert len(calls) == 2
     assert capsys.readouterr().err.strip() == "pacam psf: interrupted"
     assert not out.exists() or not any(out.iterdir())

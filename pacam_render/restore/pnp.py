@@ -31,8 +31,8 @@ through the ICX285 at 10 photons/px/ms scored 4.8 dB against hl's 14.4
 Optional extra: ``pip install 'pacam_render[pnp]'`` (scico, with jax and flax; about 480 MB
 installed). Colour images are restored per channel (the network is single-channel); the
 channels go through it as one batch. Denoising in an orthonormal opponent space instead (the
-white noise stays white) lost 2.7 to 6.1 dB on 4 ICX285 captures: its chroma planes are
-centred on 0, outside the network's [0, 1] training.
+white noise stays white) lost 3.7 to 6.2 dB on 4 ICX285 captures (benchmarks/bench_pnp.py
+--only opponent): its chroma planes are centred on 0, outside the network's [0, 1] training.
 """
 
 from __future__ import annotations
