@@ -33,6 +33,12 @@ installed). Colour images are restored per channel (the network is single-channe
 channels go through it as one batch. Denoising in an orthonormal opponent space instead (the
 white noise stays white) lost 3.7 to 6.2 dB on 4 ICX285 captures (benchmarks/bench_pnp.py
 --only opponent): its chroma planes are centred on 0, outside the network's [0, 1] training.
+
+References: S. V. Venkatakrishnan, C. A. Bouman and B. Wohlberg, "Plug-and-play priors for model
+based reconstruction", IEEE GlobalSIP 2013. K. Zhang, Y. Li, W. Zuo, L. Zhang, L. Van Gool and
+R. Timofte, "Plug-and-play image restoration with deep denoiser prior", IEEE TPAMI 44(10), 2021
+(DPIR). K. Zhang, W. Zuo, Y. Chen, D. Meng and L. Zhang, "Beyond a Gaussian denoiser: residual
+learning of deep CNN for image denoising", IEEE TIP 26(7), 2017 (DnCNN).
 """
 
 from __future__ import annotations
@@ -195,22 +201,13 @@ def pnp_deconvolve(
     Gaussian of :data:`MEAN_WINDOW_PX`). The estimate is s z_n, cropped. An all-zero image
     gives zeros.
 
-    References
-    ----------
-    S. V. Venkatakrishnan, C. A. Bouman and B. Wohlberg, "Plug-and-play priors for model based
-    reconstruction", IEEE GlobalSIP 2013.
-    K. Zhang, Y. Li, W. Zuo, L. Zhang, L. Van Gool and R. Timofte, "Plug-and-play image
-    restoration with deep denoiser prior", IEEE TPAMI 44(10), 2021 (DPIR).
+    The references are in the module doc.
     """
     y, k, sigma = _checked(image, psf, noise_sigma, iterations, lam, ensemble)
     denoise = _network(VARIANT)
     if not y.any():
         return np.zeros_like(y)
-    sigma = estimate_noise_sigma(y) if sigma is None else sigma
-    # into the network's [0, 1], not past it, and its noise within the network's training
-    scale = max(float(np.abs(y).max()), sigma / SIGMA_TRAINED)
-    planes = y[None] / scale if y.ndim == 2 else np.moveaxis(y, -1, 0) / scale
-    sigma = max(sigma / scale, SIGMA_MIN)
+    planes, scale, sigma = _network_scale(y, sigma)
     z, keep, h2, hy = _data_term(planes, k)
 
     def crop(x: np.ndarray) -> np.ndarray:
@@ -218,15 +215,31 @@ def pnp_deconvolve(
         return out[0] if y.ndim == 2 else np.moveaxis(out, 0, -1)
 
     for i, level in enumerate(schedule(sigma, iterations)):
-        rho = lam * sigma**2 / level**2
-        spectrum = (hy + rho * sfft.rfft2(z, workers=WORKERS)) / (h2 + rho)
-        x = sfft.irfft2(spectrum, s=z.shape[1:], workers=WORKERS)
+        x = _x_step(z, hy, h2, lam * sigma**2 / level**2)
         z = self_ensemble(denoise, x, min(float(level), SIGMA_TRAINED), ensemble)
         if MEAN_WINDOW_PX > 0:  # 0: not put back (a benchmark's comparison)
             z += gaussian_filter(x - z, (0, MEAN_WINDOW_PX, MEAN_WINDOW_PX), mode="reflect")
         if callback is not None:
             callback(i, crop(z))
     return crop(z)
+
+
+def _network_scale(y: np.ndarray, sigma: float | None):
+    """Planes (C, H, W) divided by s, s and sigma / s (at least :data:`SIGMA_MIN`).
+
+    s is the peak |y|, into the network's [0, 1] and not past it, or 5 sigma where the noise
+    would then be past the network's training (:data:`SIGMA_TRAINED`).
+    """
+    sigma = estimate_noise_sigma(y) if sigma is None else sigma
+    scale = max(float(np.abs(y).max()), sigma / SIGMA_TRAINED)
+    planes = y[None] / scale if y.ndim == 2 else np.moveaxis(y, -1, 0) / scale
+    return planes, scale, max(sigma / scale, SIGMA_MIN)
+
+
+def _x_step(z: np.ndarray, hy: np.ndarray, h2: np.ndarray, rho: float) -> np.ndarray:
+    """argmin_x ||k * x - y||^2 + rho ||x - z||^2, exact in the Fourier domain."""
+    spectrum = (hy + rho * sfft.rfft2(z, workers=WORKERS)) / (h2 + rho)
+    return sfft.irfft2(spectrum, s=z.shape[1:], workers=WORKERS)
 
 
 def _data_term(planes: np.ndarray, k: np.ndarray):
