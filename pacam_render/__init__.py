@@ -28,9 +28,12 @@ _EXPORTS = {
     ".exposure.record": ["CaptureFile", "CaptureRecord", "analytic_psf", "read_capture"],
     ".model.camera": ["CameraDesign", "preset", "prototype"],
     ".model.design": [("solve_design", "solve")],
+    ".model.design_file": ["read_design", "resolve_design", "write_design"],
+    ".model.masks": ["MaskStack"],
     ".model.modes": ["MODES", "Mode", "capture_camera", "mode"],
     ".model.report": ["design_report"],
     ".psf.grid": ["PSFTruncationWarning"],
+    ".psf.bitmap": ["bitmap_kernel"],
     ".psf.analytic": [
         "coded_psf",
         "design_psf",

@@ -9,8 +9,10 @@ import pytest
 
 MODULES = (
     "pacam_render.model.camera",
+    "pacam_render.model.design_file",
     "pacam_render.model.modes",
     "pacam_render.psf.analytic",
+    "pacam_render.psf.bitmap",
     "pacam_render.restore.metrics",
     "pacam_render.sensor.model",
     "pacam_render.study.spec",

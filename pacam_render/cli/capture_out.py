@@ -54,10 +54,17 @@ def error_line(err: dict) -> str:
 
 def scale_line(optics: dict, coded: dict) -> str:
     """The camera's px quantities at the capture's resolution (they shrink with binning)."""
-    if coded.get("schedule") == "designed":  # no parabola: no a_i, no invariant range
-        return (
+    if coded.get("schedule") == "designed":  # a_i and the range fitted to its own openings
+        kind = coded.get("schedule_kind", "centres")
+        head = (
             f"at {optics['width_px']}x{optics['height_px']} px: r = {optics['r_px']:.3g} px; "
-            f"a designed schedule of {coded['n_patterns']} openings (pacam optimize)"
+            f"a designed schedule ({kind}) of {coded['n_patterns']} patterns"
+        )
+        if coded.get("a_i_px_per_ms2") is None:
+            return head + f" ({coded.get('fit_undefined_reason', 'no parabola fits it')})"
+        return head + (
+            f", fitted a_i = {coded['a_i_px_per_ms2']:.3g} px/ms^2, invariant |s| <= "
+            f"{coded['velocity_range_px_per_ms']:.3g} px/ms (fitted)"
         )
     return (
         f"at {optics['width_px']}x{optics['height_px']} px: r = {optics['r_px']:.3g} px, "

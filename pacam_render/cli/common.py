@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import os
 import re
 import signal
 import sys
@@ -38,6 +39,8 @@ FLAGS = {
     "exposure_ms": "--exposure",
     "f_number": "--f-number",
     "r_px": "--r-px",
+    "allow_psf_mismatch": "--allow-psf-mismatch",
+    "lcos_rate_fps": "--lcos-rate",
     "n_patterns": "--n-patterns",
     "light_level": "--light-level",
     "noise_sigma": "--noise-sigma",
@@ -66,6 +69,7 @@ FLAGS = {
     "quick": "--quick",
     "out": "--out",
     "force": "--force",
+    "grey": "--grey",
 }
 """Parameter names in library messages, and the flags a CLI user typed instead: the one
 mapping (a file's keys, :class:`~pacam_render.errors.FileKeyError`, are left as they are)."""
@@ -98,6 +102,58 @@ def add_quiet(p: argparse.ArgumentParser) -> None:
 
 def add_preset(p: argparse.ArgumentParser, help: str | None = "base camera (default: prototype)"):
     p.add_argument("--preset", default="prototype", help=help)
+
+
+def add_design_flags(p: argparse.ArgumentParser) -> None:
+    """The camera: ``--preset`` or ``--design FILE``, and a covering design or a schedule."""
+    add_preset(p)
+    p.add_argument(
+        "--design",
+        metavar="FILE",
+        help="a camera design file (pacam design --write), or a capture/psf JSON whose design "
+        "to reuse; replaces --preset",
+    )
+    p.add_argument(
+        "--cover",
+        type=float,
+        metavar="PX_PER_MS",
+        help="solve the design so this speed (the design's full-sensor px) is motion-invariant",
+    )
+    p.add_argument(
+        "--f-number", type=float, metavar="N", help="with --cover: keep this opening (F-number)"
+    )
+    p.add_argument(
+        "--r-px", type=float, metavar="PX", help="with --cover: keep this defocus radius r, px"
+    )
+    p.add_argument(
+        "--schedule",
+        metavar="SCHEDULE.json",
+        help="show a designed schedule (a legacy pacam optimize schedule.json)",
+    )
+
+
+def design_spec_fields(args: argparse.Namespace) -> dict:
+    """The CaptureSpec fields that :func:`add_design_flags` sets."""
+    if args.design is not None and args.preset != "prototype":
+        raise ParameterError("give --design or --preset, not both: each is the camera")
+    return {
+        "preset": args.preset,
+        "design": args.design,
+        "cover_px_per_ms": args.cover,
+        "f_number": args.f_number,
+        "r_px": args.r_px,
+        "schedule": args.schedule,
+    }
+
+
+def add_grey(p: argparse.ArgumentParser, what: str = "captures") -> None:
+    """``--grey``: render one channel with Mitsuba's mono variant (no RGB)."""
+    p.add_argument(
+        "--grey",
+        action="store_true",
+        help=f"grey {what}: one channel (luminance) rendered with Mitsuba's mono variant "
+        "(llvm_ad_mono); the same as PACAM_VARIANT=llvm_ad_mono, and refused with an RGB one",
+    )
 
 
 def add_outputs(p: argparse.ArgumentParser, force_help: str = "overwrite results in DIR") -> None:
@@ -149,7 +205,9 @@ def add_limit_args(p: argparse.ArgumentParser) -> None:
 
 def check_common(args: argparse.Namespace) -> None:
     """Flags that several commands share, refused before any work: a size of 0 px would
-    quietly become the default (``args.width or ...``), an empty --out the current folder."""
+    quietly become the default (``args.width or ...``), an empty --out the current folder,
+    and, for the commands that render on local Dask workers, a ``PACAM_VARIANT`` that
+    cannot render here (:func:`~pacam_render.render.variant.choose_variant`)."""
     for flag in ("width", "height"):
         value = getattr(args, flag, None)
         if value is not None and value < 1:
@@ -157,6 +215,15 @@ def check_common(args: argparse.Namespace) -> None:
     out = getattr(args, "out", None)
     if out is not None and not str(out).strip():
         raise ParameterError(f"--out must name a folder or file, got {out!r}")
+    if (
+        os.environ.get("PACAM_VARIANT", "").strip()
+        and hasattr(args, "workers")
+        and getattr(args, "scheduler", None) is None
+    ):  # a sweep renders in local workers: refuse a variant that cannot render here once,
+        # before they start, not once per point (a --scheduler's machines may differ)
+        from ..render.variant import choose_variant
+
+        choose_variant()
 
 
 def note_printer(name: str):

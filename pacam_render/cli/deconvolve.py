@@ -58,6 +58,13 @@ def add(sub) -> None:
         help="noise std in the layer's units (default: the sensor's, recorded in the capture's "
         "JSON, for the noisy layer; otherwise estimated)",
     )
+    p.add_argument(
+        "--allow-psf-mismatch",
+        action="store_true",
+        help="deblur with a PSF file made for another camera (r, a_i, pattern count, depth, "
+        "...) on purpose, e.g. a wrong assumed depth as in the paper's Fig. 9; without it such "
+        "a file is refused",
+    )
     add_out(
         p,
         help="folder for deconvolved.exr, .png and .json (method, PSF, noise, seconds and the "
@@ -79,7 +86,7 @@ def run(args: argparse.Namespace) -> int:
     check_noise_sigma(args.noise_sigma, image)
     record = read_record(capture, required=psf_file is None)
     kw, how = sparse_options(args.method, layer, record, args.colour, args.noise_sigma)
-    psf = load_capture_psf(args.psf, capture, record)
+    psf = load_capture_psf(args.psf, capture, record, args.allow_psf_mismatch)
     noise = deblur_noise(args.method, kw, how, image, layer, layers, record, args.noise_sigma)
     if noise["source"] == "noise_sigma":
         noise["source"] = "--noise-sigma"
@@ -168,6 +175,7 @@ def _psf_json(args, psf: CapturePSF) -> dict:
             "size_px": list(psf.kernel.shape[:2]),
             "origin": psf.origin,
             "result_shifted_px": shift,  # onto the pinhole image, the capture's registration
+            **({"mismatch": list(psf.mismatch)} if psf.mismatch else {}),
         }
     }
 

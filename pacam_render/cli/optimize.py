@@ -40,6 +40,11 @@ def add(sub) -> None:
     p.add_argument("--f-number", type=float, metavar="N", help="the parabola's opening")
     p.add_argument("--r-px", type=float, metavar="PX", help="the parabola's defocus radius")
     add_preset(p)
+    p.add_argument(
+        "--design",
+        metavar="FILE",
+        help="design the schedule for this camera (a design file) instead of --preset",
+    )
     p.add_argument("--seed", type=int, default=0, metavar="S", help="random starts (default 0)")
     p.add_argument("--starts", type=int, metavar="K", help="local searches (default 6; quick 2)")
     p.add_argument(
@@ -60,7 +65,7 @@ def run(args: argparse.Namespace) -> int:
 
     problem = Problem(
         max_velocity_px_per_ms=args.max_velocity,
-        depth_range_mm=_depth_range(args.depth_range, args.preset),
+        depth_range_mm=_depth_range(args.depth_range, args.preset, args.design),
         n_patterns=args.n_patterns,
         sensor=args.sensor,
         light_level=args.light_level,
@@ -68,6 +73,7 @@ def run(args: argparse.Namespace) -> int:
         f_number=args.f_number,
         r_px=args.r_px,
         free_radius=args.free_radius,
+        design=args.design,
     )
     check_problem(problem)
     reference_design(problem)  # the parabola must cover the range: refused before any output
@@ -85,13 +91,21 @@ def run(args: argparse.Namespace) -> int:
     print((out / "report.md").read_text())
     gain = doc["objective_worst"] - doc["parabola_objective_worst"]
     print(f"worst-case gain over the parabola at equal light: {gain:+.2f} dB (predicted)")
-    print(f"written: {out / 'schedule.json'}, report.md, 4 plots, lcos/ ({doc['n_patterns']} PNG)")
+    print(
+        f"written: {out / 'design.toml'} (pacam render/psf/validate-psf --design), "
+        f"schedule.json, report.md, 4 plots, lcos/ ({doc['n_patterns']} PNG)"
+    )
     return 0
 
 
-def _depth_range(text: str | None, preset_name: str) -> tuple[float, float]:
+def _depth_range(text: str | None, preset_name: str, design: str | None) -> tuple[float, float]:
     if text is None:
-        d = preset(preset_name).object_depth_mm
+        if design is not None:
+            from ..model.design_file import resolve_design
+
+            d = resolve_design(design).object_depth_mm
+        else:
+            d = preset(preset_name).object_depth_mm
         return d, d
     try:
         near, far = (float(v) for v in text.split(","))

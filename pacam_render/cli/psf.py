@@ -14,19 +14,40 @@ from ..io.exr import write_exr
 from ..io.outputs import prepare_out_dir, write_json
 from ..io.preview import write_psf_preview
 from ..limits import DEFAULT_MAX_SAMPLES, PacamWarning
-from ..model.camera import CameraDesign, preset
+from ..model.camera import CameraDesign
 from ..model.modes import MODES_WITH_PSF
 from ..psf.analytic import design_psf
 from ..psf.origin import origin_record
-from .common import add_force, add_out, add_preset, add_quiet
+from .common import (
+    add_design_flags,
+    add_force,
+    add_grey,
+    add_out,
+    add_quiet,
+    design_spec_fields,
+)
+
+PSF_FILES = ("psf_analytic.exr", "psf_analytic.png", "psf_rendered.exr", "psf_rendered.png",
+             "psf.json")  # fmt: skip
+"""What ``pacam psf`` writes into ``--out``."""
 
 
 def add(sub) -> None:
     p = sub.add_parser("psf", help="write an analytic PSF (EXR, PNG preview, JSON)")
-    add_preset(p, help=None)
-    p.add_argument("--depth", type=float, required=True, metavar="MM", help="point depth, mm")
+    add_design_flags(p)
+    p.add_argument(
+        "--depth",
+        type=float,
+        metavar="MM",
+        help="point depth, mm (default: the depth the design is made for; with --like, the "
+        "capture's)",
+    )
     p.add_argument("--velocity", type=float, required=True, metavar="PX_PER_MS")
-    p.add_argument("--mode", default="coded", choices=MODES_WITH_PSF)
+    p.add_argument(
+        "--mode",
+        choices=MODES_WITH_PSF,
+        help="default coded; with --like, the capture's mode",
+    )
     p.add_argument("--size", type=int, metavar="PX", help="odd kernel side (default: fits the PSF)")
     p.add_argument("--width", type=int, metavar="W", help="sensor px (default: the preset's, 1280)")
     p.add_argument("--height", type=int, metavar="H", help="sensor px (default: 960)")
@@ -34,7 +55,8 @@ def add(sub) -> None:
     p.add_argument(
         "--like",
         metavar="CAPTURE.exr",
-        help="copy a capture's sensor size and crop from its JSON, so the kernel fits it",
+        help="the capture's camera, whole (design, schedule and bitmaps, sensor size, mode "
+        "and crop) from its JSON, so the kernel is the one that blurred it",
     )
     p.add_argument(
         "--render", action="store_true", help="also ray-trace it (ptracer): psf_rendered.exr"
@@ -69,6 +91,7 @@ def add(sub) -> None:
         "(as 'deconvolve --psf analytic' registers captures; the default with --like). "
         "psf.json records it, and deconvolve moves a t0 kernel's result onto the pinhole image",
     )
+    add_grey(p, "render (with --render; the analytic PSF is one channel either way)")
     add_quiet(p)
     add_out(p)
     add_force(p, "overwrite existing results")
@@ -76,12 +99,18 @@ def add(sub) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from ..render.variant import grey_request
+
+    args.grey = grey_request(args.grey)  # refused with an RGB PACAM_VARIANT, before any work
     if args.origin is None:  # a kernel made for a capture is centred as deconvolve centres it
         args.origin = "pinhole" if args.like is not None else "t0"
-    check_positive("--depth", args.depth, "mm")
+    if args.depth is not None:
+        check_positive("--depth", args.depth, "mm")
     check_finite("--velocity", args.velocity)
-    cam, crop = _psf_geometry(args)
-    cam = cam.with_(object_depth_mm=args.depth)
+    cam, crop, args.mode = _psf_geometry(args)
+    if args.depth is not None:
+        cam = cam.with_(object_depth_mm=args.depth)
+    args.depth = cam.object_depth_mm
     if args.size is not None:
         _odd_size(args.size)
     seed = 0 if args.seed is None else args.seed
@@ -92,7 +121,7 @@ def run(args: argparse.Namespace) -> int:
         check_positive("--max-samples", args.max_samples)
     elif args.spp is not None or args.seed is not None:
         raise ParameterError("--spp and --seed need --render")
-    out = prepare_out_dir(args.out, args.force)
+    out = prepare_out_dir(args.out, args.force, PSF_FILES)  # a capture's folder is fine
     k = _checked_psf(cam, args)
     r = _rendered_psf(cam, k, seed, args) if args.render else None
     # nothing is written before the render ends: an interrupt leaves no half set of files
@@ -102,6 +131,7 @@ def run(args: argparse.Namespace) -> int:
     meta = {
         **cam.summary(),
         "mode": args.mode,
+        "camera": cam.inputs(),  # whole: deconvolve compares it with the capture's
         "velocity_px_per_ms": args.velocity,
         "size_px": list(k.shape),
         **({"crop": crop} if crop else {}),
@@ -118,6 +148,7 @@ def run(args: argparse.Namespace) -> int:
         title = f"rendered PSF, {what}"
         write_psf_preview(out / "psf_rendered.png", r.kernel, title, force=args.force)
         meta["rendered"] = {**r.to_json(), "l1_vs_analytic": rel_l1(r.kernel, k)}
+        meta["rendered"]["variant"] = _variant()
         written += ", psf_rendered.exr, psf_rendered.png"
         print(
             f"rendered in {r.seconds:.1f} s ({r.particles} particles, spp {r.spp}, seed "
@@ -133,37 +164,67 @@ def _rendered_psf(cam: CameraDesign, k: np.ndarray, seed: int, args: argparse.Na
     """The ray-traced kernel; refused beyond --max-samples before any rendering."""
     from ..exposure.psf_render import render_psf
 
+    if args.grey:  # before the renderer activates a (colour) variant of its own
+        from ..render.backend import select_variant
+
+        select_variant(mono=True)
     return render_psf(
         cam, args.mode, args.velocity, size=k.shape, spp=args.spp, seed=seed, film=args.film,
         origin=args.origin, model=k, max_samples=args.max_samples, progress=not args.quiet,
     )  # fmt: skip
 
 
-def _psf_geometry(args: argparse.Namespace) -> tuple[CameraDesign, dict | None]:
-    """The preset at the capture's sensor size (``--like``, or ``--width``/``--height``), and
-    the crop to record. A kernel's px quantities (r, a_i) follow the sensor's size; a crop does
-    not change the kernel, only where it applies."""
-    base = preset(args.preset)
+def _psf_geometry(args: argparse.Namespace) -> tuple[CameraDesign, dict | None, str]:
+    """The camera, the crop to record and the mode: a capture's own (``--like``), or the
+    design (``--design``/``--preset``, ``--cover``, ``--schedule``) at ``--width``/``--height``.
+    A kernel's px quantities (r, a_i) follow the sensor's size; a crop does not change the
+    kernel, only where it applies."""
     if args.like is not None:
-        if args.width or args.height or args.crop:
-            raise ParameterError("--like copies the capture's size and crop: leave out --width, "
-                                 "--height and --crop")  # fmt: skip
-        capture = Path(args.like)
-        record = read_record(capture)
-        if record is None:
-            raise ParameterError(f"--like needs the capture's {capture.with_suffix('.json')}")
-        cam = record.camera
-        return base.with_(width_px=cam["width_px"], height_px=cam["height_px"]), record.crop
-    width = args.width or base.width_px
-    height = args.height or base.height_px
-    base = base.with_(width_px=width, height_px=height)
-    if args.crop is None:
-        return base, None
-    from ..exposure.capture_spec import check_crop, parse_crop
+        return _like_geometry(args)
+    from ..exposure.capture_camera import capture_design, full_design
+    from ..exposure.capture_spec import CaptureSpec, check_crop, parse_crop
 
+    fields = design_spec_fields(args)
+    full = full_design(CaptureSpec(**fields))
+    width = args.width or full.width_px
+    height = args.height or full.height_px
+    cam = capture_design(CaptureSpec(**fields, width=width, height=height))
+    mode = args.mode or "coded"
+    if args.crop is None:
+        return cam, None, mode
     x, y, w, h = check_crop(parse_crop(args.crop), width, height)
     crop = {"x": x, "y": y, "width": w, "height": h}
-    return base, {**crop, "sensor_width_px": width, "sensor_height_px": height}
+    return cam, {**crop, "sensor_width_px": width, "sensor_height_px": height}, mode
+
+
+def _like_geometry(args: argparse.Namespace) -> tuple[CameraDesign, dict | None, str]:
+    """A capture's camera, exactly as recorded: its mode's camera, or, for another
+    ``--mode``, that mode's camera of the capture's coded design."""
+    own = ("width", "height", "crop", "design", "cover", "f_number", "r_px", "schedule")
+    given = [f for f in own if getattr(args, f)] + (
+        ["preset"] if args.preset != "prototype" else []
+    )
+    if given:
+        flags = ", ".join("--" + f for f in given)
+        raise ParameterError(
+            f"--like copies the capture's camera, size and crop: leave out {flags}"
+        )
+    capture = Path(args.like)
+    record = read_record(capture)
+    if record is None:
+        raise ParameterError(f"--like needs the capture's {capture.with_suffix('.json')}")
+    mode = args.mode or record.mode
+    if mode not in MODES_WITH_PSF:
+        raise ParameterError(
+            f"--like {capture} is a {record.mode} capture, which has no PSF; give --mode, one of "
+            f"{', '.join(MODES_WITH_PSF)}"
+        )
+    if mode == record.mode:
+        return CameraDesign.from_inputs(record.camera), record.crop, mode
+    from ..model.modes import capture_camera
+
+    design = CameraDesign.from_inputs(record.design_inputs())
+    return capture_camera(design, mode), record.crop, mode
 
 
 def _checked_psf(cam: CameraDesign, args: argparse.Namespace) -> np.ndarray:
@@ -200,3 +261,10 @@ def _odd_size(n: int) -> int:
     if n < 1 or n % 2 == 0:
         raise ParameterError(f"--size must be a positive odd number of px, got {n}")
     return n
+
+
+def _variant() -> str:
+    """The Mitsuba variant that rendered (recorded in psf.json)."""
+    import mitsuba as mi
+
+    return str(mi.variant())

@@ -11,8 +11,19 @@ from ..limits import PacamWarning
 from ..model.camera import preset
 from ..model.modes import MODES
 from ..render.samplers import DEFAULT_SAMPLER, SAMPLERS
+from ..render.variant import grey_request
+from ..sensor.model import DEFAULT_LIGHT_LEVEL
 from .capture_out import error_line, scale_line, write_or_rescue
-from .common import add_force, add_limit_args, add_out, add_preset, add_quiet, new_folder
+from .common import (
+    add_design_flags,
+    add_force,
+    add_grey,
+    add_limit_args,
+    add_out,
+    add_quiet,
+    design_spec_fields,
+    new_folder,
+)
 
 
 def add(sub) -> None:
@@ -37,7 +48,7 @@ def add(sub) -> None:
         metavar="X,Y,W,H",
         help="render only this window of the sensor, in its px: the camera at its real scale",
     )
-    add_preset(p)
+    add_design_flags(p)
     _add_sampling(p)
     p.add_argument("--per-pattern", action="store_true", help="also keep per-pattern images")
     p.add_argument(
@@ -46,23 +57,14 @@ def add(sub) -> None:
         help="leave out the ground-truth layers sharp, depth, object_id and velocity",
     )
     p.add_argument(
-        "--cover",
-        type=float,
-        metavar="PX_PER_MS",
-        help="coded/levin: solve the design so this speed (preset px) is motion-invariant",
-    )
-    p.add_argument(
-        "--schedule",
-        metavar="SCHEDULE.json",
-        help="coded: show a designed schedule (pacam optimize's schedule.json)",
-    )
-    p.add_argument(
         "--depth",
         type=float,
         metavar="MM",
-        help="the object depth the design is made for (default: the preset's, 500 mm)",
+        help="the object depth the design is made for (default: the design's, 500 mm for the "
+        "prototype)",
     )
     _add_sensor(p)
+    add_grey(p)
     add_limit_args(p)
     add_out(p)
     add_force(p, "overwrite an existing capture")
@@ -120,13 +122,14 @@ def _add_sensor(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--sensor",
         metavar="PRESET",
-        help="add raw and noisy layers: paper, grasshopper-icx285, or a .json/.toml preset file",
+        help="add raw and noisy layers: paper, grasshopper-icx285, grasshopper-icx285-mono (for "
+        "--grey), or a .json/.toml preset file",
     )
     p.add_argument(
         "--light-level",
         type=float,
         metavar="L",
-        help="photons/px/ms of white through the full aperture (default 7000)",
+        help=f"photons/px/ms of white through the full aperture (default {DEFAULT_LIGHT_LEVEL:g})",
     )
 
 
@@ -144,18 +147,22 @@ def run(args: argparse.Namespace) -> int:
         seed=args.seed,
         max_step_px=args.max_step_px,
         per_pattern=args.per_pattern,
-        cover_px_per_ms=args.cover,
-        preset=args.preset,
+        **design_spec_fields(args),
         object_depth_mm=args.depth,
-        schedule=args.schedule,
         passes=args.passes,
         sampler=args.sampler,
+        grey=grey_request(args.grey),  # refused with an RGB PACAM_VARIANT, before any work
     )
-    if args.schedule is not None:  # read and check it before any rendering
-        from ..exposure.capture_camera import capture_design
+    from ..exposure.capture_camera import capture_design
 
-        capture_design(spec)
+    design = capture_design(spec)  # a design file or schedule read and checked before rendering
+    if args.sensor is None and design.sensor_preset is not None:  # the design names its sensor
+        args.sensor = design.sensor_preset
     model = _sensor_model(args.sensor) if args.sensor else None
+    if model is not None:  # a Bayer sensor on a grey capture: refused before rendering
+        from ..sensor.apply import check_grey_sensor
+
+        check_grey_sensor(spec.grey, model, args.sensor)
     if args.light_level is not None and model is None:
         raise ParameterError("--light-level needs --sensor")
     if args.light_level is not None:  # refuse before rendering, not after
@@ -256,7 +263,12 @@ def _noise_target(args: argparse.Namespace):
 
 def _sensor_size(args: argparse.Namespace) -> dict:
     """width, height and crop: ``--crop`` alone is a window of the preset's full sensor."""
-    full = preset(args.preset)
+    if args.design is not None:
+        from ..model.design_file import resolve_design
+
+        full = resolve_design(args.design)
+    else:
+        full = preset(args.preset)
     if args.crop is None:
         return {"width": args.width or 320, "height": args.height or 240}
     width, height = args.width or full.width_px, args.height or full.height_px

@@ -21,8 +21,9 @@ def add(sub) -> None:
         "--sensor",
         required=True,
         metavar="PRESET",
-        help="paper, grasshopper-icx285, or a .json/.toml preset file; an earlier sensor's raw "
-        "and noisy layers are replaced (the sensor sees the noise-free capture layer)",
+        help="paper, grasshopper-icx285, grasshopper-icx285-mono (for a grey capture: a Bayer "
+        "preset is refused there), or a .json/.toml preset file; an earlier sensor's raw and "
+        "noisy layers are replaced (the sensor sees the noise-free capture layer)",
     )
     p.add_argument(
         "--light-level",

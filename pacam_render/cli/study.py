@@ -8,7 +8,7 @@ from pathlib import Path
 
 from ..errors import check_positive
 from ..exposure.integrate import CaptureInterrupted
-from .common import add_engine_args, add_force, add_out, add_quiet
+from .common import add_engine_args, add_force, add_grey, add_out, add_quiet
 
 
 def add(sub) -> None:
@@ -26,6 +26,7 @@ def add(sub) -> None:
         metavar="HOURS",
         help="refuse the study if its renders, predicted from pilot passes, take longer",
     )
+    add_grey(p, "captures (grey = true in [render]); colour sensor presets become their mono twins")
     add_force(p, "start afresh over other results")
     add_quiet(p)
     p.set_defaults(func=run)
@@ -36,12 +37,14 @@ def run(args: argparse.Namespace) -> int:
     from ..study.engine import check_scheduler, check_workers, probe_scheduler
 
     check_scheduler(args.scheduler)
-    spec = load_study(args.spec, quick=args.quick)  # every key checked before any work
+    # every key checked before any work
+    spec = load_study(args.spec, quick=args.quick, grey=args.grey)
     workers = check_workers(args.workers, len(spec.groups()))
     probe_scheduler(args.scheduler)  # before any work: Dask's own handshake has no time limit
     where = args.scheduler or (f"{workers} local workers" if workers else "serially, in-process")
     groups = len(spec.groups())
-    print(f"study {spec.name}: {len(spec.points)} points in {groups} renders, {where}")
+    grey = ", grey (one channel, mono variant)" if spec.render.get("grey") else ""
+    print(f"study {spec.name}: {len(spec.points)} points in {groups} renders, {where}{grey}")
     if args.budget is not None:
         check_positive("--budget", args.budget, "h")
 

@@ -266,6 +266,12 @@ def _default_speed(settings: dict) -> float:
 
     if settings.get("speed_px_per_ms"):
         return settings["speed_px_per_ms"]
+    if settings.get("design"):
+        from ..model.design_file import resolve_design
+
+        return scene_speed_px_per_ms(
+            load_scene(settings["scene"]), resolve_design(settings["design"])
+        )
     return scene_speed_px_per_ms(load_scene(settings["scene"]), preset(settings["preset"]))
 
 

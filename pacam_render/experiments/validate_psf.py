@@ -61,6 +61,12 @@ class Grid:
     velocity_fractions: tuple[float, ...]
     particles_per_window: int
     seeds: tuple[int, int] = (0, 1)
+    design: CameraDesign | None = None
+    """The camera validated (None: the prototype); the grid moves its depth and opening."""
+
+    @property
+    def base(self) -> CameraDesign:
+        return self.design if self.design is not None else prototype()
 
     @property
     def n_points(self) -> int:
@@ -86,11 +92,33 @@ STATIC_A_TRAVEL_PX = 0.05
 
 
 def design_for(depth_mm: float, f_number: float, base: CameraDesign | None = None) -> CameraDesign:
-    """The prototype (focus fixed: r = 2 px at 500 mm, F9.85) at another depth and opening."""
+    """The prototype (focus fixed: r = 2 px at 500 mm, F9.85), or ``base``, at another depth
+    and opening (the base's own F-number keeps its opening exactly)."""
     b = base or prototype()
     if not b.F_min <= f_number:
         raise ParameterError(f"f_number must be >= F_min = {b.F_min:g}, got {f_number!r}")
-    return b.with_(object_depth_mm=float(depth_mm), R_mm=b.F_min * b.R_max_mm / f_number)
+    R = b.R_mm if f_number == b.F_number else b.F_min * b.R_max_mm / f_number
+    return b.with_(object_depth_mm=float(depth_mm), R_mm=R)
+
+
+def grid_for(design: CameraDesign, quick: bool) -> Grid:
+    """The grid for any design: the prototype's grids scaled to its depth Z (0.6 Z to 6 Z)
+    and opening. A parabola is checked at F_min, 2 F_min, its own F-number and 1.62x it (the
+    prototype's F16 / F9.85), where an LCoS opening of >= 1 px allows; a designed schedule
+    (centres or bitmaps) fixes its opening, so only at its own."""
+    ref = QUICK if quick else FULL
+    Z = prototype().object_depth_mm
+    depths = tuple(design.object_depth_mm * z / Z for z in ref.depths_mm)
+    if design.designed:
+        f_numbers: tuple[float, ...] = (design.F_number,)
+    else:
+        top = design.F_min * design.R_max_mm / design.lcos_pitch_mm  # a 1-px opening
+        scale = (1.0, 2.0, design.F_number / design.F_min, 1.62 * design.F_number / design.F_min)
+        wanted = scale[::2] if quick else scale
+        f_numbers = tuple(sorted({design.F_min * k for k in wanted if design.F_min * k <= top}))
+    name = f"{ref.name}, design {design.digest()}"
+    return Grid(name, depths, f_numbers, ref.velocity_fractions, ref.particles_per_window,
+                design=design)  # fmt: skip
 
 
 def ladder_size(n: int) -> int:
@@ -103,9 +131,14 @@ def ladder_size(n: int) -> int:
 
 def coded_kernel_side(design: CameraDesign, speed: float) -> int:
     """Odd kernel side that holds both the discrete and the continuous (Eq. 14) coded PSF,
-    from the trajectories' extents (as design_psf sizes them, without computing them)."""
+    from the trajectories' extents (as design_psf sizes them, without computing them); a
+    designed schedule's, from its own kernel."""
     from ..psf.analytic import discrete_segments, parabola_segments
     from ..psf.trajectory import extent
+
+    if design.designed:
+        h, w = design_psf(design, "coded", speed).shape
+        return max(h, w)
 
     T, a, r = design.T_ms, design.a_i_px_per_ms2, design.r_px
     ext = [*extent(parabola_segments(speed, a, T)), *extent(discrete_segments(speed, a, T))]
@@ -169,7 +202,8 @@ def run_point(
     t0 = time.perf_counter()
     shape = (ladder_size(coded_kernel_side(design, speed)),) * 2
     disc = design_psf(design, "coded", speed, size=shape)
-    cont = design_psf(design, "coded_continuous", speed, size=shape)
+    # a designed schedule has no continuous limit (Eq. 14 is the parabola's)
+    cont = None if design.designed else design_psf(design, "coded_continuous", speed, size=shape)
     analytic_s = time.perf_counter() - t0
     spp = _spp(grid.particles_per_window, shape)
     kw = dict(size=shape, spp=spp)
@@ -185,7 +219,7 @@ def run_point(
     a_fit_a, a_fit_b = a.fitted_a_i, b.fitted_a_i
     windows = model_window_kernels(design, "coded", speed, shape)
     a_fit_model = metrics.fit_acceleration(t_mid, [metrics.kernel_centroid(k)[0] for k in windows])
-    a_model = design.a_i_px_per_ms2
+    a_model = model_a_i(design)
     cr, ca = metrics.kernel_centroid(mean), metrics.kernel_centroid(disc)
     row = {
         "velocity_fraction": fraction,
@@ -211,12 +245,25 @@ def run_point(
         "l1_noise_floor": floor,
         "l1_ratio": l1_disc / floor if floor > 0 else math.nan,
         "l1_ratio_null_q99": null_ratio_quantile(disc, a.particles),
-        "l1_continuous": metrics.rel_l1(mean, cont),
-        "l1_model_eq14_vs_discrete": metrics.rel_l1(disc, cont),
+        "l1_continuous": math.nan if cont is None else metrics.rel_l1(mean, cont),
+        "l1_model_eq14_vs_discrete": math.nan if cont is None else metrics.rel_l1(disc, cont),
         "render_s": a.seconds + b.seconds,
         "analytic_s": analytic_s,
     }
-    return row, {"mean": mean, "discrete": disc, "continuous": cont}
+    kernels = {"mean": mean, "discrete": disc, "continuous": disc if cont is None else cont}
+    return row, {**kernels, "n_patterns": design.n_patterns}
+
+
+def model_a_i(design: CameraDesign) -> float:
+    """The a_i the rendered centroids are held to: Eq. 18's for the parabola; for a designed
+    schedule, the parabola fitted to its own held image positions
+    (:func:`~pacam_render.model.schedule_fit.schedule_figures`), 0 where none fits."""
+    if not design.designed:
+        return design.a_i_px_per_ms2
+    from ..model.schedule_fit import schedule_figures
+
+    fitted = schedule_figures(design).get("a_i_fitted_px_per_ms2")
+    return 0.0 if fitted is None else float(fitted)
 
 
 def _judge(row: dict) -> dict:
@@ -291,11 +338,11 @@ def pair_task(task) -> list[tuple[dict, dict]]:
     if "psf" not in _RENDERERS:  # one per process: it holds the loaded scene
         _RENDERERS["psf"] = prd.PSFRenderer()
     renderer = _RENDERERS["psf"]
-    design = design_for(Z, N)
+    design = design_for(Z, N, grid.base)
     static = _static_r(renderer, design, grid)
-    rng = design.velocity_range_px_per_ms
-    if rng == 0.0:  # F_min: the prototype opening's range at this depth
-        rng = design_for(Z, prototype().F_number).velocity_range_px_per_ms
+    rng = abs(model_a_i(design)) * design.T_ms
+    if rng == 0.0:  # F_min: the base opening's range at this depth
+        rng = design_for(Z, grid.base.F_number, grid.base).velocity_range_px_per_ms
     out = []
     for frac in grid.velocity_fractions:
         row, kernels = run_point(renderer, design, frac, frac * rng, grid)
@@ -305,12 +352,27 @@ def pair_task(task) -> list[tuple[dict, dict]]:
             "R_mm": design.R_mm,
             "side": "near" if Z < design.focus_distance_mm else "far",
             "beta_px_per_mm": design.beta_px_per_mm,
-            "schedule": "static (full opening)" if design.a_i_px_per_ms2 == 0 else "coded",
+            "n_patterns": design.n_patterns,
+            "last_step_over_r": last_step_over_r(design),
+            "schedule": "static (full opening)" if rng_is_static(design) else "coded",
             **static,
             **row,
         }
         out.append((_judge(full), kernels))
     return out
+
+
+def last_step_over_r(design: CameraDesign) -> float:
+    """The distance between the last two patterns' images over the defocus radius r."""
+    from ..model.modes import pattern_offsets_px
+
+    off = pattern_offsets_px(design)
+    return float(np.hypot(*(off[-1] - off[-2])) / design.r_px) if design.r_px > 0 else math.nan
+
+
+def rng_is_static(design: CameraDesign) -> bool:
+    """The opening cannot move: the whole lens, a parabola at F_min."""
+    return not design.designed and design.a_i_px_per_ms2 == 0
 
 
 def _write_csv(path: Path, rows: list[dict], force: bool) -> None:
@@ -356,10 +418,11 @@ def _fmt(v) -> str:
 
 
 def _finding(rows: list[dict]) -> str:
-    """Eq. 14 (continuous) against the 16 patterns: by opening and speed, and by depth."""
-    coded = [r for r in rows if r["a_i_model"] != 0.0]
+    """Eq. 14 (continuous) against the n patterns: by opening and speed, and by depth."""
+    coded = [r for r in rows if r["a_i_model"] != 0.0 and math.isfinite(r["l1_continuous"])]
     if not coded:
-        return "No coded opening in this grid.\n"
+        return "No coded parabola in this grid (a designed schedule has no Eq. 14).\n"
+    n = coded[0]["n_patterns"]
     fs = sorted({r["f_number"] for r in coded})
     fr = sorted({r["velocity_fraction"] for r in coded})
     zs = sorted({r["depth_mm"] for r in coded})
@@ -369,10 +432,9 @@ def _finding(rows: list[dict]) -> str:
         return float(np.mean(vals)) if vals else math.nan
 
     lines = [
-        "L1 between the discrete 16-pattern PSF and Eq. 14 (model against model, no noise), "
+        f"L1 between the discrete {n}-pattern PSF and Eq. 14 (model against model, no noise), "
         "mean over depths; in brackets the rendered PSF against Eq. 14. 'step / r': the "
-        "distance between the last two patterns' discs, a_i T^2 / 8 = r (R_max/R - 1) / 2, "
-        "over the defocus radius.",
+        "distance between the last two patterns' discs over the defocus radius.",
         "",
         "| F-number | step / r | " + " | ".join(f"s = {f:g} x range" for f in fr) + " |",
         "|---|---|" + "---|" * len(fr),
@@ -383,7 +445,7 @@ def _finding(rows: list[dict]) -> str:
             f"({mean('l1_continuous', f_number=N, velocity_fraction=f):.3f})"
             for f in fr
         ]
-        step = (N / prototype().F_min - 1) / 2
+        step = mean("last_step_over_r", f_number=N)
         lines.append(f"| F{N:g} | {step:.2f} | " + " | ".join(cells) + " |")
     lines += [
         "",
@@ -406,7 +468,7 @@ def _finding(rows: list[dict]) -> str:
     best = min(coded, key=lambda r: r["l1_model_eq14_vs_discrete"])
     lines += [
         "",
-        "Reading: the 16 held patterns put 16 discs along the parabola, Eq. 14 a smooth band. "
+        f"Reading: the {n} held patterns put {n} discs along the parabola, Eq. 14 a smooth band. "
         "The gap between discs relative to r grows with the F-number, and the pixel grid hides "
         "gaps smaller than a pixel, so the difference is largest for small openings and large "
         f"r in px. Largest here: L1 = {worst['l1_model_eq14_vs_discrete']:.3f} at "
@@ -448,6 +510,22 @@ COLUMNS = (
 )
 
 
+def _focus_words(grid: Grid) -> str:
+    """Where the grid's camera focuses, and which depths lie on either side."""
+    zf = grid.base.focus_distance_mm
+    if grid.design is None:
+        return (
+            f"focus fixed at {zf:.1f} mm (prototype: r = 2 px at 500 mm), so 300-505 mm lie in "
+            "front of the focal plane (beta < 0) and 1000-3000 mm behind it (beta > 0)"
+        )
+    near = [f"{z:g}" for z in grid.depths_mm if z < zf]
+    return (
+        f"the design {grid.base.name!r} ({grid.base.schedule_kind} schedule, "
+        f"{grid.base.n_patterns} patterns in {grid.base.exposure_ms:g} ms), focus fixed at "
+        f"{zf:.1f} mm: {', '.join(near) or 'no depth'} mm in front of the focal plane"
+    )
+
+
 def report(rows: list[dict], grid: Grid, s: dict, files: list[str]) -> str:
     """The Markdown report."""
     head = [
@@ -456,9 +534,7 @@ def report(rows: list[dict], grid: Grid, s: dict, files: list[str]) -> str:
         f"- grid: depths {', '.join(f'{z:g}' for z in grid.depths_mm)} mm; openings "
         f"{', '.join(f'F{n:g}' for n in grid.f_numbers)}; speeds "
         f"{', '.join(f'{f:g}' for f in grid.velocity_fractions)} x the invariant range "
-        f"|a_i| T (F2.8: the F9.85 range); focus fixed at {prototype().focus_distance_mm:.1f} mm "
-        "(prototype: r = 2 px at 500 mm), so 300-505 mm lie in front of the focal plane "
-        "(beta < 0) and 1000-3000 mm behind it (beta > 0)",
+        f"|a_i| T (F_min: the base opening's range); {_focus_words(grid)}",
         f"- Monte Carlo: {grid.particles_per_window} particles per pattern window and seed, "
         f"seeds {grid.seeds[0]} and {grid.seeds[1]}; ptracer max_depth 2, box filter, float32 "
         f"passes summed in float64; source disc radius {prd.DEFAULT_SOURCE_RADIUS_PX} px",
@@ -488,7 +564,7 @@ def report(rows: list[dict], grid: Grid, s: dict, files: list[str]) -> str:
         "renderer's. Source bound: the L1 that the emitter's own 0.02 px disc adds to the static "
         "pillbox (second order in its radius; 1e-3 at r = 0.6 px).",
         "",
-        "## Eq. 14 (continuous) against 16 patterns",
+        f"## Eq. 14 (continuous) against {rows[0]['n_patterns']} patterns",
         "",
         _finding(rows),
         "## All points",
@@ -549,13 +625,14 @@ def _plot_r_ai(plt, out_dir: Path, rows: list[dict]) -> str:
 
 
 def _plot_l1(plt, out_dir: Path, rows: list[dict]) -> str:
-    """L1 of the rendered PSFs against the noise floor, and Eq. 14 against 16 patterns."""
+    """L1 of the rendered PSFs against the noise floor, and Eq. 14 against the n patterns."""
     fig, ax = plt.subplots(1, 2, figsize=(11, 4.5))
     floor = np.array([r["l1_noise_floor"] for r in rows])
     l1 = np.array([r["l1_discrete"] for r in rows])
     l1c = np.array([r["l1_continuous"] for r in rows])
     lo, hi = 0.5 * min(floor.min(), l1.min()), 2 * max(l1c.max(), l1.max())
-    ax[0].loglog(floor, l1, "o", ms=4, label="vs discrete 16-pattern PSF")
+    n = rows[0]["n_patterns"]
+    ax[0].loglog(floor, l1, "o", ms=4, label=f"vs discrete {n}-pattern PSF")
     ax[0].loglog(floor, l1c, "x", ms=4, label="vs continuous Eq. 14")
     ax[0].plot([lo, hi], [lo, hi], "k-", lw=0.8, label="L1 = floor")
     ax[0].set_xlabel("noise floor L1(seed A, seed B) / 2")
@@ -572,8 +649,8 @@ def _plot_l1(plt, out_dir: Path, rows: list[dict]) -> str:
         ]
         ax[1].plot(fr, m, "o-", label=f"F{N:g}")
     ax[1].set_xlabel("speed / invariant range")
-    ax[1].set_ylabel("L1(discrete 16 patterns, Eq. 14)")
-    ax[1].set_title("Eq. 14 vs what 16 patterns give (mean over depths)")
+    ax[1].set_ylabel(f"L1(discrete {n} patterns, Eq. 14)")
+    ax[1].set_title(f"Eq. 14 vs what {n} patterns give (mean over depths)")
     ax[1].legend(fontsize=8)
     fig.tight_layout()
     return _save_figure(plt, fig, out_dir, "validate_psf_l1.png", 110)
@@ -581,8 +658,9 @@ def _plot_l1(plt, out_dir: Path, rows: list[dict]) -> str:
 
 def _example_picks(rows: list[dict], examples: dict) -> list[tuple]:
     """Up to 3 example keys (not at F_min) where Eq. 14 and 16 patterns differ the most."""
+    static = {(r["depth_mm"], r["f_number"]) for r in rows if r["schedule"] != "coded"}
     return sorted(
-        (k for k in examples if k[1] != prototype().F_min),
+        (k for k in examples if k[:2] not in static),
         key=lambda k: (
             -max(
                 r["l1_model_eq14_vs_discrete"]
@@ -608,7 +686,7 @@ def _plot_examples(plt, out_dir: Path, examples: dict, picks: list[tuple]) -> st
         for j, (title, img) in enumerate(
             (
                 ("rendered", ks["mean"]),
-                ("discrete 16 patterns", ks["discrete"]),
+                (f"discrete {ks['n_patterns']} patterns", ks["discrete"]),
                 ("Eq. 14", ks["continuous"]),
             )
         ):

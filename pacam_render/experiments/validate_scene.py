@@ -61,6 +61,8 @@ class SceneCheck:
     speed_px_per_ms: float | None = None
     quantum_px: float = QUANTUM_PX
     quick: bool = False
+    design: str | None = None
+    """A camera design file (or capture/PSF JSON) instead of ``preset``."""
 
     def __post_init__(self) -> None:
         if self.mode not in MODEL_MODES:
@@ -90,21 +92,20 @@ def plan(check: SceneCheck, description=None) -> Plan:
     """Build and check everything before any rendering (every error names its flag);
     ``description`` is a scene to use instead of ``check.scene``."""
     from ..exposure.capture import check_budget
-    from ..exposure.capture_camera import capture_design, mode_camera
+    from ..exposure.capture_camera import capture_design, full_design, mode_camera
     from ..exposure.capture_spec import CaptureSpec
-    from ..model.camera import preset
     from ..psf.scene import window_reach_px
     from ..scenes import load_scene
     from ..scenes.edit import scene_speed_px_per_ms, with_speed
 
-    full = preset(check.preset)
+    full = full_design(CaptureSpec(preset=check.preset, design=check.design))
     desc = description if description is not None else load_scene(check.scene)
     if check.speed_px_per_ms is not None:
         desc = with_speed(desc, check.speed_px_per_ms, full)
     width, height = check.width or full.width_px, check.height or full.height_px
     base = CaptureSpec(
         scene=check.scene, mode=check.mode, width=width, height=height, spp=check.spp,
-        seed=check.seed, max_step_px=check.max_step_px, preset=check.preset,
+        seed=check.seed, max_step_px=check.max_step_px, preset=check.preset, design=check.design,
         cover_px_per_ms=check.cover_px_per_ms, f_number=check.f_number, r_px=check.r_px,
         object_depth_mm=check.object_depth_mm,
     )  # fmt: skip

@@ -133,7 +133,8 @@ def render_capture(
     Returns
     -------
     Capture
-        The image, (height, width, 3) float64 in radiance x (open area / full aperture) x
+        The image, (height, width, 3) float64 ((height, width) for a grey capture: its spec's
+        ``grey``, or a mono variant) in radiance x (open area / full aperture) x
         (exposure / 45 ms); its per-pixel Monte Carlo sigma (``mc_sigma``); the per-pattern
         images of a moving scene when ``spec.per_pattern`` is set; the ground-truth layers in
         ``extra_layers``, with their legend in ``record.objects``; and the
@@ -158,9 +159,10 @@ def render_capture(
 
     Notes
     -----
-    Selects and activates a Mitsuba variant. The fastest image speed is taken over the paper's
-    t in [-T, T] (the exposure is 2T), and each step renders the geometry at a random time in
-    it. Same-seed captures are bit-identical (:mod:`pacam_render.render.passes`).
+    Selects and activates a Mitsuba variant: the mono one for ``spec.grey``; under a mono
+    ``PACAM_VARIANT`` the recorded spec says ``grey`` too. The fastest image speed is taken over
+    the paper's t in [-T, T] (the exposure is 2T), and each step renders the geometry at a
+    random time in it. Same-seed captures are bit-identical (:mod:`pacam_render.render.passes`).
     """
     check_budget(spec, max_samples, truth, target is not None)
     lock = partial_lock(partial_dir)
@@ -219,12 +221,15 @@ def check_budget(
 
 def _render(spec: CaptureSpec, description, run: Run, truth: bool, target, keep: bool) -> Capture:
     from ..render.backend import select_variant
+    from ..render.variant import is_mono
     from ..scenes import load_scene
     from ..scenes.units import check_units
     from .checkpoint import Checkpoint, resume_parts
     from .integrate import integrate
 
-    variant = select_variant()
+    variant = select_variant(mono=spec.grey)
+    if is_mono(variant) and not spec.grey:  # PACAM_VARIANT=llvm_ad_mono: a grey capture
+        spec = replace(spec, grey=True)
     note_ignored_options(spec)
     design = capture_design(spec)
     cam, params = mode_camera(design, spec.mode)

@@ -12,7 +12,8 @@ from .capture_spec import CaptureSpec
 
 
 def capture_design(spec: CaptureSpec) -> CameraDesign:
-    """The preset's optics at the capture's resolution (pixel quantities scale with width).
+    """The design's (or preset's) optics at the capture's resolution (px quantities scale
+    with the width).
 
     With ``cover_px_per_ms`` (a speed in the preset's own pixels), the design solver first
     picks the defocus that makes that speed motion-invariant at the preset's F-number, or at
@@ -22,7 +23,8 @@ def capture_design(spec: CaptureSpec) -> CameraDesign:
     Parameters
     ----------
     spec : CaptureSpec
-        Uses ``preset``, ``cover_px_per_ms`` (px/ms) and ``width`` and ``height`` (px).
+        Uses ``design`` (a design file, else ``preset``), ``cover_px_per_ms`` (px/ms),
+        ``schedule`` and ``width`` and ``height`` (px).
 
     Returns
     -------
@@ -41,7 +43,7 @@ def capture_design(spec: CaptureSpec) -> CameraDesign:
     r = |beta| R (Eq. 12), so |a_i| = 4 r (R_max / R - 1) / T^2; the exposure is 2T.
     """
     depth = {} if spec.object_depth_mm is None else {"object_depth_mm": spec.object_depth_mm}
-    base = preset(spec.preset, **depth)
+    base = full_design(spec, **depth)
     if spec.cover_px_per_ms is not None:
         from ..model.design import solve
 
@@ -53,7 +55,18 @@ def capture_design(spec: CaptureSpec) -> CameraDesign:
         if spec.object_depth_mm is None and "object_depth_mm" in sched:
             base = base.with_(object_depth_mm=sched["object_depth_mm"])
         base = apply_schedule(base, sched, spec.schedule)
+    base.check_lcos_rate()
     return base.with_(width_px=spec.width, height_px=spec.height)
+
+
+def full_design(spec: CaptureSpec, **overrides) -> CameraDesign:
+    """The design a capture starts from, at its own full sensor size: ``spec.design``
+    (:func:`~pacam_render.model.design_file.resolve_design`), else the preset."""
+    if spec.design is None:
+        return preset(spec.preset, **overrides)
+    from ..model.design_file import resolve_design
+
+    return resolve_design(spec.design, **overrides)
 
 
 def mode_camera(design: CameraDesign, mode: str) -> tuple[CameraDesign, dict]:
@@ -85,7 +98,7 @@ def mode_camera(design: CameraDesign, mode: str) -> tuple[CameraDesign, dict]:
     unused = _schedule_unused(mode) if design.designed else []
     if "openings" in unused:  # the mode shows none of them: its camera leaves them out
         text = f"{design.name}, its {_words(unused)} not used"
-        design = design.with_(pattern_centres_mm=None, name=text)
+        design = design.with_(pattern_centres_mm=None, pattern_masks=None, name=text)
     cam = capture_camera(design, mode)
     return cam, sensor_params(cam, mode)
 
@@ -127,14 +140,17 @@ def note_ignored_options(spec: CaptureSpec) -> None:
 
 def note_binning(spec: CaptureSpec, cam: CameraDesign) -> None:
     """A coded capture whose blur is sub-pixel is a binned camera: say so, and what to do."""
-    full = preset(spec.preset)
+    full = full_design(spec)
     if not mode(spec.mode).needs_parallax or cam.r_px >= 1.0:
         return
     binned = full.width_px / spec.width
+    fig = cam.summary()  # a designed schedule's figures are fitted to its own openings
+    if fig["a_i_px_per_ms2"] is None:
+        return
     note(
         f"at {spec.width}x{spec.height} px the sensor is the preset's {full.width_px}x"
         f"{full.height_px} binned {binned:.3g}x: the coded blur is sub-pixel (r = "
-        f"{cam.r_px:.3g} px, a_i = {cam.a_i_px_per_ms2:.3g} px/ms^2, invariant |s| <= "
-        f"{cam.velocity_range_px_per_ms:.3g} px/ms at this size); to see the camera at its real "
+        f"{cam.r_px:.3g} px, a_i = {fig['a_i_px_per_ms2']:.3g} px/ms^2, invariant |s| <= "
+        f"{fig['velocity_range_px_per_ms']:.3g} px/ms at this size); to see the camera at its real "
         f"pixel scale, render a window of the full sensor with `crop` X,Y,W,H"
     )

@@ -22,12 +22,87 @@ PSF_SOURCES = ("analytic", "robust", "rendered")
 
 
 class CapturePSF(NamedTuple):
-    """A kernel to deblur with, where it came from, and what its centre pixel stands for."""
+    """A kernel to deblur with, where it came from, what its centre pixel stands for, and how
+    its camera differs from the capture's (empty: the same design, or not recorded)."""
 
     kernel: np.ndarray
     file: Path | None
     origin: str
     t0_offset_px: float
+    mismatch: tuple[str, ...] = ()
+
+
+class PSFMismatchError(ParameterError):
+    """A kernel file made for another camera than the capture's."""
+
+
+_FIGURES = (  # (psf.json key, words, format): what a user compares, in this order
+    ("mode", "mode", "{}"),
+    ("r_px", "r", "{:.4g} px"),
+    ("a_i_px_per_ms2", "a_i", "{:.4g} px/ms^2"),
+    ("n_patterns", "pattern count", "{}"),
+    ("exposure_ms", "exposure", "{:g} ms"),
+    ("object_depth_mm", "depth", "{:g} mm"),
+    ("schedule_kind", "schedule", "{}"),
+)
+
+
+def psf_mismatch(meta: dict, record: CaptureRecord) -> tuple[str, ...]:
+    """How the camera a kernel file was made for differs from the capture's: one phrase per
+    differing figure (``"r 2 px (PSF) against 3.126 px (capture)"``), then the design digest
+    if only it differs; empty when they are the same camera. Velocity and crop are not
+    compared: a kernel for another speed, or a window, is still this camera's."""
+    from ..model.camera import CameraDesign
+
+    cam = CameraDesign.from_inputs(record.camera)
+    mine = {**cam.summary(), "mode": record.mode}
+    out = []
+    for key, words, fmt in _FIGURES:
+        a, b = meta.get(key), mine.get(key)
+        if (
+            a is None
+            or a == b
+            or (isinstance(a, float) and isinstance(b, float) and abs(a - b) <= 1e-9 * abs(b))
+        ):
+            continue
+        out.append(f"{words} {fmt.format(a)} (PSF) against {fmt.format(b)} (capture)")
+    digest = meta.get("design_digest")
+    if not out and digest is not None and digest != mine["design_digest"]:
+        out.append(f"design digest {digest} (PSF) against {mine['design_digest']} (capture)")
+    return tuple(out)
+
+
+def check_psf_design(path: Path, meta: dict | None, record: CaptureRecord | None, allow: bool):
+    """The kernel file's camera against the capture's (:func:`psf_mismatch`).
+
+    Raises
+    ------
+    PSFMismatchError
+        On a mismatch, naming both values of each figure, unless ``allow`` (a deliberate
+        mismatch, as in Fig. 9's wrong assumed depth): then a note says it.
+    """
+    if record is None or not isinstance(meta, dict):
+        return ()
+    if "design_digest" not in meta:
+        warnings.warn(
+            f"{path.parent / 'psf.json'} records no design (an older pacam): its r, a_i and "
+            "schedule cannot be checked against the capture's; remake it with pacam psf "
+            f"`like` CAPTURE.exr",
+            PacamWarning,
+            stacklevel=2,
+        )
+        return ()
+    diff = psf_mismatch(meta, record)
+    if diff and not allow:
+        raise PSFMismatchError(
+            f"`psf` {path} was made for another camera than the capture's: "
+            + "; ".join(diff)
+            + ". Make the kernel with pacam psf `like` CAPTURE.exr, or pass "
+            "allow_psf_mismatch to deblur with it on purpose (e.g. a wrong assumed depth)"
+        )
+    if diff:
+        warnings.warn("deblurring with a mismatched PSF: " + "; ".join(diff), PacamWarning, 2)
+    return diff
 
 
 def psf_path(psf: str, capture: str | os.PathLike) -> Path | None:
@@ -39,7 +114,10 @@ def psf_path(psf: str, capture: str | os.PathLike) -> Path | None:
 
 
 def load_capture_psf(
-    psf: str, capture: str | os.PathLike, record: CaptureRecord | None
+    psf: str,
+    capture: str | os.PathLike,
+    record: CaptureRecord | None,
+    allow_psf_mismatch: bool = False,
 ) -> CapturePSF:
     """The kernel to deblur ``capture`` with.
 
@@ -53,7 +131,10 @@ def load_capture_psf(
         The capture's EXR file.
     record : CaptureRecord or None
         The capture's record; ``analytic`` and ``robust`` need it, and a kernel file is
-        checked against its sensor size.
+        checked against its sensor size and camera (:func:`check_psf_design`).
+    allow_psf_mismatch : bool
+        Deblur with a kernel file made for another camera (noted, and recorded in
+        :attr:`CapturePSF.mismatch`) instead of refusing it.
 
     Returns
     -------
@@ -78,19 +159,20 @@ def load_capture_psf(
     if psf == "rendered" and not path.is_file():
         raise ParameterError(
             f"`psf` rendered reads {path}, which does not exist; make it with pacam psf "
-            f"`render` `out` {capture.parent} ... at the capture's depth and mode, or use "
-            "`psf` analytic"
+            f"`like` {capture} `velocity` 0 `render` `out` {capture.parent} (the capture's "
+            "own camera, depth and mode), or use `psf` analytic"
         )
     meta = psf_sidecar(path)
     check_psf_scale(path, meta, capture, record)
+    diff = check_psf_design(path, meta, record, allow_psf_mismatch)
     origin, offset = psf_origin(path, meta)
     if path.suffix == ".npy":
-        return CapturePSF(load_npy_psf(path), path, origin, offset)
+        return CapturePSF(load_npy_psf(path), path, origin, offset, diff)
     layers = read_exr(path)
     if "psf" in layers:
-        return CapturePSF(layers["psf"], path, origin, offset)
+        return CapturePSF(layers["psf"], path, origin, offset, diff)
     if len(layers) == 1:
-        return CapturePSF(next(iter(layers.values())), path, origin, offset)
+        return CapturePSF(next(iter(layers.values())), path, origin, offset, diff)
     raise ParameterError(f"{path} has no 'psf' layer; it has: {', '.join(sorted(layers))}")
 
 

@@ -46,6 +46,7 @@ def build_record(spec, design, cam, params, sensor, variant, seconds, steps: dic
         spec=asdict(spec),
         mode=spec.mode,
         camera=cam.inputs(),
+        design=design.inputs(),
         optics=cam.summary(),
         coded_design=design.summary(),
         sensor_params={k: v for k, v in params.items() if not hasattr(v, "shape")},

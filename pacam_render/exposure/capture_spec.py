@@ -32,6 +32,11 @@ class CaptureSpec:
 
     ``spp`` is shared among ``passes`` independent passes (at least 2: their spread measures the
     Monte Carlo error); ``sampler`` is Mitsuba's sample generator (:mod:`~..render.samplers`).
+
+    ``grey`` renders one channel (luminance) with Mitsuba's mono variant
+    (:func:`~pacam_render.render.variant.choose_variant`): every image layer is then (H, W)
+    instead of (H, W, 3). A capture rendered under ``PACAM_VARIANT=llvm_ad_mono`` is grey too
+    (:func:`~pacam_render.exposure.capture.render_capture` records it so).
     """
 
     scene: str = "train"
@@ -51,8 +56,16 @@ class CaptureSpec:
     schedule: str | None = None
     passes: int = 2
     sampler: str = DEFAULT_SAMPLER
+    design: str | None = None
+    """A camera design to use instead of ``preset``: a design file (``.toml``), a capture or
+    PSF JSON, or a legacy schedule.json (:func:`~pacam_render.model.design_file.resolve_design`)."""
+    grey: bool = False
+    """Render one channel (luminance) with a mono variant; see the class docstring."""
 
     def __post_init__(self) -> None:
+        if not isinstance(self.grey, (bool, np.bool_)):
+            raise ParameterError(f"grey must be true or false, got {self.grey!r}")
+        object.__setattr__(self, "grey", bool(self.grey))
         mode(self.mode)  # raises, listing the valid modes
         if self.crop is not None:
             object.__setattr__(self, "crop", check_crop(self.crop, self.width, self.height))
@@ -77,6 +90,8 @@ class CaptureSpec:
             raise ParameterError(
                 "give cover_px_per_ms or `schedule`, not both: each sets the design"
             )
+        if self.design is not None and self.schedule is not None:
+            raise ParameterError("give `design` or `schedule`, not both: each sets the design")
 
     @property
     def image_size(self) -> tuple[int, int]:
@@ -90,12 +105,19 @@ class CaptureSpec:
         -------
         str
             The first 16 hex digits of the SHA-256 of the spec's fields as sorted JSON, and of
-            the contents of the schedule file it names (a file rewritten in place is another
-            capture).
+            the contents of the schedule file it names, or the digest of its design (a file
+            rewritten in place is another capture).
         """
-        h = hashlib.sha256(json.dumps(asdict(self), sort_keys=True).encode())
+        fields = asdict(self)
+        if not self.grey:  # so that a colour capture keeps the key it had before `grey`
+            del fields["grey"]
+        h = hashlib.sha256(json.dumps(fields, sort_keys=True).encode())
         if self.schedule is not None and Path(self.schedule).is_file():
             h.update(Path(self.schedule).read_bytes())
+        if self.design is not None:
+            from ..model.design_file import resolve_design
+
+            h.update(resolve_design(self.design).digest().encode())
         return h.hexdigest()[:16]
 
 

@@ -206,9 +206,12 @@ def predict_seconds(exp: Exposure, prog: Progress, spec) -> float:
     return per_step * sum(s.spp for s in steps) / st.spp * left
 
 
-def _shape(exp: Exposure) -> tuple[int, int, int]:
-    w, h = (int(v) for v in exp.sensor.film().crop_size())
-    return (h, w, 3)
+def _shape(exp: Exposure) -> tuple[int, ...]:
+    """The image's shape: (H, W, C), or (H, W) for a one-channel (grey) film."""
+    film = exp.sensor.film()
+    w, h = (int(v) for v in film.crop_size())
+    channels = int(film.base_channels_count())
+    return (h, w) if channels == 1 else (h, w, channels)
 
 
 def _stop(prog: Progress, run: Run, store, n_steps: int):

@@ -141,8 +141,9 @@ def _threads(n: int | None):
 class PSFRenderer:
     """Renders PSFs, reusing loaded scenes (and so Dr.Jit's compiled kernels) across calls.
 
-    A scene is loaded per film size, exposure and integrator; depth, opening, focus, schedule,
-    velocity and source move through opaque parameters, so sweeping them never recompiles.
+    A scene is loaded per Mitsuba variant, film size, exposure and integrator; depth, opening,
+    focus, schedule, velocity and source move through opaque parameters, so sweeping them never
+    recompiles.
     """
 
     def __init__(self, source_radius_px: float = DEFAULT_SOURCE_RADIUS_PX):
@@ -153,7 +154,8 @@ class PSFRenderer:
     def _scene(self, design: CameraDesign, setup: ModeSetup, film: Film, integrator: str):
         import mitsuba as mi
 
-        key = film.key(integrator, setup.exposure_ms)
+        # a scene is made for one variant (mono or RGB): a switch between calls loads anew
+        key = (mi.variant(), film.key(integrator, setup.exposure_ms))
         if key not in self._scenes:
             Z = design.object_depth_mm
             desc = psf_scene(Z, 0.0, camera=design)
@@ -175,15 +177,14 @@ class PSFRenderer:
         return self._scenes[key]
 
     def _place(self, design, setup, film, velocity, scene, params):
-        import mitsuba as mi
-
         Z, f = design.object_depth_mm, design.focal_length_px
         rs_px = self.source_radius_px
         rs = rs_px * Z / f
         x, y = film.source_xy_mm
         m = [[-rs, 0.0, 0.0, x], [0.0, rs, 0.0, y], [0.0, 0.0, -1.0, Z], [0.0, 0.0, 0.0, 1.0]]
         params["psf_disk.to_world"] = type(params["psf_disk.to_world"])(m)
-        params["psf_disk.emitter.radiance.value"] = mi.Color3f(1.0 / (math.pi * rs_px**2))
+        key = "psf_disk.emitter.radiance.value"  # Color3f in RGB variants, Float in mono ones
+        params[key] = type(params[key])(1.0 / (math.pi * rs_px**2))
         params.update()
         sensor = scene.sensors()[0]
         sensor.configure(time_window=None, **setup.sensor)

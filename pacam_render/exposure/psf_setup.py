@@ -108,6 +108,8 @@ def model_window_kernels(design: CameraDesign, mode: str, velocity: float, shape
 
     setup = mode_setup(design, mode)
     s = check_finite("velocity (px/ms)", velocity)
+    if design.pattern_masks is not None and mode == "coded":
+        return _bitmap_window_kernels(design, s, shape)
     T = setup.T_ms
     e = setup.edges_ms - T
     r = 0.0 if mode == "levin" else design.r_px
@@ -124,4 +126,23 @@ def model_window_kernels(design: CameraDesign, mode: str, velocity: float, shape
         else:
             seg = Segment(t0, t1, 0.0, s, setup.a_i)
         out.append(kernel_from_trajectory([seg], r, size=shape))
+    return out
+
+
+def _bitmap_window_kernels(design: CameraDesign, s: float, shape) -> list:
+    """Each window's exact kernel of a bitmap schedule (its pattern alone, the others dark),
+    registered on the pattern shown at t = 0 like ``design_psf(..., origin="t0")``."""
+    from ..psf.bitmap import bitmap_kernel
+
+    m = design.pattern_masks
+    x0 = -t0_offset_px(design, "coded")
+    out = []
+    for k, pattern in enumerate(m.array):
+        if not np.any(pattern > 0):
+            out.append(None)
+            continue
+        alone = np.zeros_like(m.array)
+        alone[k] = pattern
+        out.append(bitmap_kernel(alone, m.pitch_mm, design.beta_px_per_mm, design.T_ms, s,
+                                 size=shape, x0_px=x0, origin="pinhole", max_lost=1.0))  # fmt: skip
     return out

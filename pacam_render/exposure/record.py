@@ -126,6 +126,11 @@ class CaptureRecord:
     ``sampler``, ``seconds``, the time steps' ``time_step_bias`` and ``time_sampling``, and,
     for a capture rendered to a target, ``target_sigma`` and ``target_met``; the sensor adds
     ``ratio_to_sensor``."""
+    design: dict | None = None
+    """The coded design the capture's camera was derived from, whole
+    (:meth:`~pacam_render.model.camera.CameraDesign.inputs`, bitmaps included): ``psf --like``
+    and ``--design CAPTURE`` rebuild it exactly. Written only where it differs from ``camera``
+    (e.g. a normal capture of a coded design); None: the camera is the design."""
     extra: dict = field(default_factory=dict)
     """Keys this version does not know (kept, and written back)."""
 
@@ -144,7 +149,9 @@ class CaptureRecord:
             out["coded_design"] = differs
             if not differs:
                 del out["coded_design"]
-        optional = ("resumed_from_step", "fastest_image_speed_px_per_ms", "noise_sigma")
+        if compact and self.design == self.camera:
+            out["design"] = None
+        optional = ("resumed_from_step", "fastest_image_speed_px_per_ms", "noise_sigma", "design")
         for key in (*optional, "crop", "objects", "design_fit", "units", "render_error"):
             if out[key] is None:
                 del out[key]
@@ -185,6 +192,10 @@ class CaptureRecord:
         drop = {"sensor", "noise_sigma_unit"}
         extra = {k: v for k, v in d.items() if k not in known and k not in drop}
         return cls(**kw, sensor=sensor, extra=extra)
+
+    def design_inputs(self) -> dict:
+        """The coded design's inputs: :attr:`design`, else the camera (they are the same)."""
+        return self.design if self.design is not None else self.camera
 
     @property
     def known_noise_sigma(self) -> float | None:

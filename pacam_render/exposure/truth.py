@@ -6,7 +6,7 @@ Every capture can carry, beside its image, what a study scores it against:
 layer      channels   meaning
 ========== ========== ==========================================================================
 sharp      R, G, B    the t = 0 pinhole image in passes like the capture's: its spp and seed
-                      (bit for bit the ``reference`` capture of the same spec), or its noise
+           (Y: grey)  (bit for bit the ``reference`` capture of the same spec), or its noise
                       target in white units
 depth      Y          z of the surface seen at the pixel's centre, mm (the camera looks down +z);
                       0 where no surface is seen
@@ -61,8 +61,8 @@ def render_truth(
     Returns
     -------
     layers : dict of str to ndarray
-        ``sharp`` (H, W, 3) if asked, ``depth`` (H, W) mm, ``object_id`` (H, W) and
-        ``velocity`` (H, W, 2) px/ms.
+        ``sharp`` (H, W, 3) if asked ((H, W) for a grey ``spec``), ``depth`` (H, W) mm,
+        ``object_id`` (H, W) and ``velocity`` (H, W, 2) px/ms.
     objects : dict of str to str
         The legend: object id (as a string, JSON's keys) to shape id.
     sharp_stats : PassStats or None

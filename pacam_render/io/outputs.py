@@ -96,15 +96,21 @@ def write_json(path, obj, force: bool = False) -> Path:
     return write_text(path, json.dumps(obj, indent=2, sort_keys=True, default=float) + "\n", force)
 
 
-def prepare_out_dir(path: str | os.PathLike, force: bool) -> Path:
+def prepare_out_dir(path: str | os.PathLike, force: bool, names=None) -> Path:
     """An output folder, proven writable (:func:`writable_dir`) but not created: the first
-    result written creates it. Refused if it already holds files, unless forced."""
+    result written creates it. Refused if it already holds files (or, given ``names``, any of
+    the files the command writes, so that e.g. a PSF can go beside its capture), unless
+    forced."""
     d = Path(path)
     if d.exists() and not d.is_dir():
         raise ParameterError(f"`out` {d} exists and is not a folder")
-    if d.is_dir() and any(p.name != ".pacam.lock" for p in d.iterdir()) and not force:
+    held = [] if not d.is_dir() else [p.name for p in d.iterdir() if p.name != ".pacam.lock"]
+    if names is not None:
+        held = [n for n in held if n in set(names)]
+    if held and not force:
         raise ParameterError(
-            f"`out` {d} already holds results; pass `force=True` to overwrite them"
+            f"`out` {d} already holds results ({', '.join(sorted(held)[:3])}); pass "
+            "`force=True` to overwrite them"
         )
     return writable_dir(d, create=False)
 

@@ -26,7 +26,37 @@ def srgb8(linear: np.ndarray, exposure: float | None = None) -> np.ndarray:
 
 
 def write_png(path: str | os.PathLike, image8: np.ndarray, force: bool = False) -> Path:
+    """Write an 8-bit image as a PNG, atomically.
+
+    Parameters
+    ----------
+    path : path-like
+        The PNG to write.
+    image8 : numpy.ndarray
+        uint8, (H, W) grey, (H, W, 1) grey (written as (H, W): PNG writers refuse one
+        channel), or (H, W, 3) colour.
+    force : bool, optional
+        Overwrite an existing file.
+
+    Returns
+    -------
+    pathlib.Path
+        The file written.
+
+    Raises
+    ------
+    ParameterError
+        If the image is not (H, W), (H, W, 1) or (H, W, 3), or the file exists without ``force``.
+    """
     import imageio.v3 as iio  # installed with scikit-image
+
+    image8 = np.asarray(image8)
+    if image8.ndim == 3 and image8.shape[2] == 1:
+        image8 = image8[..., 0]
+    if not (image8.ndim == 2 or (image8.ndim == 3 and image8.shape[2] == 3)):
+        raise ParameterError(
+            f"a PNG preview must be (H, W), (H, W, 1) or (H, W, 3), got {image8.shape}"
+        )
 
     def save(tmp: str) -> None:
         iio.imwrite(tmp, image8, extension=".png")

@@ -11,6 +11,8 @@ paper's own scale, N = N_min R_max / R (F2.8 at the full 512-px disc, F9.85 at 1
 
 from __future__ import annotations
 
+import hashlib
+import json
 import math
 from dataclasses import asdict, dataclass, field, fields, replace
 
@@ -19,6 +21,7 @@ import numpy as np
 from ..errors import ParameterError, check_positive
 from . import optics, paper
 from . import schedule as sch
+from .masks import MaskStack, check_masks
 
 MIN_OPENING_LCOS_PX = 1.0
 """Smallest displayable opening radius, LCoS pixels."""
@@ -68,6 +71,15 @@ class CameraDesign:
     """A designed schedule (``pacam optimize``): pattern k's opening centre (x, y) in mm, x to
     the image's right and y downwards (the LCoS bitmaps' orientation); the opening keeps the
     radius R. None: the parabola of Eq. 11."""
+    pattern_masks: MaskStack | None = None
+    """A bitmap schedule: the LCoS shows pattern k of this stack during window k (see
+    :mod:`pacam_render.model.masks`); R is then the radius of a disc of the patterns' mean open
+    area, which the still modes open. None: discs of radius R."""
+    lcos_rate_fps: float = paper.LCOS_RATE_FPS
+    """Patterns the LCoS can show per second: a coded exposure shows at most
+    floor(rate x 2T) (:meth:`check_lcos_rate`)."""
+    sensor_preset: str | None = None
+    """The image sensor's noise preset (:mod:`pacam_render.sensor.model`), or None."""
     name: str = "custom"
     quoted_a_i_px_per_ms2: float | None = field(default=None, compare=False)
 
@@ -83,8 +95,11 @@ class CameraDesign:
         check_positive("lcos_pitch_mm", self.lcos_pitch_mm, "mm")
         sch.check_n_patterns(self.n_patterns)
         self._check_physical_limits()
+        check_positive("lcos_rate_fps", self.lcos_rate_fps, "patterns/s")
         if self.pattern_centres_mm is not None:
             self._check_centres()
+        if self.pattern_masks is not None:
+            self._check_masks()
         if self.R_mm > self.R_max_mm:
             raise ParameterError(
                 f"R_mm must be in (0, R_max_mm = {self.R_max_mm:g}] mm: the opening must fit "
@@ -130,15 +145,55 @@ class CameraDesign:
             )
         object.__setattr__(self, "pattern_centres_mm", tuple(map(tuple, c.tolist())))
 
+    def _check_masks(self) -> None:
+        """A bitmap schedule: a MaskStack of n_patterns patterns, open only inside the lens."""
+        m = self.pattern_masks
+        if not isinstance(m, MaskStack):
+            raise ParameterError(
+                f"pattern_masks must be a MaskStack (pacam_render.model.masks), got "
+                f"{type(m).__name__}"
+            )
+        if self.pattern_centres_mm is not None:
+            raise ParameterError(
+                "give pattern_centres_mm or pattern_masks, not both: each is the schedule"
+            )
+        if m.n_patterns != self.n_patterns:
+            raise ParameterError(
+                f"pattern_masks holds {m.n_patterns} patterns, but n_patterns = "
+                f"{self.n_patterns}: they must agree"
+            )
+        check_masks(m.array, self.R_max_mm, m.pitch_mm)
+
+    def check_lcos_rate(self) -> None:
+        """Raise unless the LCoS can show n_patterns in the exposure at ``lcos_rate_fps``."""
+        top = int(math.floor(self.lcos_rate_fps * self.exposure_ms / 1000.0 + 1e-9))
+        if self.n_patterns > top:
+            raise ParameterError(
+                f"n_patterns = {self.n_patterns} in exposure_ms = {self.exposure_ms:g} needs "
+                f"{1000.0 * self.n_patterns / self.exposure_ms:.4g} patterns/s, more than the "
+                f"LCoS's lcos_rate_fps = {self.lcos_rate_fps:g} (at most {top} patterns): "
+                "lengthen the exposure, show fewer patterns or raise lcos_rate_fps"
+            )
+
     @property
     def designed(self) -> bool:
-        """The camera shows a designed schedule, not the parabola."""
-        return self.pattern_centres_mm is not None
+        """The camera shows a designed schedule (centres or bitmaps), not the parabola."""
+        return self.pattern_centres_mm is not None or self.pattern_masks is not None
+
+    @property
+    def schedule_kind(self) -> str:
+        """``parabolic`` (Eq. 11), ``centres`` (discs of radius R) or ``bitmap``."""
+        if self.pattern_masks is not None:
+            return "bitmap"
+        return "parabolic" if self.pattern_centres_mm is None else "centres"
 
     def pattern_centres_xy_mm(self) -> np.ndarray:
         """Each pattern's opening centre (x right, y down), mm, shape (n, 2): the designed
-        schedule's, or the parabola's (Eq. 11 at the windows' mid-times, y = 0)."""
-        if self.designed:
+        schedule's, a bitmap's transmittance-weighted centroid (NaN for a black pattern), or
+        the parabola's (Eq. 11 at the windows' mid-times, y = 0)."""
+        if self.pattern_masks is not None:
+            return self.pattern_masks.centroids_xy_mm()
+        if self.pattern_centres_mm is not None:
             return np.array(self.pattern_centres_mm, dtype=float)
         x = sch.pattern_centres_mm(self.R_max_mm, self.R_mm, self.T_ms, self.n_patterns)
         return np.stack([x, np.zeros_like(x)], axis=1)
@@ -295,10 +350,39 @@ class CameraDesign:
             "a_a_mm_per_ms2": self.a_a_mm_per_ms2,
             "n_patterns": self.n_patterns,
             "open_area_mm2": self.open_area_mm2,
-            "schedule": "designed" if self.designed else "parabola",
+            "schedule": "parabola" if not self.designed else "designed",
+            "schedule_kind": self.schedule_kind,
+            "lcos_rate_fps": self.lcos_rate_fps,
+            "design_digest": self.digest(),
+        }
+        out.update(self._schedule_summary())
+        if self.pattern_centres_mm is not None:
+            out["pattern_centres_mm"] = [list(c) for c in self.pattern_centres_mm]
+        if self.sensor_preset is not None:
+            out["sensor_preset"] = self.sensor_preset
+        return out
+
+    def _schedule_summary(self) -> dict:
+        """The schedule's own figures (:func:`~.schedule_fit.schedule_figures`): each
+        pattern's centre and open fraction, and for a designed schedule a_i and the invariant
+        range fitted to its image trajectory, which replace Eq. 18's (the parabola's at this
+        opening, kept as ``a_i_eq18_px_per_ms2``)."""
+        from .schedule_fit import schedule_figures
+
+        fig = schedule_figures(self)
+        out = {
+            "pattern_centres_xy_mm": fig["pattern_centres_mm"],
+            "open_fraction": fig["open_fraction"],
+            "fit_rms_residual_px": fig["fit_rms_residual_px"],
+            "a_i_source": "Eq. 18" if not self.designed else fig["fit_method"],
         }
         if self.designed:
-            out["pattern_centres_mm"] = [list(c) for c in self.pattern_centres_mm]
+            out["a_i_eq18_px_per_ms2"] = self.a_i_px_per_ms2
+            out["a_i_px_per_ms2"] = fig["a_i_fitted_px_per_ms2"]
+            out["velocity_range_px_per_ms"] = fig["velocity_range_fitted_px_per_ms"]
+            out["velocity_centre_px_per_ms"] = fig["velocity_centre_fitted_px_per_ms"]
+            if fig["fit_undefined_reason"]:
+                out["fit_undefined_reason"] = fig["fit_undefined_reason"]
         return out
 
     def with_(self, **changes) -> CameraDesign:
@@ -306,8 +390,25 @@ class CameraDesign:
         return replace(self, **changes)
 
     def inputs(self) -> dict:
-        """The constructor arguments, JSON-ready (round-trips through :meth:`from_inputs`)."""
-        return asdict(self)
+        """The constructor arguments, JSON-ready (round-trips through :meth:`from_inputs`):
+        a bitmap schedule's patterns are stored whole (:meth:`MaskStack.to_json`)."""
+        out = asdict(self)
+        if self.pattern_masks is not None:
+            out["pattern_masks"] = self.pattern_masks.to_json()
+        if self.pattern_centres_mm is not None:
+            out["pattern_centres_mm"] = [list(c) for c in self.pattern_centres_mm]
+        return out
+
+    def digest(self) -> str:
+        """A hash of everything that makes this camera (the name aside): equal digests, equal
+        cameras. The first 16 hex digits of SHA-256 over the sorted inputs, the bitmaps by
+        their own digest."""
+        d = self.inputs()
+        d.pop("name")
+        d.pop("quoted_a_i_px_per_ms2")
+        if self.pattern_masks is not None:
+            d["pattern_masks"] = self.pattern_masks.digest
+        return hashlib.sha256(json.dumps(d, sort_keys=True).encode()).hexdigest()[:16]
 
     @classmethod
     def from_inputs(cls, inputs: dict) -> CameraDesign:
@@ -318,7 +419,12 @@ class CameraDesign:
             raise ParameterError(
                 f"unknown camera parameters {sorted(unknown)}; valid: {sorted(known)}"
             )
-        return cls(**inputs)
+        kw = dict(inputs)
+        if isinstance(kw.get("pattern_masks"), dict):
+            kw["pattern_masks"] = MaskStack.from_json(kw["pattern_masks"])
+        if isinstance(kw.get("pattern_centres_mm"), list):
+            kw["pattern_centres_mm"] = tuple(tuple(c) for c in kw["pattern_centres_mm"])
+        return cls(**kw)
 
 
 def prototype(

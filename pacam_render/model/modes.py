@@ -172,6 +172,9 @@ def sensor_params(cam: CameraDesign, name: str) -> dict:
     p = {"lens_radius": cam.R_max_mm, "aperture_radius": cam.R_mm, "focus_distance": focus}
     if m.schedule == "parabolic":
         cam.require_parallax()
+        if cam.pattern_masks is not None and not m.continuous:
+            masks = cam.pattern_masks
+            return {**p, "schedule": "bitmap", "masks": masks.array, "mask_pitch": masks.pitch_mm}
         if cam.designed and not m.continuous:
             return {**p, "schedule": "centres", "centres": _local_centres(cam)}
         if cam.R_mm >= cam.R_max_mm:  # F_min: the full opening cannot move

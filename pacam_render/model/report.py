@@ -2,17 +2,33 @@
 
 ``consistency_notes`` is where the paper's published figures are checked against its own
 equations; it never hides a disagreement, it quantifies it.
+
+A designed schedule (``pattern_centres_mm``) is not Eq. 11's parabola: its a_i and invariant
+range are fitted to its own image trajectory (:func:`~.schedule_fit.schedule_figures`), and
+Eq. 18's figures are shown beside them only as the parabola's at the same opening. The
+parabola gets Eq. 18's figures with the fitted ones beside them for comparison.
 """
 
 from __future__ import annotations
 
 import math
 
+import numpy as np
+
 from .camera import CameraDesign
+from .schedule_fit import schedule_figures
+
+FITTED = "fitted to the schedule's image trajectory"
+"""How the report labels the figures of :func:`~.schedule_fit.schedule_figures`."""
 
 
-def _rows(d: CameraDesign) -> list[tuple[str, str, float, str, str]]:
+def _rows(d: CameraDesign, fig: dict | None = None) -> list[tuple[str, str, float, str, str]]:
     """(quantity, symbol, value, unit, source)."""
+    fig = schedule_figures(d) if fig is None else fig
+    return [*_optics_rows(d), *_motion_rows(d, fig)]
+
+
+def _optics_rows(d: CameraDesign) -> list[tuple[str, str, float, str, str]]:
     return [
         ("image size", "W x H", f"{d.width_px} x {d.height_px}", "px", "Table 1"),
         ("field of view (horizontal)", "fov", d.fov_deg, "deg", "Table 1"),
@@ -32,10 +48,53 @@ def _rows(d: CameraDesign) -> list[tuple[str, str, float, str, str]]:
         ("static PSF radius", "r", d.r_px, "px", "Eq. 12"),
         ("exposure", "2T", d.exposure_ms, "ms", "Sec. 4"),
         ("patterns", "n", d.n_patterns, "", f"{d.pattern_rate_fps:.4g} per s"),
-        ("aperture travel", "dX_a", d.delta_X_a_mm, "mm", "Eq. 15"),
-        ("aperture acceleration", "a_a", d.a_a_mm_per_ms2, "mm/ms^2", "Eq. 17"),
-        ("image acceleration", "a_i", d.a_i_px_per_ms2, "px/ms^2", "Eq. 18"),
-        ("invariant speed range", "|s| <=", d.velocity_range_px_per_ms, "px/ms", "|a_i| T"),
+    ]
+
+
+def _or_undefined(v):
+    return "undefined" if v is None else v
+
+
+def _off_centre(centre: float | None, half_width: float | None) -> bool:
+    """The fitted range is centred away from s = 0 by more than 0.1 % of its half-width."""
+    return centre is not None and abs(centre) > 1e-3 * max(half_width or 0.0, 1e-6)
+
+
+def _motion_rows(d: CameraDesign, fig: dict) -> list[tuple[str, str, float, str, str]]:
+    """The aperture's motion and what it does to the image: Eq. 15-18 for the parabola,
+    the fit to the held patterns' offsets for both (the only figures of a designed one)."""
+    n = d.n_patterns
+    a_fit = fig["a_i_fitted_px_per_ms2"]
+    fitted = [
+        ("image acceleration, fitted", "a_i", _or_undefined(a_fit), "px/ms^2", FITTED),
+        ("invariant speed range, fitted", "|s| <=",
+         _or_undefined(fig["velocity_range_fitted_px_per_ms"]), "px/ms", "|a_i| T, fitted"),
+        ("fit RMS residual", "", _or_undefined(fig["fit_rms_residual_px"]), "px",
+         f"{n} patterns, {fig['fit_dof']} dof" if fig["fit_dof"] is not None
+         else f"{n} held patterns (a parabola needs 3)"),
+    ]  # fmt: skip
+    centre = fig["velocity_centre_fitted_px_per_ms"]
+    if _off_centre(centre, fig["velocity_range_fitted_px_per_ms"]):
+        fitted.insert(2, ("  range centred on", "s_c", centre, "px/ms", "-b of the fit"))
+    light = ("open fraction", "", fig["open_fraction"], "", "open area / pi R_max^2, time mean")
+    if not d.designed:
+        return [
+            ("aperture travel", "dX_a", d.delta_X_a_mm, "mm", "Eq. 15"),
+            ("aperture acceleration", "a_a", d.a_a_mm_per_ms2, "mm/ms^2", "Eq. 17"),
+            ("image acceleration", "a_i", d.a_i_px_per_ms2, "px/ms^2", "Eq. 18"),
+            ("invariant speed range", "|s| <=", d.velocity_range_px_per_ms, "px/ms", "|a_i| T"),
+            *fitted,
+            light,
+        ]
+    x = d.pattern_centres_xy_mm()[:, 0]
+    x = x[np.isfinite(x)]  # a dark bitmap pattern has no centre
+    travel = float(x.max() - x.min()) if x.size else 0.0
+    return [
+        ("aperture travel", "dX_a", travel, "mm", "the schedule's centres"),
+        *fitted,
+        light,
+        ("Eq. 18 parabola's a_i", "", d.a_i_px_per_ms2, "px/ms^2", "same R; not this schedule"),
+        ("  its invariant range", "", d.velocity_range_px_per_ms, "px/ms", "not this schedule"),
     ]
 
 
@@ -45,6 +104,38 @@ def _fmt(v) -> str:
     if isinstance(v, int):
         return str(v)
     return f"{v:.6g}"
+
+
+def schedule_notes(d: CameraDesign, fig: dict | None = None) -> list[str]:
+    """What the figures of the schedule's motion are: Eq. 18's, or fitted to the schedule."""
+    fig = schedule_figures(d) if fig is None else fig
+    n = d.n_patterns
+    a_fit = fig["a_i_fitted_px_per_ms2"]
+    eq18 = f"{d.a_i_px_per_ms2:.4g} px/ms^2 (range {d.velocity_range_px_per_ms:.4g} px/ms)"
+    if a_fit is None:
+        head = f"No fitted a_i: {fig['fit_undefined_reason']}."
+        return [head + (f" Eq. 18's {eq18} is the parabola's, not this schedule's." if
+                        d.designed else "")]  # fmt: skip
+    fitted = (
+        f"a_i = {a_fit:.4g} px/ms^2, range |s| <= {fig['velocity_range_fitted_px_per_ms']:.4g} "
+        f"px/ms, RMS residual {fig['fit_rms_residual_px']:.3g} px"
+    )
+    how = (
+        f"a parabola whose window means match the {n} held image offsets "
+        "(beta_px x centre) best, in least squares"
+    )
+    if d.designed:
+        return [
+            f"A designed schedule of {n} patterns is not Eq. 11's parabola: its figures are "
+            f"{FITTED} ({how}): {fitted}. Eq. 18 at the same opening would give {eq18}: that "
+            "is the parabola's, not this schedule's."
+        ]
+    diff = (a_fit / d.a_i_px_per_ms2 - 1.0) if d.a_i_px_per_ms2 else 0.0
+    return [
+        f"Fitted to the {n} held patterns' image trajectory ({how}): {fitted}; Eq. 18 gives "
+        f"{d.a_i_px_per_ms2:.4g} px/ms^2 (relative difference {diff:.1e}): patterns centred "
+        "on the parabola at their windows' mid-times keep its curvature exactly."
+    ]
 
 
 def consistency_notes(d: CameraDesign) -> list[str]:
@@ -86,13 +177,19 @@ def consistency_notes(d: CameraDesign) -> list[str]:
 
 
 def pattern_table_text(d: CameraDesign) -> str:
+    """The schedule, one row a pattern; a designed schedule that leaves the x axis also gets
+    its y centres and vertical image shifts."""
     head = f"{'k':>3} {'t_start':>8} {'t_end':>8} {'X_a mm':>8} {'X_a LCoS px':>11} {'shift px':>9}"
+    xy = d.pattern_centres_xy_mm()
+    two_d = bool(np.any(np.abs(xy[:, 1]) > 1e-9))  # mm (a bitmap's centroid: rounding)
+    head += f" {'Y_a mm':>8} {'v shift px':>10}" if two_d else ""
     lines = [head, "-" * len(head)]
-    for row in d.pattern_table():
+    for row, y in zip(d.pattern_table(), xy[:, 1]):
         lines.append(
             f"{row['k']:>3} {row['t_start_ms']:>8.3f} {row['t_end_ms']:>8.3f} "
             f"{row['centre_mm']:>8.4f} {row['centre_lcos_px']:>11.2f} "
             f"{row['image_offset_px']:>9.3f}"
+            + (f" {y:>8.4f} {d.beta_px_per_mm * y:>10.3f}" if two_d else "")
         )
     return "\n".join(lines)
 
@@ -100,18 +197,21 @@ def pattern_table_text(d: CameraDesign) -> str:
 def design_report(d: CameraDesign) -> str:
     """A readable, plain-text report of the design."""
     title = f"pacam_render design report: {d.name}"
-    rows = _rows(d)
+    fig = schedule_figures(d)
+    rows = _rows(d, fig)
     w0 = max(len(r[0]) for r in rows)
     w1 = max(len(r[1]) for r in rows)
     body = [f"{q:<{w0}}  {sym:<{w1}}  {_fmt(v):>12} {u:<8} {src}" for q, sym, v, u, src in rows]
-    notes = [f"- {n}" for n in consistency_notes(d)]
+    notes = [f"- {n}" for n in (*schedule_notes(d, fig), *consistency_notes(d))]
     return "\n".join(
         [
             title,
             "=" * len(title),
             *body,
             "",
-            "Aperture schedule (times in ms, t = 0 at mid-exposure)",
+            f"Aperture schedule: {d.n_patterns} patterns "
+            f"({'designed' if d.designed else 'the parabola of Eq. 11'}; times in ms, t = 0 at "
+            "mid-exposure)",
             pattern_table_text(d),
             "",
             "Notes",

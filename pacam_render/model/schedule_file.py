@@ -25,18 +25,20 @@ from . import paper
 from .camera import CameraDesign
 
 
-def max_patterns(exposure_ms: float) -> int:
-    """The most patterns the LCoS can show in one exposure (Table 1's 365 fps)."""
-    return int(math.floor(paper.LCOS_RATE_FPS * exposure_ms / 1000.0 + 1e-9))
+def max_patterns(exposure_ms: float, rate_fps: float = paper.LCOS_RATE_FPS) -> int:
+    """The most patterns the LCoS can show in one exposure (Table 1's 365 fps by default)."""
+    return int(math.floor(rate_fps * exposure_ms / 1000.0 + 1e-9))
 
 
-def check_pattern_count(n, exposure_ms: float, flag: str = "n_patterns") -> int:
+def check_pattern_count(
+    n, exposure_ms: float, flag: str = "n_patterns", rate_fps: float = paper.LCOS_RATE_FPS
+) -> int:
     """``n`` if 2 <= n <= what the LCoS shows in ``exposure_ms``, else ParameterError."""
-    top = max_patterns(exposure_ms)
+    top = max_patterns(exposure_ms, rate_fps)
     if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or not 2 <= n <= top:
         raise ParameterError(
             f"{flag} must be an integer in [2, {top}]: a moving opening needs 2 patterns, and "
-            f"the LCoS shows at most {paper.LCOS_RATE_FPS:g} per second ({top} in "
+            f"the LCoS shows at most {rate_fps:g} per second ({top} in "
             f"{exposure_ms:g} ms), got {n!r}"
         )
     return int(n)

@@ -10,6 +10,7 @@ from ..io.outputs import atomic_save, write_json, write_text
 from ..io.preview import write_png
 from ..model.camera import CameraDesign
 from ..model.modes import local_centres_mm
+from ..model.schedule_fit import schedule_figures
 from ..render.masks import disc_mask
 from .objective import SOFTMAX_DB, Objective
 
@@ -26,10 +27,35 @@ def designed_camera(obj: Objective, theta) -> CameraDesign:
     )
 
 
+FIGURES = (
+    "a_i_fitted_px_per_ms2",
+    "velocity_range_fitted_px_per_ms",
+    "velocity_centre_fitted_px_per_ms",
+    "fit_rms_residual_px",
+    "fit_method",
+    "fit_undefined_reason",
+    "open_fraction",
+)
+"""The keys of :func:`~pacam_render.model.schedule_fit.schedule_figures` that schedule.json
+records for the optimised schedule: its a_i and invariant range fitted to its own image
+trajectory (Eq. 18 describes only the parabola)."""
+
+
+def _parabola_figures(parabola: dict) -> dict:
+    """The parabola's Eq. 18 range and its fitted a_i (equal to Eq. 18's to rounding)."""
+    cam = parabola["camera"]
+    return {
+        "parabola_velocity_range_px_per_ms": cam.velocity_range_px_per_ms,
+        "parabola_a_i_fitted_px_per_ms2": schedule_figures(cam)["a_i_fitted_px_per_ms2"],
+    }
+
+
 def schedule_document(problem, obj: Objective, best, parabola: dict, run: dict) -> dict:
-    """The schedule.json object (keys: :mod:`pacam_render.model.schedule_file`)."""
+    """The schedule.json object (keys: :mod:`pacam_render.model.schedule_file`), with the
+    schedule's fitted figures (:data:`FIGURES`) and the parabola's for comparison."""
     cam = designed_camera(obj, best.theta)
     p = obj.psnr_db(best.theta)
+    fig = schedule_figures(cam)
     return {
         "centres_mm": [list(c) for c in cam.pattern_centres_mm],
         "radius_mm": cam.R_mm,
@@ -57,6 +83,8 @@ def schedule_document(problem, obj: Objective, best, parabola: dict, run: dict) 
         "depths_mm": obj.grid.depths_mm.tolist(),
         "predicted_psnr_db": p.tolist(),
         "parabola_predicted_psnr_db": parabola["psnr"].tolist(),
+        **{k: fig[k] for k in FIGURES},
+        **_parabola_figures(parabola),
         **run,
     }
 
@@ -101,11 +129,17 @@ def _plot_schedule(fig, obj: Objective, theta, parabola: dict) -> None:
     X, _, R = obj.unpack(theta)
     t = obj.t_k
     ax = fig.add_subplot(1, 2, 1)
-    ax.step(t, parabola["theta_X"], "o-", where="mid", label="parabola (paper)")
-    ax.step(t, X, "s-", where="mid", label="optimised")
+    a_eq18 = parabola["camera"].a_i_px_per_ms2
+    ax.step(t, parabola["theta_X"], "o-", where="mid",
+            label=f"parabola (paper, Eq. 18 a_i {a_eq18:.3g} px/ms$^2$)")  # fmt: skip
+    a_fit = schedule_figures(designed_camera(obj, theta))["a_i_fitted_px_per_ms2"]
+    fitted = "undefined" if a_fit is None else f"{a_fit:.3g} px/ms$^2$"
+    ax.step(t, X, "s-", where="mid", label=f"optimised (fitted a_i {fitted})")
     ax.axhline(obj.R_max - R, color="k", lw=0.5)
     ax.axhline(-(obj.R_max - R), color="k", lw=0.5)
-    ax.set(xlabel="t (ms)", ylabel="opening centre x (mm)", title="the 16 openings over time")
+    ax.set(
+        xlabel="t (ms)", ylabel="opening centre x (mm)", title=f"the {len(X)} openings over time"
+    )
     ax.legend(fontsize=8)
     ax = fig.add_subplot(1, 2, 2, aspect="equal")
     import matplotlib.pyplot as plt
@@ -210,6 +244,7 @@ def write_report(out: Path, doc: dict, starts, force: bool) -> Path:
         f"Gain at equal light: **{gain_w:+.2f} dB** worst case, {gain_m:+.2f} dB mean "
         "(predicted: " + doc["objective"] + ").",
         "",
+        *_motion_table(doc),
         *_reading_notes(doc, starts),
         "## The optimiser",
         "",
@@ -224,6 +259,45 @@ def write_report(out: Path, doc: dict, starts, force: bool) -> Path:
         "`lcos/pattern_NN.png`. Render with `pacam render SCENE --schedule schedule.json`.",
     ]
     return write_text(out / "report.md", "\n".join(lines) + "\n", force)
+
+
+def _num(v, fmt: str) -> str:
+    return "undefined" if v is None else format(v, fmt)
+
+
+def _motion_table(doc: dict) -> list[str]:
+    """a_i and the invariant range of both schedules: Eq. 18 for the parabola, fitted to the
+    optimised schedule's image trajectory (its own held patterns) for the optimised one."""
+    n = doc["n_patterns"]
+    a_fit = doc["a_i_fitted_px_per_ms2"]
+    centre = doc["velocity_centre_fitted_px_per_ms"]
+    half = doc["velocity_range_fitted_px_per_ms"] or 0.0
+    off_centre = centre is not None and abs(centre) > 1e-3 * max(half, 1e-6)  # > 0.1 %
+    lines = [
+        "| schedule | a_i (px/ms^2) | invariant range (px/ms) | from |",
+        "|---|---|---|---|",
+        f"| parabola (paper) | {doc['parabola']['a_i_px_per_ms2']:.4g} | "
+        f"{doc['parabola_velocity_range_px_per_ms']:.4g} | Eq. 18 (fitted to its {n} patterns: "
+        f"{_num(doc['parabola_a_i_fitted_px_per_ms2'], '.4g')}) |",
+        f"| optimised | {_num(a_fit, '.4g')} | "
+        f"{_num(doc['velocity_range_fitted_px_per_ms'], '.4g')}"
+        + (f", centred on s = {centre:.3g}" if off_centre else "")
+        + f" | fitted to the schedule's image trajectory ({n} patterns"
+        + (
+            ""
+            if doc["fit_rms_residual_px"] is None
+            else f", RMS residual {doc['fit_rms_residual_px']:.3g} px"
+        )
+        + ") |",
+        "",
+        f"Open fraction {doc['open_fraction']:.4f} of the full lens for both (equal light). The "
+        "optimised schedule's a_i comes from a least-squares parabola whose window means match "
+        "its held image offsets (`fit_method` in schedule.json); Eq. 18 holds only for the "
+        "parabola.",
+    ]
+    if doc["fit_undefined_reason"]:
+        lines.append(f"No fitted a_i: {doc['fit_undefined_reason']}.")
+    return [*lines, ""]
 
 
 FAR_FOCUS = 100.0

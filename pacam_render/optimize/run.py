@@ -6,6 +6,7 @@ import time
 from pathlib import Path
 
 from ..model.design import solve
+from ..model.design_file import write_design
 from .outputs import (
     designed_camera,
     plot_all,
@@ -40,7 +41,8 @@ def _parabola(problem: Problem, obj, R_mm: float) -> dict:
 def run_optimize(problem: Problem, out: Path, *, quick: bool, seed: int, force: bool,
                  starts: int | None = None, iterations: int | None = None,
                  progress: bool = True) -> dict:  # fmt: skip
-    """Optimise, then write schedule.json, lcos/, the plots and report.md into ``out``.
+    """Optimise, then write schedule.json, design.toml (the designed camera, which every
+    command takes with ``--design``), lcos/, the plots and report.md into ``out``.
 
     Returns
     -------
@@ -60,7 +62,9 @@ def run_optimize(problem: Problem, out: Path, *, quick: bool, seed: int, force: 
                quick=quick, best_start=best.index)  # fmt: skip
     doc = schedule_document(problem, obj, best, parabola, run)
     write_schedule_json(out, doc, force)
-    write_bitmaps(out, designed_camera(obj, best.theta), force)
+    cam = designed_camera(obj, best.theta)
+    write_bitmaps(out, cam, force)
+    write_design(out / "design.toml", cam.with_(name="pacam optimize"), force)
     plot_all(out, obj, best, parabola, found, force)
     write_report(out, doc, found, force)
     return doc

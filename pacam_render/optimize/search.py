@@ -40,6 +40,20 @@ class Problem:
     f_number: float | None = None
     r_px: float | None = None
     free_radius: bool = False
+    design: str | None = None
+    """A camera design file to start from instead of ``preset`` (its sensor, lens, LCoS
+    pitch and rate, and exposure; the schedule is what is designed)."""
+
+
+def base_design(p: Problem, depth_mm: float) -> CameraDesign:
+    """The camera the schedule is designed for, at ``depth_mm``: the design file's or the
+    preset's."""
+    if p.design is None:
+        return preset(p.preset, object_depth_mm=depth_mm)
+    from ..model.design_file import resolve_design
+
+    d = resolve_design(p.design, object_depth_mm=depth_mm)
+    return d.with_(pattern_centres_mm=None, pattern_masks=None)
 
 
 def middle_depth_mm(depth_range_mm) -> float:
@@ -62,8 +76,8 @@ def check_problem(p: Problem) -> None:
         raise ParameterError(
             f"depth_range_mm must be NEAR,FAR with NEAR <= FAR, got {near:g},{far:g}"
         )
-    base = preset(p.preset, object_depth_mm=middle_depth_mm(p.depth_range_mm))
-    check_pattern_count(p.n_patterns, base.exposure_ms, "n_patterns")
+    base = base_design(p, middle_depth_mm(p.depth_range_mm))
+    check_pattern_count(p.n_patterns, base.exposure_ms, "n_patterns", base.lcos_rate_fps)
     model = SensorModel.from_preset(p.sensor)
     if p.light_level is not None:
         check_positive("light_level", p.light_level, "photons/px/ms")
@@ -93,7 +107,7 @@ def _check_coverable(base: CameraDesign, s_max: float) -> None:
 def reference_design(p: Problem) -> CameraDesign:
     """The paper's parabola covering the range (the design solver), with n patterns."""
     z0 = middle_depth_mm(p.depth_range_mm)
-    base = preset(p.preset, object_depth_mm=z0).with_(n_patterns=p.n_patterns)
+    base = base_design(p, z0).with_(n_patterns=p.n_patterns)
     try:
         return solve(p.max_velocity_px_per_ms, object_depth_mm=z0, f_number=p.f_number,
                      r_px=p.r_px, base=base)  # fmt: skip

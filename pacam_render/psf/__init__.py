@@ -8,7 +8,7 @@ radius r = |beta| R (Eqs. 12-13), the coded capture's Phi = phi * psi (Eq. 14) a
 :func:`design_psf` picks the kernel of a capture mode from a camera design. :mod:`.trajectory`
 (the time the moving point spends in each pixel) and :mod:`.pillbox` (exact disc coverage)
 supply the pieces. Units: s in px/ms, a_i in px/ms^2, T and exposures in ms (the exposure is
-2T, t in [-T, T]), r in px.
+2T, t in [-T, T]), r in px. :mod:`.bitmap` gives the exact kernel of any LCoS bitmap schedule.
 """
 
 from .analytic import (
@@ -23,6 +23,7 @@ from .analytic import (
     short_exposure_psf,
     static_psf,
 )
+from .bitmap import bitmap_kernel
 from .grid import PSFTruncationWarning
 from .robust import aligned_speed_psf, speed_robust_psf
 
@@ -30,6 +31,7 @@ __all__ = [
     "MODE_TRAJECTORIES",
     "PSFTruncationWarning",
     "aligned_speed_psf",
+    "bitmap_kernel",
     "coded_psf",
     "design_psf",
     "design_trajectory",

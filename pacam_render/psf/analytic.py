@@ -36,6 +36,7 @@ from ..model.modes import (
     mode_exposure_ms,
     t0_offset_px,
 )
+from .bitmap import bitmap_kernel, bitmap_lost_fraction
 from .grid import (  # the limit and the warning are also read here by earlier callers
     MAX_LOST_FRACTION,  # noqa: F401
     R_DELTA_PX,
@@ -297,6 +298,26 @@ by its ``psf`` key: ``f(camera, s_px_per_ms, x0_px) -> (segments, r_px)``, the i
 point's x over the exposure and the defocus disc that it carries."""
 
 
+def _shows_bitmaps(design, mode: str) -> bool:
+    """A bitmap schedule in a mode that shows its patterns: its kernel is the patterns
+    themselves, projected through the lens (:mod:`.bitmap`), not discs along a trajectory."""
+    if design.pattern_masks is None or mode not in MODES_WITH_PSF:
+        return False
+    if mode in DESIGNED_REFUSED:
+        capture_camera(design, mode)  # raises, naming what the designed schedule lacks
+    if MODES[mode].psf != "discrete_coded":
+        return False
+    design.require_parallax()
+    return True
+
+
+def _bitmap_call(fn, design, s: float, origin: str, **kw):
+    """``fn`` (:func:`.bitmap.bitmap_kernel` or ``bitmap_lost_fraction``) for the design's
+    stack, pitch, beta (Eq. 8) and T."""
+    m = design.pattern_masks
+    return fn(m.array, m.pitch_mm, design.beta_px_per_mm, design.T_ms, s, origin=origin, **kw)
+
+
 def design_trajectory(design, mode: str = "coded", s: float = 0.0, origin: str = "t0"):
     """The trajectory of a point's image in a ``mode`` capture (see :func:`design_psf`).
 
@@ -312,6 +333,11 @@ def design_trajectory(design, mode: str = "coded", s: float = 0.0, origin: str =
     if mode not in MODES_WITH_PSF:
         raise ParameterError(f"unknown mode {mode!r}; valid: {', '.join(MODES_WITH_PSF)}")
     m = MODES[mode]
+    if _shows_bitmaps(design, mode):
+        raise ParameterError(
+            "a bitmap schedule (pattern_masks) is not discs along a trajectory: its kernel is "
+            "design_psf's (psf.bitmap.bitmap_kernel)"
+        )
     if design.designed and mode in DESIGNED_REFUSED:
         capture_camera(design, mode)  # raises, naming what the designed schedule lacks
     if m.needs_parallax:
@@ -343,6 +369,9 @@ def least_lost_fraction(
     r_px : float
         The defocus radius, px.
     """
+    if _shows_bitmaps(design, mode):
+        lost, shape = _bitmap_call(bitmap_lost_fraction, design, s, origin, size=size)
+        return lost, shape, design.r_px
     segments, r = design_trajectory(design, mode, s, origin)
     lo, hi = extent(segments)
     y_max = max(abs(seg.y) for seg in segments)
@@ -362,7 +391,9 @@ def design_psf(
     ----------
     design : CameraDesign
         The camera that takes the capture (for a capture of a coded design, pass
-        :func:`~pacam_render.model.modes.capture_camera`'s result).
+        :func:`~pacam_render.model.modes.capture_camera`'s result). A bitmap schedule
+        (``pattern_masks``) in ``coded`` mode gets the exact kernel of its patterns projected
+        through the lens (Eq. 8, :func:`~pacam_render.psf.bitmap.bitmap_kernel`).
     mode : str
         A mode of :data:`~pacam_render.model.modes.MODES` with an analytic PSF: ``coded``
         (the discrete n-pattern schedule the camera really shows), ``coded_continuous``
@@ -399,6 +430,8 @@ def design_psf(
     >>> k0.shape, round(float(k0.sum()), 12)
     ((25, 25), 1.0)
     """
+    if _shows_bitmaps(design, mode):
+        return _bitmap_call(bitmap_kernel, design, s, origin, size=size, v_px_per_ms=v_px_per_ms)
     segments, r = design_trajectory(design, mode, s, origin)
     if v_px_per_ms == 0.0:
         return kernel_from_trajectory(segments, r, size)

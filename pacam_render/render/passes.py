@@ -93,8 +93,9 @@ def render_passes(
     Returns
     -------
     numpy.ndarray or None
-        The film image, float64, weighted by each pass's share of the samples; None when
-        ``stop`` abandoned it.
+        The film image, float64, weighted by each pass's share of the samples: (H, W, C), or
+        (H, W) for a one-channel (luminance or mono) film, the shape a grey layer has when read
+        back from an EXR; None when ``stop`` abandoned it.
     """
     import mitsuba as mi
 
@@ -111,6 +112,8 @@ def render_passes(
         image = np.array(
             mi.render(scene, sensor=sensor, integrator=integrator, spp=n, seed=s), dtype=np.float64
         )
+        if image.ndim == 3 and image.shape[2] == 1:  # a grey film: (H, W), as EXR reads it back
+            image = image[..., 0]
         if integ.should_stop():  # Mitsuba took a SIGINT: this chunk is partial
             if on_cut is not None:
                 on_cut()

@@ -242,7 +242,8 @@ def sensor_entry(spec, design: CameraDesign, params: dict, exposure_ms: float) -
     Returns
     -------
     dict
-        A ``mi.load_dict`` entry with an RGB float32 ``hdrfilm`` of width x height px, a box
+        A ``mi.load_dict`` entry with an RGB float32 ``hdrfilm`` (luminance for ``spec.grey``,
+        one channel in any variant) of width x height px, a box
         reconstruction filter (samples stay in their pixel, as the analytic PSFs assume) and the
         spec's sampler (each render sets its own sample count). For ``reference`` it is a
         ``perspective`` (pinhole) sensor; otherwise :func:`sensor_dict` with pixel values
@@ -263,7 +264,7 @@ def sensor_entry(spec, design: CameraDesign, params: dict, exposure_ms: float) -
         "width": spec.width,
         "height": spec.height,
         "rfilter": {"type": "box"},  # samples stay in their pixel, as the analytic PSFs assume
-        "pixel_format": "rgb",
+        "pixel_format": "luminance" if spec.grey else "rgb",
         "component_format": "float32",
     }
     if spec.crop is not None:

@@ -85,13 +85,66 @@ def cuda_available() -> bool:
     return True
 
 
+def is_mono(variant: str | None) -> bool:
+    """Whether a Mitsuba variant renders one (grey) channel.
+
+    Parameters
+    ----------
+    variant : str or None
+        A variant name such as ``llvm_ad_mono``; None (no variant active) is not mono.
+
+    Returns
+    -------
+    bool
+        True for the ``*_mono`` and ``*_mono_polarized`` variants.
+
+    Examples
+    --------
+    >>> is_mono("llvm_ad_mono"), is_mono("llvm_ad_rgb"), is_mono(None)
+    (True, False, False)
+    """
+    return variant is not None and "_mono" in variant
+
+
+def grey_request(grey: bool = False) -> bool:
+    """Whether this process renders grey, checked before any work and without importing Mitsuba.
+
+    Parameters
+    ----------
+    grey : bool, optional
+        A grey capture was asked for (``--grey``, or ``grey = true`` in a study's ``[render]``).
+
+    Returns
+    -------
+    bool
+        True if ``grey`` is asked for or ``PACAM_VARIANT`` names a mono variant: the captures
+        will then be one channel.
+
+    Raises
+    ------
+    ParameterError
+        If ``grey`` is asked for while ``PACAM_VARIANT`` names a colour variant.
+    """
+    name = os.environ.get("PACAM_VARIANT", "").strip()
+    if grey and name and not is_mono(name):
+        raise ParameterError(
+            f"`grey` asks for a single-channel (mono) variant, but PACAM_VARIANT={name!r} "
+            "renders colour; unset PACAM_VARIANT or set it to a mono variant (llvm_ad_mono)"
+        )
+    return bool(grey) or is_mono(name)
+
+
 def _variant_name(kind: str, mono: bool) -> str:
-    if kind == "scalar":  # the Mitsuba wheel ships no scalar_mono: grey renders use rgb there
-        return "scalar_rgb"
+    if kind == "scalar":
+        # the Mitsuba wheel ships no scalar_mono: a grey capture then renders with scalar_rgb
+        # and a luminance film, so that it is still one channel
+        import mitsuba as mi
+
+        return "scalar_mono" if mono and "scalar_mono" in mi.variants() else "scalar_rgb"
     return f"{kind}_ad_{'mono' if mono else 'rgb'}"
 
 
-def _override() -> str | None:
+def _override(mono: bool = False) -> str | None:
     import mitsuba as mi
 
     name = os.environ.get("PACAM_VARIANT", "").strip()
@@ -101,10 +154,23 @@ def _override() -> str | None:
         raise ParameterError(
             f"PACAM_VARIANT={name!r} is not a Mitsuba variant; valid: {', '.join(mi.variants())}"
         )
+    if mono and not is_mono(name):
+        valid = ", ".join(v for v in mi.variants() if is_mono(v))
+        raise ParameterError(
+            f"`grey` asks for a single-channel (mono) variant, but PACAM_VARIANT={name!r} "
+            f"renders colour; unset PACAM_VARIANT or set it to a mono variant ({valid})"
+        )
     if name.startswith("llvm"):
         ok, why = llvm_status()
         if not ok:
             raise ParameterError(f"PACAM_VARIANT={name!r} cannot render: {why}. Fix: {LLVM_FIX}")
+    elif name.startswith("cuda") and not cuda_available():
+        fallback = name.replace("cuda", "llvm", 1)
+        raise ParameterError(
+            f"PACAM_VARIANT={name!r} cannot render here: the CUDA variant does not load (no "
+            f"NVIDIA GPU or driver); set PACAM_VARIANT={fallback} to render on the CPU, or "
+            "unset PACAM_VARIANT to let pacam choose (llvm_ad_rgb where it works)"
+        )
     return name
 
 
@@ -128,23 +194,26 @@ def choose_variant(gpu: bool = False, mono: bool = False) -> str:
     gpu : bool, optional
         Prefer the CUDA variant when a GPU is present.
     mono : bool, optional
-        Pick the single-channel variant (``*_mono``), for grey experiments; there is no
-        ``scalar_mono``, so the scalar fallback is ``scalar_rgb`` either way.
+        Pick the single-channel variant (``*_mono``), for grey experiments. The Mitsuba wheel
+        has no ``scalar_mono``, so there the scalar fallback is ``scalar_rgb`` either way (a grey
+        capture then asks its film for luminance, :func:`~.registry.sensor_entry`).
 
     Returns
     -------
     str
         ``PACAM_VARIANT`` if set; else ``cuda_ad_*`` when ``gpu`` and CUDA loads; else
         ``llvm_ad_*`` when drjit's LLVM backend works (:func:`llvm_status`); else
-        ``scalar_rgb``, with one :class:`BackendWarning` per process.
+        ``scalar_mono`` (if this Mitsuba has it and ``mono``) or ``scalar_rgb``, with one
+        :class:`BackendWarning` per process.
 
     Raises
     ------
     ParameterError
-        If ``PACAM_VARIANT`` is not a Mitsuba variant, or names an LLVM variant that cannot
-        render here.
+        If ``PACAM_VARIANT`` is not a Mitsuba variant, names an LLVM variant that cannot
+        render here, or names a CUDA variant where none loads (no GPU); the message names the
+        CPU variant to use instead; or names a colour variant while ``mono`` asks for grey.
     """
-    override = _override()
+    override = _override(mono)
     if override:
         return override
     if gpu and cuda_available():

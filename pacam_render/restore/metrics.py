@@ -189,7 +189,7 @@ def ssim(est: np.ndarray, ref: np.ndarray) -> float:
     Parameters
     ----------
     est : ndarray
-        The estimate, (H, W, C) with white = 1; the last axis is the channel axis.
+        The estimate, (H, W, C) with white = 1, the last axis the channel axis; or (H, W) grey.
     ref : ndarray
         The reference, same shape.
 
@@ -200,14 +200,16 @@ def ssim(est: np.ndarray, ref: np.ndarray) -> float:
 
     Notes
     -----
-    :func:`skimage.metrics.structural_similarity` with ``channel_axis=-1`` and
-    ``data_range=1.0``, on ``np.clip(est, 0, 1)`` and ``np.clip(ref, 0, 1)``.
+    :func:`skimage.metrics.structural_similarity` with ``channel_axis=-1`` (none for a grey
+    image: its columns are not channels) and ``data_range=1.0``, on ``np.clip(est, 0, 1)`` and
+    ``np.clip(ref, 0, 1)``.
     """
     from skimage.metrics import structural_similarity
 
+    axis = -1 if np.ndim(est) == 3 else None
     return float(
         structural_similarity(
-            np.clip(est, 0, 1), np.clip(ref, 0, 1), channel_axis=-1, data_range=1.0
+            np.clip(est, 0, 1), np.clip(ref, 0, 1), channel_axis=axis, data_range=1.0
         )
     )
 

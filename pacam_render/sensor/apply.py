@@ -15,7 +15,7 @@ import numpy as np
 from ..errors import ParameterError, check_positive
 from ..exposure.record import SensorRecord
 from ..limits import PacamWarning
-from .model import DEFAULT_LIGHT_LEVEL, SensorModel, simulate_capture
+from .model import DEFAULT_LIGHT_LEVEL, SensorModel, mono_preset, simulate_capture
 
 SATURATION_NOTE = 1e-3
 """A capture with more than this fraction of saturated values gets a note."""
@@ -122,7 +122,14 @@ def add_sensor_layers(
     The noiseless capture stays. A physical sensor (one with shot noise) needs photons: with
     ``light_level=None`` it gets :data:`~pacam_render.sensor.model.DEFAULT_LIGHT_LEVEL`. The
     noise sigma is taken at the noisy image's mean level.
+
+    Raises
+    ------
+    ParameterError
+        If the capture is grey (one channel) and the sensor has a Bayer filter: a grey image is
+        not a mosaic (:func:`check_grey_sensor`).
     """
+    check_grey_sensor(is_grey(cap.image), model, preset)
     light_level = _light_level(model, light_level)
     raw, noisy, ppu = apply_sensor(cap, model, light_level, seed)
     saturated = saturated_fraction(cap, model, light_level, ppu)
@@ -148,6 +155,57 @@ def add_sensor_layers(
     rec.noise_sigma = sigma * rec.light_factor  # in the capture's own units
     if rec.render_error is not None and rec.noise_sigma > 0:
         rec.render_error["ratio_to_sensor"] = rec.render_error["mc_sigma"] / rec.noise_sigma
+
+
+def is_grey(image: np.ndarray) -> bool:
+    """Whether a capture's image is grey: (H, W), or (H, W, 1).
+
+    Parameters
+    ----------
+    image : numpy.ndarray
+        The capture's image.
+
+    Returns
+    -------
+    bool
+        True for one channel.
+    """
+    shape = np.shape(image)
+    return len(shape) == 2 or (len(shape) == 3 and shape[2] == 1)
+
+
+def check_grey_sensor(grey: bool, model: SensorModel, preset: str) -> None:
+    """Refuse a colour-filter (Bayer) sensor on a grey capture.
+
+    Parameters
+    ----------
+    grey : bool
+        The capture is grey (:func:`is_grey`), or will be
+        (:func:`~pacam_render.render.variant.grey_request`).
+    model : SensorModel
+        The sensor.
+    preset : str
+        Its name, for the message.
+
+    Raises
+    ------
+    ParameterError
+        If ``grey`` and ``model.bayer`` is set: the sensor would take the grey image
+        for a raw mosaic and demosaic it into false colour. The message names the monochrome
+        preset to use (:func:`~pacam_render.sensor.model.mono_preset`).
+    """
+    if model.bayer is None or not grey:
+        return
+    mono = mono_preset(preset)
+    use = (
+        f"use its monochrome twin, `sensor` {mono}"
+        if mono != preset
+        else "use grasshopper-icx285-mono, or a preset file with no bayer key"
+    )
+    raise ParameterError(
+        f"`sensor` {preset} has a colour filter array ({model.bayer} Bayer), but the capture "
+        f"is grey (one channel: rendered with --grey or a mono variant); {use}"
+    )
 
 
 def _light_level(model: SensorModel, light_level: float | None) -> float | None:

@@ -45,6 +45,10 @@ Presets (:data:`PRESETS`, :func:`available_presets`, :meth:`SensorModel.from_pre
 - ``grasshopper-icx285``: the prototype's camera, Point Grey Grasshopper GRAS-14S5C (paper
   Sec. 4 and Table 1: Sony ICX285 CCD, 6.45 um pixels; the "C" model is the colour one, with a
   Bayer filter). Each value's source, or "estimate", is given beside it in :data:`PRESETS`.
+- ``grasshopper-icx285-mono``: its monochrome twin (GRAS-14S5M, Sony ICX285AL): the same
+  noise, full well and ADC, no Bayer filter, and the higher QE of a filterless pixel (0.62, an
+  estimate). Grey captures (``--grey``) use it; a Bayer preset on a grey capture is refused
+  (:func:`~pacam_render.sensor.apply.add_sensor_layers`), since a grey image is not a mosaic.
 - User presets: JSON or TOML files with the constructor's parameter names as top-level keys,
   optionally ``base`` (a built-in preset to start from), ``sigma`` (read noise as a fraction of
   the full well) and ``description``. TOML needs Python >= 3.11 (tomllib); on 3.10 use JSON.
@@ -135,7 +139,44 @@ PRESETS: dict[str, dict[str, Any]] = {
         "bayer": "RGGB",
     },
 }
+PRESETS["grasshopper-icx285-mono"] = {
+    **PRESETS["grasshopper-icx285"],
+    "name": "grasshopper-icx285-mono",
+    # The monochrome part, Sony ICX285AL (GRAS-14S5M): the same CCD without the colour filter
+    # array, so the same read noise, full well, dark current, gain and ADC.
+    # Estimate: no datasheet figure of its absolute QE could be found here (Sony's datasheets
+    # give the relative spectral response only); cameras built on the ICX285AL quote a peak QE
+    # of about 0.60-0.65 near 500 nm, and 0.62 is the middle of that range.
+    "qe": 0.62,
+    "bayer": None,  # no colour filter: every pixel sees the grey image, no mosaic, no demosaic
+}
 """Built-in presets: constructor keyword arguments by name."""
+
+MONO_PRESETS: dict[str, str] = {"grasshopper-icx285": "grasshopper-icx285-mono"}
+"""Each built-in colour (Bayer) preset's monochrome counterpart, for grey captures."""
+
+
+def mono_preset(name: str) -> str:
+    """The monochrome preset a grey capture uses in place of ``name``.
+
+    Parameters
+    ----------
+    name : str
+        A preset name (or file path).
+
+    Returns
+    -------
+    str
+        The built-in monochrome counterpart of a colour preset (:data:`MONO_PRESETS`), else
+        ``name`` itself.
+
+    Examples
+    --------
+    >>> mono_preset("grasshopper-icx285"), mono_preset("paper")
+    ('grasshopper-icx285-mono', 'paper')
+    """
+    return MONO_PRESETS.get(name, name) if isinstance(name, str) else name
+
 
 _FILE_EXTRA_KEYS = ("base", "sigma", "description")
 
@@ -146,12 +187,13 @@ def available_presets() -> list[str]:
     Returns
     -------
     list of str
-        The keys of :data:`PRESETS`, sorted (``grasshopper-icx285`` and ``paper``).
+        The keys of :data:`PRESETS`, sorted (``grasshopper-icx285``,
+        ``grasshopper-icx285-mono`` and ``paper``).
 
     Examples
     --------
     >>> available_presets()
-    ['grasshopper-icx285', 'paper']
+    ['grasshopper-icx285', 'grasshopper-icx285-mono', 'paper']
     """
     return sorted(PRESETS)
 

@@ -24,10 +24,12 @@ from .score import best_shift_se
 
 
 def convolve(image: np.ndarray, k: np.ndarray) -> np.ndarray:
-    """``image`` (H, W, C) convolved with the odd-sized, centred kernel ``k``, same size, the
-    image continued by reflection past its edges (as a natural scene goes on)."""
+    """``image`` (H, W, C), or (H, W) grey, convolved with the odd-sized, centred kernel ``k``,
+    same size, the image continued by reflection past its edges (as a natural scene goes on)."""
     from scipy.ndimage import convolve as nd_convolve
 
+    if image.ndim == 2:
+        return nd_convolve(image, k, mode="reflect")
     return np.stack(
         [nd_convolve(image[..., c], k, mode="reflect") for c in range(image.shape[2])], -1
     )
@@ -57,7 +59,7 @@ def residual_mse(y, sharp, k, ids, objects: dict, moving: set, max_shift_px: int
     rest = inner & ~done
     if rest.any():
         se += best_shift_se(pred, y, rest, 0)[0]
-    n = int(inner.sum()) * y.shape[2]
+    n = int(inner.sum()) * (1 if y.ndim == 2 else y.shape[2])
     return (se / n if n else 0.0), inner
 
 
@@ -69,7 +71,7 @@ def model_sigma(
     Parameters
     ----------
     y, sharp : ndarray
-        (H, W, C) the noiseless capture and its sharp layer, white = 1.
+        (H, W, C), or (H, W) grey, the noiseless capture and its sharp layer, white = 1.
     k : ndarray
         The restoring kernel.
     ids, objects, moving : ndarray, dict, set

@@ -100,8 +100,8 @@ def _status(exc: Exception) -> str:
 
 def capture_inputs(render: dict, p: Point):
     """The CaptureSpec and scene description of a point (its speed and depth applied)."""
+    from ..exposure.capture_camera import full_design
     from ..exposure.capture_spec import CaptureSpec
-    from ..model.camera import preset
     from ..scenes import load_scene
     from ..scenes.edit import at_depth, moving_depth_mm, scene_speed_px_per_ms, with_speed
 
@@ -117,9 +117,10 @@ def capture_inputs(render: dict, p: Point):
         max_step_px=render["max_step_px"],
         preset=render["preset"],
         object_depth_mm=render["object_depth_mm"],
+        grey=bool(render.get("grey", False)),
         **parse_design(p.design),
     )
-    full = preset(render["preset"])  # speeds are in the preset's own pixels
+    full = full_design(spec)  # speeds are in the design's own (full sensor) pixels
     desc = load_scene(p.scene)
     if p.depth_mm is not None:
         desc = at_depth(desc, p.depth_mm, full)

@@ -17,6 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..errors import ParameterError
 from ..io.outputs import save_figure, write_text
 from .results import RESULTS, read_csv
 from .spec import StudySpec
@@ -97,11 +98,45 @@ def crossings(xs: np.ndarray, a: np.ndarray, b: np.ndarray) -> list[float]:
 
 
 def write_report(spec: StudySpec, out: Path) -> list[str]:
-    """``report.md`` and the study's plots in ``out``; returns the file names written."""
+    """``report.md`` and the study's plots in ``out``; returns the file names written.
+
+    The report opens with what ran, derived from ``spec`` (window, sensor size and binning,
+    samples, grid, seeds) and from the rows (the spp the renders took). For a ``--quick`` spec
+    (``spec.quick``) the title and the plots say so, and the study's own description, which is
+    of the full run, follows as such.
+
+    Parameters
+    ----------
+    spec : StudySpec
+        The study that ran (:func:`~.spec.load_study`, with ``quick`` as it ran).
+    out : pathlib.Path
+        Its results folder, holding ``results.csv``.
+
+    Returns
+    -------
+    list of str
+        The names of the files the study's folder now holds: ``results.csv``, ``report.md``
+        and the plots.
+    """
     rows = load_rows(out)
-    files, text = [], [f"# Study `{spec.name}`", "", spec.description.strip(), ""]
     ok = [r for r in rows if r["status"] == "ok"]
-    text += [_setup(spec, rows, ok), ""]
+    files, text = [], [f"# Study `{spec.name}`" + (" (quick)" if spec.quick else ""), ""]
+    if spec.quick:
+        text += [
+            f"**A quick run** (`pacam study {spec.source or spec.name} --quick`): the study's "
+            "small version, which checks that every step runs; its numbers are not the full "
+            "study's. What ran:",
+            "",
+            _setup(spec, rows, ok),
+            "",
+            "The full study (without `--quick`), which this run is not:",
+            "",
+            *("> " + line if line else ">" for line in spec.description.strip().splitlines()),
+            "",
+        ]
+    else:
+        text += [spec.description.strip(), "", _setup(spec, rows, ok), ""]
+    title = plot_title(spec)
     if spec.report == "crossover" and ok:
         files.append(
             _plot(
@@ -111,6 +146,7 @@ def write_report(spec: StudySpec, out: Path) -> list[str]:
                 "light level (photons/px/ms, white, F2.8)",
                 "speed",
                 log=True,
+                title=title,
             )
         )
         text += _crossover_text(ok)
@@ -118,7 +154,7 @@ def write_report(spec: StudySpec, out: Path) -> list[str]:
         for y, name in (("psnr_moving_db", "speed"), ("psnr_moving_interior_db", "speed_interior")):
             data = curves_ci(ok, "speed_px_per_ms", y, LIGHT)
             xlabel = "speed of the moving object (px/ms, preset pixels)"
-            files.append(_plot(out, f"{name}.png", data, xlabel, "light", False, _YLABEL[y]))
+            files.append(_plot(out, f"{name}.png", data, xlabel, "light", False, _YLABEL[y], title))
             text += _speed_text(ok, y)
     text += _error_text(ok)
     text += _plateau_text(ok)
@@ -128,6 +164,7 @@ def write_report(spec: StudySpec, out: Path) -> list[str]:
 
 
 def _setup(spec: StudySpec, rows: list[dict], ok: list[dict]) -> str:
+    """What ran, from the spec that ran: window, sensor, samples, grid, seeds and progress."""
     r = spec.render
     where = (
         f"a {r['crop'][2]}x{r['crop'][3]} px window at ({r['crop'][0]}, {r['crop'][1]}) of"
@@ -141,18 +178,94 @@ def _setup(spec: StudySpec, rows: list[dict], ok: list[dict]) -> str:
         if r.get("noise_ratio")
         else f"{r['spp']} spp"
     )
-    seeds = len({row["seed"] for row in rows}) or 1
+    samples += f" (`{r.get('sampler', 'independent')}`"
+    spp = [x["render_spp"] for x in ok if not math.isnan(x["render_spp"])]
+    if r.get("noise_ratio") and spp:
+        lo, hi = min(spp), max(spp)
+        samples += f"; the renders took {lo:.0f}" + ("" if lo == hi else f" to {hi:.0f}") + " spp"
+    seeds = sorted({p.seed for p in spec.points})
     return (
-        f"{where} a {r['width']}x{r['height']} px `{r['preset']}` sensor, {samples} "
-        f"(`{r.get('sampler', 'independent')}`), sensor model `{r['sensor']}` unless a point "
-        f"says otherwise; {len(rows)} of {len(spec.points)} points done, {failed} failed; "
-        f"{seeds} seed(s), the plots show their mean and, with several, its 95 % confidence "
-        "interval. Scores are against each capture's own `sharp` layer; the moving objects' "
-        "PSNR takes each object at its best horizontal shift (a motion-invariant PSF moves it "
-        "by -s^2 / (2 a_i)). Speeds are in the preset's own pixels (px/ms of the full sensor). "
-        "The deconvolver is told the root sum of squares of the sensor's noise, the render's "
-        "measured Monte Carlo noise, and the capture's measured departure from the convolution "
-        "model it assumes (`model_sigma`, `pacam_render/study/model_error.py`)."
+        f"{where} a {r['width']}x{r['height']} px `{r['preset']}` sensor{_binning(r)}, "
+        f"{samples}), sensor model `{r['sensor']}` unless "
+        f"a point says otherwise; {_grid_text(spec)}; {len(rows)} of {len(spec.points)} "
+        f"points done, {failed} failed; {len(seeds)} seed(s) "
+        f"({', '.join(map(str, seeds))}), the plots show their mean and, with several, its "
+        "95 % confidence interval. Scores are against each capture's own `sharp` layer; the "
+        "moving objects' PSNR takes each object at its best horizontal shift (a "
+        "motion-invariant PSF moves it by -s^2 / (2 a_i)). Speeds are in the preset's own "
+        "pixels (px/ms of the full sensor). The deconvolver is told the root sum of squares of "
+        "the sensor's noise, the render's measured Monte Carlo noise, and the capture's "
+        "measured departure from the convolution model it assumes (`model_sigma`, "
+        "`pacam_render/study/model_error.py`)."
+    )
+
+
+def _binning(render: dict) -> str:
+    """How the study's sensor relates to its preset's: '' at full resolution, else the
+    preset's size and the binning factor (each study pixel is that many preset pixels)."""
+    from ..model.camera import preset
+
+    try:
+        full = preset(render["preset"])
+    except ParameterError:  # an unknown preset: the spec's check names it, not the report
+        return ""
+    fx, fy = full.width_px / render["width"], full.height_px / render["height"]
+    if fx == fy == 1:
+        return " (full resolution)"
+    return f" (the preset's {full.width_px}x{full.height_px} binned {fx:g}x{fy:g})"
+
+
+_AXIS_WORDS = {
+    "mode": ("mode", ""),
+    "design": ("design", ""),
+    "speed_px_per_ms": ("speed", " px/ms"),
+    "depth_mm": ("depth", " mm"),
+    "light_level": ("light level", " photons/px/ms"),
+    "sensor": ("sensor", ""),
+    "method": ("method", ""),
+}
+
+
+def _grid_text(spec: StudySpec) -> str:
+    """The points' values per axis, e.g. 'mode coded, normal; light level 10, 300 ...'."""
+    parts = []
+    for axis, (name, unit) in _AXIS_WORDS.items():
+        values = {getattr(p, axis) for p in spec.points}
+        if axis == "sensor" and values == {spec.render["sensor"]}:
+            continue  # said with the render's sensor model
+        given = sorted(v for v in values if v is not None)
+        text = ", ".join(f"{v:g}" if isinstance(v, float) else str(v) for v in given)
+        text += unit if given else ""
+        if None in values:
+            text += (" and " if given else "") + "the scene's own"
+        parts.append(f"{name} {text}")
+    scenes = ", ".join(sorted({p.scene for p in spec.points}))
+    return f"{len(spec.points)} points of scene {scenes}: " + "; ".join(parts)
+
+
+def plot_title(spec: StudySpec) -> str:
+    """The title over a study's plots.
+
+    Parameters
+    ----------
+    spec : StudySpec
+        The study that ran.
+
+    Returns
+    -------
+    str
+        ``study NAME``; for a ``--quick`` spec also that it is the quick run, its window,
+        sensor size and seed count, and that it is not the full study.
+    """
+    if not spec.quick:
+        return f"study {spec.name}"
+    r = spec.render
+    sensor = f"{r['width']}x{r['height']} sensor"
+    where = f"{r['crop'][2]}x{r['crop'][3]} px window of a {sensor}" if r["crop"] else sensor
+    seeds = len({p.seed for p in spec.points})
+    return (
+        f"study {spec.name}, QUICK run (--quick): {where}, {seeds} "
+        f"seed{'s' if seeds != 1 else ''}; not the full study"
     )
 
 
@@ -234,7 +347,14 @@ _YLABEL = {
 
 
 def _plot(
-    out: Path, name: str, data: dict, xlabel: str, panel: str, log: bool, ylabel: str = ""
+    out: Path,
+    name: str,
+    data: dict,
+    xlabel: str,
+    panel: str,
+    log: bool,
+    ylabel: str = "",
+    title: str = "",
 ) -> str:
     import matplotlib
 
@@ -260,6 +380,8 @@ def _plot(
         ax.set_title(f"{panel} {float(key):.4g} {unit}".strip() if key != "" else "")
         ax.grid(alpha=0.3)
     axes[0][-1].legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.02, 1.0))
+    if title:
+        fig.suptitle(title, fontsize=10)
     fig.tight_layout()
     save_figure(fig, out / name, 90)
     return name

@@ -51,9 +51,9 @@ def score(
     Parameters
     ----------
     est : ndarray
-        (H, W, 3) estimate, white = 1.
+        (H, W, 3) estimate, white = 1; (H, W) for a grey capture.
     layers : dict
-        The capture's ground truth: ``sharp`` and ``object_id``.
+        The capture's ground truth: ``sharp`` (the estimate's shape) and ``object_id``.
     objects : dict
         The legend, object id (str) to shape id.
     moving : set of str
@@ -74,6 +74,7 @@ def score(
         ``psnr_by_object`` (JSON: shape id to [PSNR dB, best shift px]), all with a peak of 1.
     """
     truth, ids = layers["sharp"], layers["object_id"]
+    channels = 1 if truth.ndim == 2 else truth.shape[2]  # a grey capture's sharp is (H, W)
     m = int(max_shift_px)
     valid = np.zeros(ids.shape, bool)
     valid[:, m : ids.shape[1] - m] = True
@@ -86,21 +87,21 @@ def score(
         if mask.sum() < MIN_OBJECT_PX:
             continue
         se, shift = best_shift_se(est, truth, mask, m if name in moving else 0)
-        n = mask.sum() * truth.shape[2]
+        n = mask.sum() * channels
         per[name] = [round(_psnr_from_mse(se / n), 3), shift]
         if name in moving:
             se_moving, n_moving = se_moving + se, n_moving + n
             inner = _interior(mask, edge_px)
             if inner.sum() >= MIN_OBJECT_PX:
                 se_i, _ = best_shift_se(est, truth, inner, m)
-                se_in, n_in = se_in + se_i, n_in + inner.sum() * truth.shape[2]
+                se_in, n_in = se_in + se_i, n_in + inner.sum() * channels
     still = valid & ~moving_mask
     se_still, _ = best_shift_se(est, truth, still, 0)
     return {
         "psnr_db": aligned_psnr(est, truth, (0.0, 1.0, 0.0, 1.0), m),
         "ssim": ssim(est, truth),
         "psnr_moving_db": _psnr_from_mse(se_moving / n_moving) if n_moving else float("nan"),
-        "psnr_static_db": _psnr_from_mse(se_still / max(1, still.sum() * truth.shape[2])),
+        "psnr_static_db": _psnr_from_mse(se_still / max(1, still.sum() * channels)),
         "psnr_moving_interior_db": _psnr_from_mse(se_in / n_in) if n_in else float("nan"),
         "psnr_by_object": json.dumps(per, sort_keys=True),
     }
@@ -136,7 +137,8 @@ def score_capture(est, layers: dict, record) -> dict:
     Parameters
     ----------
     est : ndarray
-        (H, W, 3) estimate, white = 1 (a capture's layer divided by its ``light_factor``).
+        (H, W, 3) estimate, or (H, W) for a grey capture, white = 1 (a capture's layer divided
+        by its ``light_factor``).
     layers : dict
         The capture's ``sharp``, ``object_id`` and ``velocity`` layers.
     record : CaptureRecord

@@ -6,7 +6,7 @@ A study renders captures, passes them through the image sensor, deconvolves and 
     [study]   name, report ("crossover", "speed" or "table"), description, decompose
     [render]  what every point shares: scene, preset, object_depth_mm (the depth the designs
               are made for), width, height, crop, noise_ratio (or spp), sampler,
-              max_step_px, sensor
+              max_step_px, sensor, grey
     [grid]    axes, each a list: every combination is a point (or several [[grid]] tables:
               the union of their points)
     [quick]   overrides for --quick: a [quick.render] and a [quick.grid] table
@@ -46,9 +46,11 @@ sensor). ``speed_px_per_ms``: image speed of the scene's fastest moving shape at
 preset's own pixels (the motions are scaled); ``depth_mm``: the moving shapes' depth (they are
 moved along z, their image speed kept); ``light_level``: photons/px/ms of white through F2.8
 (by default :data:`~pacam_render.sensor.model.DEFAULT_LIGHT_LEVEL`, as for ``render`` and
-``optimize``); ``design``: ``prototype`` (the preset), ``cover=S`` with optional ``,F=N`` or
-``,r=PX`` (:func:`~pacam_render.model.design.solve`), or ``schedule=PATH``: a designed
-schedule (``pacam optimize``'s schedule.json)."""
+``sensor``; ``optimize``'s is :data:`~pacam_render.optimize.search.DEFAULT_LIGHT_LEVEL`);
+``design``: ``prototype`` (the preset), ``cover=S`` with optional ``,F=N`` or ``,r=PX``
+(:func:`~pacam_render.model.design.solve`), ``schedule=PATH``: a designed schedule
+(``pacam optimize``'s schedule.json), or a design file, ``PATH.toml`` or ``design=PATH``
+(:mod:`~pacam_render.model.design_file`; the axis may list several)."""
 RENDER = {
     "scene": "train",
     "preset": "prototype",
@@ -66,6 +68,13 @@ RENDER = {
 until its Monte Carlo sigma is at most this times the lowest sensor noise among the points it
 feeds (0.2: the render adds at most 4 % to any point's noise variance); ``false`` renders
 ``spp`` samples instead."""
+GREY_RENDER = "grey"
+"""The ``[render]`` key (true or false, default false) that renders every capture in one
+channel with Mitsuba's mono variant (:attr:`~pacam_render.exposure.capture_spec.CaptureSpec.grey`;
+``pacam study --grey`` sets it). A grey study's built-in colour sensor presets become their
+monochrome twins (:data:`~pacam_render.sensor.model.MONO_PRESETS`: ``grasshopper-icx285`` ->
+``grasshopper-icx285-mono``, the same camera without its Bayer filter); a preset file with a
+``bayer`` key is refused. It enters the study's keys only when true."""
 QUICK_RENDER = {"width": 160, "height": 120, "crop": None, "spp": 16}
 """--quick for a study without a [quick] table: a small binned frame at 16 spp."""
 REPORTS = ("crossover", "speed", "table")
@@ -104,6 +113,9 @@ class StudySpec:
     axes: tuple[str, ...] = field(default=())
     decompose: bool = False
     """Score kernel-restored points three more ways (:mod:`.plateau`)."""
+    quick: bool = False
+    """Parsed for ``--quick``: the ``[quick]`` overrides (or :data:`QUICK_RENDER`) are in
+    ``render`` and ``points``, and ``description`` still describes the full study."""
 
     def key(self) -> str:
         """A hash of everything that changes results, the contents of every file the points
@@ -173,7 +185,8 @@ def _named_files(p: Point) -> list[str]:
 
 def input_digests(points) -> dict[str, str]:
     """{path: digest} of every file the points name: scene XMLs (with their motion JSON and
-    every file they read), ``schedule=PATH`` designs and sensor preset files."""
+    every file they read), ``schedule=PATH`` designs, sensor preset files, and design files
+    (the digest of the camera each makes, its bitmaps included)."""
     from ..scenes.description import file_digest
 
     out = {}
@@ -189,6 +202,11 @@ def input_digests(points) -> dict[str, str]:
                 motion.read_bytes() if path.suffix.lower() == ".xml" and motion.is_file() else b""
             )
             out[name] = hashlib.sha256(path.read_bytes() + digest.encode() + extra).hexdigest()[:16]
+        design = design_file_path(p.design)
+        if design is not None and design not in out:  # the camera it makes, bitmaps included
+            from ..model.design_file import read_design
+
+            out[design] = read_design(design).digest()
     return out
 
 
@@ -198,8 +216,11 @@ def builtin_studies() -> list[str]:
     return sorted(p.name[:-5] for p in folder.iterdir() if p.name.endswith(".toml"))
 
 
-def load_study(name_or_path: str, quick: bool = False) -> StudySpec:
+def load_study(name_or_path: str, quick: bool = False, grey: bool = False) -> StudySpec:
     """A study by built-in name or TOML path, parsed and checked.
+
+    ``grey=True`` (``pacam study --grey``) is ``grey = true`` in its ``[render]`` table
+    (:data:`GREY_RENDER`).
 
     Examples
     --------
@@ -227,7 +248,7 @@ def load_study(name_or_path: str, quick: bool = False) -> StudySpec:
             f"unknown study {name_or_path!r}; built-in: {', '.join(builtin_studies())}, or a "
             "path to a .toml file"
         )
-    return parse_study(_toml(text, name_or_path), quick, source=str(name_or_path))
+    return parse_study(_toml(text, name_or_path), quick, source=str(name_or_path), grey=grey)
 
 
 def _toml(text: str, where: str) -> dict:
@@ -241,8 +262,9 @@ def _toml(text: str, where: str) -> dict:
         raise ParameterError(f"study {where!r} is not valid TOML: {exc}") from None
 
 
-def parse_study(doc: dict, quick: bool = False, source: str = "") -> StudySpec:
-    """:class:`StudySpec` from a TOML document (see the module docstring).
+def parse_study(doc: dict, quick: bool = False, source: str = "", grey: bool = False) -> StudySpec:
+    """:class:`StudySpec` from a TOML document (see the module docstring); ``grey=True`` sets
+    ``grey = true`` in its ``[render]`` table.
 
     Raises
     ------
@@ -250,14 +272,14 @@ def parse_study(doc: dict, quick: bool = False, source: str = "") -> StudySpec:
         Naming the table and key at fault (a TOML key, not the CLI flag of the same name).
     """
     try:
-        return _parse(doc, quick, source)
+        return _parse(doc, quick, source, grey)
     except FileKeyError:
         raise
     except ParameterError as exc:
         raise FileKeyError(str(exc)) from None
 
 
-def _parse(doc: dict, quick: bool, source: str) -> StudySpec:
+def _parse(doc: dict, quick: bool, source: str, grey: bool = False) -> StudySpec:
     _keys(doc, "the study file", {"study", "render", "grid", "points", "quick"})
     head = _table(doc, "study")
     _keys(head, "[study]", {"name", "report", "description", "decompose"})
@@ -275,7 +297,9 @@ def _parse(doc: dict, quick: bool, source: str) -> StudySpec:
         small = q.get("grid", {})
         both = isinstance(grid, dict) and isinstance(small, dict)
         grid = {**grid, **small} if both else small
-    _keys(render, "[render]", set(RENDER))
+    if grey:
+        render["grey"] = True
+    _keys(render, "[render]", set(RENDER) | {"grey"})
     render = _check_render(render)
     pts = _expand(grid, points, render)
     return StudySpec(
@@ -287,6 +311,7 @@ def _parse(doc: dict, quick: bool, source: str) -> StudySpec:
         source=source,
         axes=tuple(k for k in AXES if len({getattr(p, k) for p in pts}) > 1),
         decompose=head.get("decompose", False),
+        quick=bool(quick),
     )
 
 
@@ -333,7 +358,35 @@ def _check_render(r: dict) -> dict:
         )
     except ParameterError as exc:
         raise ParameterError(f"[render] {exc}") from None
+    if "grey" in r:
+        if not isinstance(r["grey"], bool):
+            raise ParameterError(f"[render] grey must be true or false, got {r['grey']!r}")
+        if not r["grey"]:  # absent and false are the same study (and the same keys)
+            del r["grey"]
+    if r.get("grey"):
+        from ..render.variant import grey_request
+
+        grey_request(True)  # refused with an RGB PACAM_VARIANT, before any work
     return {**r, "crop": list(r["crop"]) if r["crop"] else None}
+
+
+def _grey_sensor(name):
+    """A grey study's sensor: a built-in colour preset becomes its monochrome twin; a preset
+    file with a Bayer filter is refused (GREY_RENDER)."""
+    from ..sensor.model import SensorModel, mono_preset
+
+    if not isinstance(name, str):
+        return name  # _check_point names the bad value
+    mono = mono_preset(name)
+    if mono == name and name.lower().endswith((".json", ".toml")):
+        model = SensorModel.from_preset(name)
+        if model.bayer is not None:
+            raise ParameterError(
+                f"[render] grey = true renders grey captures, but sensor {name!r} has a colour "
+                f"filter array (bayer {model.bayer!r}); give a preset without bayer, e.g. "
+                f"grasshopper-icx285-mono"
+            )
+    return mono
 
 
 def _combinations(grid: dict, where: str) -> list[dict]:
@@ -363,6 +416,8 @@ def _expand(grid, points: list, render: dict) -> tuple[Point, ...]:
     out, seen = [], set()
     for combo in combos + points:
         values = {**AXES, "sensor": render["sensor"], "scene": render["scene"], **combo}
+        if render.get("grey"):  # the camera without its colour filter (GREY_RENDER)
+            values["sensor"] = _grey_sensor(values["sensor"])
         values = _check_point(values)
         frozen = tuple(sorted(values.items()))
         if frozen not in seen:
@@ -372,9 +427,17 @@ def _expand(grid, points: list, render: dict) -> tuple[Point, ...]:
     return tuple(out)
 
 
+def design_file_path(text) -> str | None:
+    """The design file a ``design`` axis value names (``PATH.toml`` or ``design=PATH``)."""
+    t = str(text)
+    if t.startswith("design="):
+        return t[len("design=") :]
+    return t if t.lower().endswith(".toml") else None
+
+
 def parse_design(text: str) -> dict:
-    """``prototype``, ``cover=S[,F=N | ,r=PX]`` or ``schedule=PATH`` (a ``pacam optimize``
-    schedule.json) as CaptureSpec fields.
+    """``prototype``, ``cover=S[,F=N | ,r=PX]``, ``schedule=PATH`` (a ``pacam optimize``
+    schedule.json) or a design file (``PATH.toml`` or ``design=PATH``) as CaptureSpec fields.
 
     Returns
     -------
@@ -385,6 +448,12 @@ def parse_design(text: str) -> dict:
     out = {"cover_px_per_ms": None, "f_number": None, "r_px": None, "schedule": None}
     if text == "prototype":
         return out
+    path = design_file_path(text)
+    if path is not None:
+        from ..model.design_file import read_design
+
+        read_design(path)  # checked with the spec, before any render
+        return {**out, "design": path}
     if str(text).startswith("schedule="):
         from ..model.schedule_file import read_schedule
 

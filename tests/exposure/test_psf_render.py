@@ -259,3 +259,32 @@ def test_every_mode_of_the_table_renders_its_analytic_psf(renderer, mode):
     a, b, mean, floor = _pair(renderer, cam, mode, s)
     assert metrics.rel_l1(mean, design_psf(cam, mode, s)) < 1.3 * floor + 2e-3
     assert a.seconds > 0 and floor < 0.02
+
+
+def test_a_bitmap_schedule_renders_its_own_kernel_at_the_monte_carlo_floor():
+    """Square openings on the LCoS, 8 along the parabola: the rendered PSF (ptracer, two
+    seeds) matches the exact bitmap kernel at the noise floor, and a_i the fit to its own
+    centroids; discs of the same area at the same centres would be a visibly other kernel."""
+    from pacam_render.experiments import validate_psf as V
+    from pacam_render.model.camera import preset
+    from pacam_render.model.masks import DISPLAY_SHAPE, MaskStack, pixel_centres_mm
+    from pacam_render.psf.analytic import design_psf
+
+    proto = preset("prototype")
+    centres = proto.pattern_centres_xy_mm()[::2]
+    x, y = pixel_centres_mm(DISPLAY_SHAPE)  # local frame: x to the image's left
+    half = 0.5 * np.sqrt(np.pi) * proto.R_mm  # a square of the disc's area
+    masks = np.stack([
+        (np.abs(-x[None, :] - cx) <= half) & (np.abs(-y[:, None] - cy) <= half)
+        for cx, cy in centres
+    ]).astype(np.float32)  # fmt: skip
+    stack = MaskStack(masks)
+    cam = proto.with_(pattern_masks=stack, n_patterns=8, R_mm=stack.equivalent_radius_mm())
+    grid = V.Grid("bitmap", (500.0,), (cam.F_number,), (0.0, 1.0), 1 << 15, design=cam)
+    rows = V.pair_task((500.0, cam.F_number, grid))
+    for row, _ in rows:
+        assert row["l1_pass"] and row["a_i_pass"] and row["r_pass"], row
+        assert row["l1_ratio"] < 2.0
+    discs = design_psf(cam.with_(pattern_masks=None, pattern_centres_mm=tuple(map(tuple, centres))),
+                       "coded", 0.0, size=rows[0][1]["discrete"].shape)  # fmt: skip
+    assert metrics.rel_l1(discs, rows[0][1]["discrete"]) > 5 * rows[0][0]["l1_noise_floor"]

@@ -94,3 +94,41 @@ def test_llvm_is_chosen_when_it_works():
         pytest.skip(f"LLVM backend not available here: {why}")
     name, n, _ = run({})
     assert name == "llvm_ad_rgb" and n == 0
+
+
+@pytest.mark.parametrize("command", ["render", "study"])
+def test_cuda_override_without_a_gpu_is_a_one_line_refusal(command, tmp_path):
+    """PACAM_VARIANT=cuda_ad_rgb where CUDA does not load: exit 2, one line naming the CPU
+    variant to use instead, no traceback and no output folder (issue 35); a study refuses it
+    once, before any point, not once per point."""
+    probe = "from pacam_render.render.variant import cuda_available; print(cuda_available())"
+    env = {k: v for k, v in os.environ.items() if k != "PACAM_VARIANT"}
+    has_gpu = subprocess.run(
+        [sys.executable, "-c", probe], env=env, capture_output=True, text=True, timeout=120
+    )
+    if has_gpu.stdout.strip() == "True":
+        pytest.skip("CUDA loads here: the refusal is for machines without a GPU")
+    out = tmp_path / "gpu"
+    if command == "render":
+        args = ["train", "--width", "32", "--height", "24", "--spp", "4"]
+    else:
+        spec = tmp_path / "tiny.toml"
+        spec.write_text(
+            "[render]\nwidth = 32\nheight = 24\nnoise_ratio = false\nspp = 4\n"
+            '[grid]\nmethod = ["none"]\n'
+        )
+        args = [str(spec), "--workers", "0", "--quiet"]
+    done = subprocess.run(
+        [sys.executable, "-m", "pacam_render", command, *args, "--out", str(out)],
+        env={**env, "PACAM_VARIANT": "cuda_ad_rgb"},
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert done.returncode == 2, done.stderr
+    assert "Traceback" not in done.stderr
+    lines = done.stderr.strip().splitlines()
+    assert len(lines) == 1, done.stderr
+    assert lines[0].startswith(f"pacam {command}: error: PACAM_VARIANT='cuda_ad_rgb' cannot render")
+    assert "PACAM_VARIANT=llvm_ad_rgb" in lines[0] and "unset PACAM_VARIANT" in lines[0]
+    assert not out.exists()
