@@ -14,7 +14,7 @@ demo: setup
 test: setup
 	$(BIN)/python -m pytest -q
 
-# Everything that does not ray-trace (tests marked `render` are left out): about 2 min.
+# Everything that does not ray-trace (tests marked `render` are left out): about 3 min.
 test-fast: setup
 	$(BIN)/python -m pytest -q -m "not render"
 

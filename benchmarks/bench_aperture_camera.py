@@ -10,6 +10,13 @@ Sensors:
 - ``parabolic``: 16 discs on the paper's parabola, R = R_max * 2.8/9.85 (target <= 1.03);
 - ``bitmap``: the same 16 discs as 1280x1024 LCoS masks (importance-sampled tables).
 
+With ``--relative-illumination`` (issue 36) the sensors are instead ``thinlens``, ``static`` (the
+plugin's full opening, ``off``: ray for ray thinlens), ``parabolic``, and each of the two with
+``relative_illumination=cos4`` (``+cos4``); the table then also gives each ``+cos4`` sensor's
+time over the same sensor with ``off`` in the same round (``vs off``; goal < 1.05), and a fourth
+case, ``camera/rays``: ``sample_ray`` alone for N film positions (its ``spp`` column is N),
+nothing traced, the bound on the factor's cost when the camera is all the work.
+
 Scenes:
 - ``cornell/path``: Mitsuba's Cornell box, path tracer (a typical render: the camera's share
   of the work is small);
@@ -17,7 +24,7 @@ Scenes:
   one emitter sample (little work per camera ray: the camera's overhead shows most);
 - ``psf/ptracer``: a small disc emitter seen by the particle tracer (``sample_direction``).
 
-    python benchmarks/bench_aperture_camera.py [--quick]
+    python benchmarks/bench_aperture_camera.py [--quick] [--relative-illumination]
 """
 
 from __future__ import annotations
@@ -39,12 +46,29 @@ from pacam_render.render.masks import DISPLAY_SHAPE, disc_masks
 SHUTTER = dict(shutter_open=0.0, shutter_close=45.0)
 
 
-def sensors(fov: float, focus: float, R_max: float, to_world, size: int) -> dict[str, dict]:
-    """The three sensors, sharing film, shutter, optics and pose."""
+def sensors(
+    fov: float, focus: float, R_max: float, to_world, size: int, ri: bool = False
+) -> dict[str, dict]:
+    """The three sensors, sharing film, shutter, optics and pose; with ``ri`` the
+    relative-illumination set (module docstring)."""
     film = {"type": "hdrfilm", "width": size, "height": size, "rfilter": {"type": "box"}}
     R = R_max * 2.8 / 9.85
     common = dict(fov=fov, focus_distance=focus, to_world=to_world, film=film, **SHUTTER)
     pitch = R_max / (DISPLAY_SHAPE[0] / 2)  # the display's height spans the lens
+    if ri:
+        return {
+            "thinlens": dict(type="thinlens", aperture_radius=R_max, **common),
+            **{
+                name + suffix: ac.sensor_dict(
+                    lens_radius=R_max, relative_illumination=setting, **kw, **common
+                )
+                for name, kw in (
+                    ("static", {}),
+                    ("parabolic", dict(aperture_radius=R, schedule="parabolic")),
+                )
+                for suffix, setting in (("", "off"), ("+cos4", "cos4"))
+            },
+        }
     masks = disc_masks(sch.pattern_centres_mm(R_max, R, 22.5, 16), R, pitch_mm=pitch)
     return {
         "thinlens": dict(type="thinlens", aperture_radius=R_max, **common),
@@ -96,19 +120,37 @@ def psf(sensor: dict) -> dict:
     }
 
 
-def case_sets(quick: bool):
+def rays(sensor: dict) -> dict:
+    """``camera/rays``: the sensor alone (:func:`rays_once` times its ``sample_ray``)."""
+    return sensor
+
+
+def rays_once(sensor, n: int) -> None:
+    """``sample_ray`` for ``n`` random film and lens samples, evaluated: the camera's own
+    work, nothing traced."""
+    u = dr.arange(mi.Float, n) * (1.0 / n)
+    v = u * 7919.0 - dr.floor(u * 7919.0)
+    ray, w = sensor.sample_ray(u * 45.0, v, mi.Point2f(u, v), mi.Point2f(v, u))
+    # one stored value per ray for every sensor: a weight that is one scalar (off) would
+    # otherwise be stored once, and a per-ray one (cos4) 4M times, timing memory, not the factor
+    dr.eval(ray.o + ray.d * w[0])
+    dr.sync_thread()
+
+
+def case_sets(quick: bool, ri: bool = False):
     T = mi.ScalarTransform4f
     size = 128 if quick else 256
     cb = mi.cornell_box()["sensor"]
-    return [
+    extra = [("camera/rays", rays, sensors(30.0, 800.0, 4.46, T(), size, ri), 1 << 22)]
+    return (extra if ri else []) + [
         (
             "cornell/path",
             cornell,
-            sensors(cb["fov"], 3.9, 0.05, cb["to_world"], size),
+            sensors(cb["fov"], 3.9, 0.05, cb["to_world"], size, ri),
             16 if quick else 64,
         ),
-        ("plane/direct", plane, sensors(30.0, 800.0, 4.46, T(), size), 64 if quick else 256),
-        ("psf/ptracer", psf, sensors(30.0, 800.0, 4.46, T(), size), 64 if quick else 512),
+        ("plane/direct", plane, sensors(30.0, 800.0, 4.46, T(), size, ri), 64 if quick else 256),
+        ("psf/ptracer", psf, sensors(30.0, 800.0, 4.46, T(), size, ri), 64 if quick else 512),
     ]
 
 
@@ -118,10 +160,10 @@ def render_once(scene, spp: int) -> None:
     dr.sync_thread()  # LLVM kernels run asynchronously: wait for this one
 
 
-def timed(scene, spp: int) -> tuple[float, float]:
+def timed(scene, spp: int, once=render_once) -> tuple[float, float]:
     """Wall-clock seconds (common.timeit) and CPU seconds of all threads, for one render."""
     c0 = time.process_time()
-    (wall,) = timeit(lambda: render_once(scene, spp), repeat=1, warmup=0)
+    (wall,) = timeit(lambda: once(scene, spp), repeat=1, warmup=0)
     return wall, time.process_time() - c0
 
 
@@ -129,6 +171,11 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="smaller films, fewer rounds")
     ap.add_argument("--rounds", type=int, default=None)
+    ap.add_argument(
+        "--relative-illumination",
+        action="store_true",
+        help="time relative_illumination=cos4 against off (issue 36) instead of bitmap",
+    )
     args = ap.parse_args()
     variant = select_variant()
     ac.register()
@@ -136,17 +183,19 @@ def main() -> None:
     rounds = args.rounds or (5 if args.quick else 9)
 
     rows = []
-    for scene_name, make, sens, spp in case_sets(args.quick):
+    ri = args.relative_illumination
+    for scene_name, make, sens, spp in case_sets(args.quick, ri):
         scenes = {k: mi.load_dict(make(v)) for k, v in sens.items()}
         names = list(scenes)
+        once = rays_once if make is rays else render_once
         wall: dict[str, list[float]] = {k: [] for k in names}
         cpu: dict[str, list[float]] = {k: [] for k in names}
         for k in names:  # compile
-            render_once(scenes[k], spp)
+            once(scenes[k], spp)
         for r in range(rounds):
             order = names[r % len(names) :] + names[: r % len(names)]
             for k in order:
-                w, c = timed(scenes[k], spp)
+                w, c = timed(scenes[k], spp, once)
                 wall[k].append(w)
                 cpu[k].append(c)
         size = sens["thinlens"]["film"]["width"]
@@ -154,6 +203,16 @@ def main() -> None:
             med, spread = median_spread(wall[k])
             rw = median_spread(list(np.array(wall[k]) / np.array(wall["thinlens"])))
             rc = median_spread(list(np.array(cpu[k]) / np.array(cpu["thinlens"])))
+            base = k.removesuffix("+cos4")
+            vs_off = {}
+            if ri:  # each +cos4 sensor against the same sensor with off, round by round
+                off_w = median_spread(list(np.array(wall[k]) / np.array(wall[base])))
+                off_c = median_spread(list(np.array(cpu[k]) / np.array(cpu[base])))
+                vs_off = {
+                    "vs off (wall)": float(off_w[0]) if k != base else "",
+                    "± (vs off)": float(off_w[1]) if k != base else "",
+                    "vs off (CPU)": float(off_c[0]) if k != base else "",
+                }
             rows.append(
                 {
                     "scene": scene_name,
@@ -166,7 +225,8 @@ def main() -> None:
                     "± (wall)": float(rw[1]),
                     "ratio (CPU)": float(rc[0]),
                     "± (CPU)": float(rc[1]),
-                    "target": "<= 1.03" if k == "parabolic" else "",
+                    **vs_off,
+                    "target": _target(k, ri),
                 }
             )
         print(f"{scene_name}: done", flush=True)
@@ -174,15 +234,35 @@ def main() -> None:
         f"{rounds} interleaved rounds after one warm-up render each; ratio = time / thinlens "
         "time in the same round (median, ± half the min-max range); wall = common.timeit, "
         "CPU = process CPU time of all threads (less sensitive to other load on the machine); "
-        f"bitmap: 16 masks of {DISPLAY_SHAPE[1]}x{DISPLAY_SHAPE[0]}"
+        + (
+            "vs off = time / the same sensor's time with relative_illumination off, same round"
+            if ri
+            else f"bitmap: 16 masks of {DISPLAY_SHAPE[1]}x{DISPLAY_SHAPE[0]}"
+        )
     )
-    record("programmable_aperture vs thinlens render time (issue 3)", rows, notes)
+    title = (
+        "relative_illumination cos4 vs off render time (issue 36)"
+        if ri
+        else "programmable_aperture vs thinlens render time (issue 3)"
+    )
+    record(title, rows, notes)
     for r in rows:
+        if ri and r["sensor"].endswith("+cos4"):
+            print(
+                f"{r['sensor']}, {r['scene']}: {r['vs off (wall)']:.3f} wall, "
+                f"{r['vs off (CPU)']:.3f} CPU against off (goal < 1.05)"
+            )
         if r["sensor"] == "parabolic":
             print(
                 f"parabolic, {r['scene']}: {r['ratio (wall)']:.3f} wall, "
                 f"{r['ratio (CPU)']:.3f} CPU (target <= 1.03)"
             )
+
+
+def _target(sensor: str, ri: bool) -> str:
+    if ri:
+        return "vs off < 1.05" if sensor.endswith("+cos4") else ""
+    return "<= 1.03" if sensor == "parabolic" else ""
 
 
 if __name__ == "__main__":

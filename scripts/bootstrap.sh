@@ -11,8 +11,11 @@ STAMP=$VENV/.pacam-installed
 as_root() { [ "$(id -u)" = 0 ]; }
 apt_install() {  # apt_install PKG... ; returns non-zero if not root or apt fails
   as_root && command -v apt-get >/dev/null || return 1
-  if [ ! -f /tmp/.pacam-apt-updated ]; then apt-get update -qq && touch /tmp/.pacam-apt-updated; fi
-  DEBIAN_FRONTEND=noninteractive apt-get install -y -qq "$@" >/dev/null
+  if [ ! -f /tmp/.pacam-apt-updated ]; then
+    apt-get -o DPkg::Lock::Timeout=300 update -qq && touch /tmp/.pacam-apt-updated
+  fi
+  # another apt/dpkg (unattended upgrades at boot) may hold the lock: wait for it, 5 min at most
+  DEBIAN_FRONTEND=noninteractive apt-get -o DPkg::Lock::Timeout=300 install -y -qq "$@" >/dev/null
 }
 
 # 1. Python >= 3.10

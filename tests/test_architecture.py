@@ -265,3 +265,28 @@ def test_record_without_camera_is_a_clear_error():
         CaptureRecord.from_json({"mode": "coded"}, where="x.json")
     with pytest.raises(ParameterError, match="JSON object"):
         CaptureRecord.from_json([1, 2], where="x.json")
+
+
+WAVE_MAY_IMPORT = ("pacam_render.errors", "pacam_render.limits", "pacam_render.model")
+"""The package modules that :mod:`pacam_render.wave` (pupils and diffraction) may import."""
+
+
+def test_wave_is_a_numpy_only_leaf_below_psf():
+    """``wave/`` sits between ``model/`` and ``psf/``: it imports numpy, the standard library
+    and the modules of :data:`WAVE_MAY_IMPORT` only, and nothing below it imports ``psf/``,
+    ``render/`` or Mitsuba."""
+    mods = _modules()
+    for name, path in mods.items():
+        if not name.startswith("pacam_render.wave."):
+            continue
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, (ast.Import, ast.ImportFrom)):
+                for target in _targets(name, node, mods):
+                    top = target.split(".")[0]
+                    if top == "pacam_render":
+                        inside = target.startswith(("pacam_render.wave", *WAVE_MAY_IMPORT))
+                        assert inside, f"{name} imports {target}"
+                    else:
+                        assert top in ("numpy", "__future__") or top in sys.stdlib_module_names, (
+                            f"{name} imports {target}"
+                        )

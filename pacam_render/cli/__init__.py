@@ -16,7 +16,13 @@ from collections.abc import Sequence
 from ..errors import FileKeyError, ParameterError
 from ..exposure.integrate import CaptureInterrupted
 from . import deconvolve, demo, design, optimize, psf, render, reproduce, sensor, study, validate
-from .common import check_common, note_printer, terminate_as_interrupt, user_words
+from .common import (
+    check_common,
+    interrupt_status,
+    note_printer,
+    terminate_as_interrupt,
+    user_words,
+)
 
 COMMANDS = (design, psf, deconvolve, reproduce, render, sensor, optimize, validate, study, demo)
 """The command modules, in the order ``pacam --help`` lists them."""
@@ -38,14 +44,18 @@ def main(argv: Sequence[str] | None = None) -> int:
             return 2
         except CaptureInterrupted as exc:
             print(f"{name}: {exc}", file=sys.stderr)
-            return 130
+            return interrupt_status(exc)
         except KeyboardInterrupt:
             print(f"{name}: interrupted", file=sys.stderr)
-            return 130
+            return interrupt_status()
         except BrokenPipeError:  # e.g. `pacam design | head`: the reader left, nothing is wrong
             devnull = os.open(os.devnull, os.O_WRONLY)
             os.dup2(devnull, sys.stdout.fileno())  # so that the interpreter's final flush is quiet
             return 0
+        except MemoryError as exc:  # past what the estimates foresaw: one line, not a traceback
+            why = f": {exc}" if str(exc) else " (MemoryError); free memory, or ask for less"
+            print(f"{name}: error: out of memory{why}", file=sys.stderr)
+            return 1
         except OSError as exc:  # a disk full, a file gone: one line, not a traceback
             print(f"{name}: error: {exc}", file=sys.stderr)
             return 1

@@ -46,9 +46,11 @@ FLAGS = {
     "noise_sigma": "--noise-sigma",
     "quantum_px": "--quantum",
     "per_pattern": "--per-pattern",
+    "relative_illumination": "--relative-illumination",
     "velocity_px_per_ms": "--velocity",
     "velocity": "--velocity",
     "spp": "--spp",
+    "passes": "--passes",
     "seed": "--seed",
     "size": "--size",
     "film": "--film",
@@ -74,7 +76,9 @@ FLAGS = {
 """Parameter names in library messages, and the flags a CLI user typed instead: the one
 mapping (a file's keys, :class:`~pacam_render.errors.FileKeyError`, are left as they are)."""
 _QUOTED = re.compile(r"`(" + "|".join(map(re.escape, FLAGS)) + r")(?:=True)?`")
-_BARE = re.compile(r"(?<![\w-])(" + "|".join(n for n in FLAGS if "_" in n) + r")(?![\w-])(?! \(--)")
+_BARE = re.compile(  # a key after its "[table] " is a file's key, not a flag
+    r"(?<![\w-])(?<!\] )(" + "|".join(n for n in FLAGS if "_" in n) + r")(?![\w-])(?! \(--)"
+)
 
 
 def user_words(message: str) -> str:
@@ -82,6 +86,8 @@ def user_words(message: str) -> str:
 
     >>> user_words("raise max_samples, or lower `spp` (64 spp now); pass `force=True`")
     'raise --max-samples, or lower --spp (64 spp now); pass --force'
+    >>> user_words("over budget_hours; raise [render] noise_ratio in the file")
+    'over --budget; raise [render] noise_ratio in the file'
     """
     message = _QUOTED.sub(lambda m: FLAGS[m.group(1)], message)
     return _BARE.sub(lambda m: FLAGS[m.group(1)], message)
@@ -191,8 +197,10 @@ def add_limit_args(p: argparse.ArgumentParser) -> None:
         type=int,
         default=DEFAULT_MAX_SAMPLES,
         metavar="N",
-        help=f"refuse more than N = spp x width x height samples (default 2^35 = "
-        f"{DEFAULT_MAX_SAMPLES}, about 1.5 h on 2 cores)",
+        help="refuse more than N = spp x width x height samples, counted as rendered (the "
+        "passes rounded up to whole time steps; a noise target's pilot; a target the pilot "
+        f"puts beyond N is refused after it) (default 2^35 = {DEFAULT_MAX_SAMPLES}, about 1.5 h "
+        "on 2 cores)",
     )
     p.add_argument(
         "--checkpoint-every",
@@ -239,18 +247,33 @@ def note_printer(name: str):
     return show
 
 
+_SIGNALLED: list[int] = []
+"""The signal that interrupted this command, if one did (SIGTERM)."""
+
+
 @contextlib.contextmanager
 def terminate_as_interrupt():
-    """SIGTERM is handled as Ctrl-C (KeyboardInterrupt), so both save and exit alike."""
+    """SIGTERM is handled as Ctrl-C (KeyboardInterrupt), so both save alike; the exit status
+    still says which (:func:`interrupt_status`)."""
 
     def handler(signum, frame):
+        _SIGNALLED.append(signum)
         raise KeyboardInterrupt
 
+    _SIGNALLED.clear()
     old = signal.signal(signal.SIGTERM, handler)
     try:
         yield
     finally:
         signal.signal(signal.SIGTERM, old)
+
+
+def interrupt_status(exc: BaseException | None = None) -> int:
+    """The exit status of an interrupted command, by the shell's convention 128 + signal:
+    143 after SIGTERM, 130 after Ctrl-C (SIGINT). A capture that caught the signal itself
+    says which (``exc.signum``)."""
+    signum = getattr(exc, "signum", None) or (_SIGNALLED[-1] if _SIGNALLED else signal.SIGINT)
+    return 128 + int(signum)
 
 
 @contextlib.contextmanager

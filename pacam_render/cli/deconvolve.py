@@ -6,19 +6,29 @@ import argparse
 import json
 import sys
 import time
+import warnings
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import ParameterError
 from ..exposure.capture_psf import CapturePSF, load_capture_psf, psf_path
-from ..exposure.record import read_record
-from ..io.exr import pick_layer, read_exr, write_exr
+from ..exposure.record import check_layers_fit, read_record
+from ..io.exr import pick_layer, read_exr, read_layer_shapes, write_exr
 from ..io.outputs import check_writable, prepare_out_dir, write_json
 from ..io.preview import srgb8, write_png
+from ..limits import PacamWarning, gib, note
 from ..psf.origin import to_pinhole
 from ..restore.capture_noise import check_noise_sigma, deblur_layer, deblur_noise, sparse_options
-from ..restore.deconvolve import BM3D_LICENCE, METHODS, deconvolve, require_method
+from ..restore.cost import check_deconvolve
+from ..restore.deconvolve import (
+    BM3D_LICENCE,
+    METHODS,
+    deconvolve,
+    nonnegative_for,
+    require_method,
+)
+from ..restore.flat_field import flat_field_for_deblur
 from .common import add_force, add_out
 
 _FILE_SUFFIXES = {".txt", ".json", ".npy", ".tif", ".tiff", ".jpg", ".jpeg", ".hdr", ".pfm"}
@@ -27,7 +37,7 @@ _FILE_SUFFIXES = {".txt", ".json", ".npy", ".tif", ".tiff", ".jpg", ".jpeg", ".h
 
 def add(sub) -> None:
     p = sub.add_parser("deconvolve", help="deblur a capture with one PSF")
-    p.add_argument("capture", metavar="CAPTURE.exr")
+    p.add_argument("capture", metavar="CAPTURE.exr", help="the capture's EXR, or its folder")
     p.add_argument(
         "--psf",
         default="analytic",
@@ -77,23 +87,46 @@ def add(sub) -> None:
 def run(args: argparse.Namespace) -> int:
     require_method(args.method)  # an optional package missing: said before reading anything
     capture = Path(args.capture)
+    capture = capture / "capture.exr" if capture.is_dir() else capture  # a capture's folder
     psf_file = psf_path(args.psf, capture)
     inputs = [capture] if psf_file is None else [capture, psf_file]
     out, single_file = _deconvolve_out(args, inputs)  # before reading: a slip costs nothing
+    shapes = read_layer_shapes(capture)  # the header only: the cost is checked before the pixels
+    cost = _cost_before_reading(args, capture, psf_file, shapes)
     layers = read_exr(capture)
     layer = deblur_layer(list(layers), args.layer)
     image = pick_layer(layers, layer, capture)
     check_noise_sigma(args.noise_sigma, image)
     record = read_record(capture, required=psf_file is None)
+    check_layers_fit(layers, record, capture, capture.with_suffix(".json"))
     kw, how = sparse_options(args.method, layer, record, args.colour, args.noise_sigma)
     psf = load_capture_psf(args.psf, capture, record, args.allow_psf_mismatch)
+    if cost is None:  # an input the checks above refuse came first; else still before the work
+        cost = _check_cost(shapes, layer, psf.kernel.shape, args.method, kw)
     noise = deblur_noise(args.method, kw, how, image, layer, layers, record, args.noise_sigma)
     if noise["source"] == "noise_sigma":
         noise["source"] = "--noise-sigma"
+    image, noise = flat_field_for_deblur(image, layer, layers, kw, noise)  # irradiance -> radiance
+    if noise.get("flat_field") and how:
+        how += ", flat-fielded per pixel"
     if args.method == "bm3d":
         print(f"note: {BM3D_LICENCE}", file=sys.stderr)
+    image, clipped = nonnegative_for(args.method, image)
+    if clipped:
+        print(
+            f"note: rl needs non-negative data: {clipped} value(s) of layer {layer} below 0 "
+            "(read noise) clipped to 0",
+            file=sys.stderr,
+        )
     start = time.perf_counter()
-    est = deconvolve(image, psf.kernel, args.method, **kw)
+    try:
+        est = deconvolve(image, psf.kernel, args.method, **kw)
+    except MemoryError:  # the estimate fitted, the machine's memory did not: one line
+        raise MemoryError(
+            f"deblurring layer {layer} with --method {args.method} ({cost.describe()} "
+            f"estimated, {gib(cost.free)} available when it began); free memory, or use a "
+            "method that needs less (wiener)"
+        ) from None
     est = to_pinhole(est, psf.origin, psf.t0_offset_px)  # the capture's registration
     seconds = time.perf_counter() - start
     sc = _deconvolve_score(est, layers, layer, record)
@@ -101,6 +134,7 @@ def run(args: argparse.Namespace) -> int:
         _write_deconvolved_file(out, est, args.force)
     else:
         info = {"capture": str(capture), "layer": layer, "method": args.method, "seconds": seconds}
+        info["flat_fielded"] = bool(noise.get("flat_field"))  # by its relative_illumination
         _write_deconvolved(out, est, record, {**info, **_psf_json(args, psf), **sc}, noise)
     print(
         f"wrote {out} ({args.method}, layer {layer}, noise {_noise_words(noise, how)}, "
@@ -109,6 +143,46 @@ def run(args: argparse.Namespace) -> int:
     if sc:
         print(_score_line(sc))
     return 0
+
+
+NOTE_SECONDS = 10.0
+"""A deconvolution estimated to take longer says so, with its memory, before it starts."""
+
+
+def _cost_before_reading(args: argparse.Namespace, capture: Path, psf_file, shapes: dict):
+    """:func:`_check_cost` from the EXR's header, the record and the PSF, before any pixel is
+    read; None when one of them has an error, which the command then reports where it checks
+    it (after reading, as ever), the cost checked after it."""
+    try:
+        layer = deblur_layer(list(shapes), args.layer)
+        if layer not in shapes:
+            return None
+        record = read_record(capture, required=psf_file is None)
+        kw, _ = sparse_options(args.method, layer, record, args.colour, args.noise_sigma)
+        with warnings.catch_warnings():  # its notes are said once, when the command loads it
+            warnings.simplefilter("ignore", PacamWarning)
+            psf = load_capture_psf(args.psf, capture, record, args.allow_psf_mismatch)
+    except ParameterError:
+        return None
+    return _check_cost(shapes, layer, psf.kernel.shape, args.method, kw)
+
+
+def _check_cost(shapes: dict, layer: str, psf_shape, method: str, kw: dict):
+    """The deconvolution's estimated memory and seconds (:mod:`~..restore.cost`), from the
+    EXR's header, before its pixels are read: refused when the memory is not available
+    (every layer is read, as float32, besides the method's arrays), noted when long."""
+    shape = shapes[layer]
+    channels = shape[2] if len(shape) == 3 else 1
+    read = 4.0 * sum(float(np.prod(s)) for s in shapes.values())
+    copies = 2 * 8.0 * shape[0] * shape[1] * channels  # a flat-field or clip; the registration
+    cost = check_deconvolve(shape, psf_shape, method, kw, read + copies)
+    if cost.seconds >= NOTE_SECONDS:
+        note(
+            f"deblurring layer {layer} ({shape[1]}x{shape[0]} px, {channels} channel(s)) with "
+            f"`method` {method} takes {cost.describe()} (estimated; {gib(cost.free)} "
+            "available)"
+        )
+    return cost
 
 
 def _deconvolve_out(args: argparse.Namespace, inputs: list[Path]) -> tuple[Path, bool]:
@@ -141,6 +215,9 @@ def _deconvolve_score(est, layers: dict, layer: str, record) -> dict:
     if record is None or layer not in ("capture", "noisy") or not truth <= set(layers):
         return {}
     if record.light_factor <= 0 or est.shape != layers["sharp"].shape:
+        return {}
+    if not np.all(np.isfinite(layers["sharp"])):
+        print("note: the capture's sharp layer holds NaN or inf: no score", file=sys.stderr)
         return {}
     out = score_capture(est / record.light_factor, layers, record)
     return {**out, "psnr_by_object": json.loads(out["psnr_by_object"])}

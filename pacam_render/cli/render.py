@@ -64,6 +64,14 @@ def add(sub) -> None:
         "prototype)",
     )
     _add_sensor(p)
+    p.add_argument(
+        "--relative-illumination",
+        default="off",
+        metavar="{cos4,off,FILE}",
+        help="natural vignetting: off (default: radiance, as Mitsuba's thinlens), cos4 (cos^4 of "
+        "the field angle) or a .csv/.json curve against height_px, height_mm or field_deg; "
+        "the map is kept as a layer and deconvolve flat-fields with it",
+    )
     add_grey(p)
     add_limit_args(p)
     add_out(p)
@@ -80,9 +88,9 @@ def _add_sampling(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--passes",
         type=int,
-        default=2,
         metavar="P",
-        help="independent passes; their spread is the Monte Carlo error (default 2)",
+        help="independent passes; their spread is the Monte Carlo error (default 2; a noise "
+        "target plans its own)",
     )
     p.add_argument(
         "--sampler",
@@ -149,9 +157,10 @@ def run(args: argparse.Namespace) -> int:
         per_pattern=args.per_pattern,
         **design_spec_fields(args),
         object_depth_mm=args.depth,
-        passes=args.passes,
+        passes=_passes(args, target),
         sampler=args.sampler,
         grey=grey_request(args.grey),  # refused with an RGB PACAM_VARIANT, before any work
+        relative_illumination=args.relative_illumination,
     )
     from ..exposure.capture_camera import capture_design
 
@@ -207,11 +216,30 @@ def run(args: argparse.Namespace) -> int:
     )
     print(scale_line(m["optics"], m["coded_design"]))
     print(error_line(err))
+    ri = m.get("relative_illumination")
+    if ri:
+        print(
+            f"relative illumination {ri['setting']}: {ri['min']:.3f}-{ri['max']:.3f} of the "
+            "axis over the window (layer relative_illumination; deconvolve flat-fields with it)"
+        )
     print(
         "layers: "
         + ", ".join(["capture", *cap.extra_layers, *(["mc_sigma"] if args.mc_sigma_layer else [])])
     )
     return 0
+
+
+def _passes(args: argparse.Namespace, target) -> int:
+    """--passes, default 2; with a noise target, which plans two pilots and its own passes,
+    a given --passes does nothing, and a note says so."""
+    if args.passes is not None and target is not None:
+        warnings.warn(
+            f"--passes {args.passes} has no effect with a noise target: two pilot passes "
+            "measure the error and the target plans the rest",
+            PacamWarning,
+            stacklevel=2,
+        )
+    return 2 if args.passes is None else args.passes
 
 
 def _sensor_model(name: str):

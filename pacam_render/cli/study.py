@@ -8,7 +8,14 @@ from pathlib import Path
 
 from ..errors import check_positive
 from ..exposure.integrate import CaptureInterrupted
-from .common import add_engine_args, add_force, add_grey, add_out, add_quiet
+from .common import (
+    add_engine_args,
+    add_force,
+    add_grey,
+    add_out,
+    add_quiet,
+    interrupt_status,
+)
 
 
 def add(sub) -> None:
@@ -69,7 +76,7 @@ def run(args: argparse.Namespace) -> int:
         )
     except (KeyboardInterrupt, CaptureInterrupted) as exc:  # the latter: Ctrl-C in a serial render
         _study_interrupted(Path(args.out), len(spec.points), exc)
-        return 130
+        return interrupt_status(exc)
     print(
         f"study {s.name}: {s.ran} points run, {s.skipped} already done, {s.failed} failed, "
         f"{s.seconds:.1f} s -> {Path(args.out)}/{{{','.join(s.files)}}}"

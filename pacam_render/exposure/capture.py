@@ -37,7 +37,15 @@ from ..limits import (
 )
 from ..model import paper
 from ..render.registry import sensor_entry
-from .capture_camera import capture_design, mode_camera, note_binning, note_ignored_options
+from .capture_camera import (
+    capture_design,
+    illumination_map,
+    illumination_params,
+    illumination_record,
+    mode_camera,
+    note_binning,
+    note_ignored_options,
+)
 from .capture_record import build_record, record_design_fit, render_error_summary, versions
 from .capture_spec import CaptureSpec
 from .checkpoint import deferred_signals, partial_lock
@@ -190,8 +198,11 @@ def check_budget(
 ) -> None:
     """Refuse a capture whose samples or memory are beyond bounds, before any work.
 
-    A capture rendered to a noise target (``targeted``) has no spp to check: it stops at
-    ``max_samples`` instead.
+    The samples counted are the least the passes render, as a static scene's passes round
+    ``spec.spp`` (``spec.passes`` passes, each a multiple of the sampler's smallest render); a
+    capture rendered to a noise target (``targeted``) counts its two pilot passes of that
+    smallest render. A moving scene's time steps round them further, which
+    :func:`~.progress.check_samples` counts once the steps are planned, before any render.
 
     Raises
     ------
@@ -200,6 +211,8 @@ def check_budget(
         per pixel, plus 24 per pixel and pattern with ``per_pattern`` and 96 with ``truth``).
     """
     from ..render.passes import MAX_WAVEFRONT
+    from ..render.samplers import quantum
+    from .estimate import PILOT_PASSES
 
     w, h = spec.image_size
     pixels = w * h
@@ -210,13 +223,24 @@ def check_budget(
             f"a {w}x{h} image has more than Mitsuba's {MAX_WAVEFRONT} samples per pass at 1 "
             "spp; reduce `width`/`height` or `crop`"
         )
-    if not targeted:
-        check_count(
-            f"samples of this capture (spp {spec.spp} x {w} x {h} px)",
-            spec.spp * pixels,
-            max_samples,
-            "max_samples",
+    q = quantum(spec.sampler)
+    least = f"passes of at least {q} spp ({spec.sampler})"
+    if targeted:
+        spp = PILOT_PASSES * q
+        why = f"the pilot of this noise target ({PILOT_PASSES} {least}; "
+    else:
+        per = -(-spec.spp // spec.passes)  # a pass's spp, as fixed_schedule takes it
+        spp = spec.passes * q * -(-per // q)
+        why = "this capture (" + (
+            f"{spec.passes} {least}, take {spp} spp where `spp` {spec.spp} was asked; "
+            if spp > spec.spp
+            else ""
         )
+    hint = "; or lower `passes`" if spp > spec.spp and not targeted else ""
+    check_count(
+        f"samples of {why}{spp} spp x {w} x {h} px)", spp * pixels, max_samples, "max_samples",
+        hint,
+    )  # fmt: skip
 
 
 def _render(spec: CaptureSpec, description, run: Run, truth: bool, target, keep: bool) -> Capture:
@@ -233,6 +257,7 @@ def _render(spec: CaptureSpec, description, run: Run, truth: bool, target, keep:
     note_ignored_options(spec)
     design = capture_design(spec)
     cam, params = mode_camera(design, spec.mode)
+    params = {**params, **illumination_params(spec)}
     note_binning(spec, cam)
     desc = description if description is not None else load_scene(spec.scene)
     t_start = time.perf_counter()
@@ -246,7 +271,7 @@ def _render(spec: CaptureSpec, description, run: Run, truth: bool, target, keep:
     parts = resume_parts(spec, scene, desc, plan, versions(), variant)
     store = Checkpoint(None if run.partial_dir is None else Path(run.partial_dir), parts)
     prog = integrate(exp, spec, run, store, target, record, f"{spec.mode} {spec.scene}")
-    render_s = time.perf_counter() - t_start
+    render_s = time.perf_counter() - t_start + prog.seconds_before  # earlier sessions' too
     if not run.pilot_only:  # a pilot stops short of its target by design
         _note_samples(spec, exp, prog, target)
     if exp.moving:  # back to t = 0 for the ground truth
@@ -266,9 +291,8 @@ def _render(spec: CaptureSpec, description, run: Run, truth: bool, target, keep:
         "resumed_from_step": prog.resumed_from if exp.moving else None,
         "fastest_image_speed_px_per_ms": speed if exp.moving else None,
     }
-    record = build_record(
-        spec, design, cam, params, sensor, variant, time.perf_counter() - t_start, steps
-    )
+    seconds = time.perf_counter() - t_start + prog.seconds_before
+    record = build_record(spec, design, cam, params, sensor, variant, seconds, steps)
     record.objects = objects
     record.design_fit = record_design_fit(layers, objects, cam, spec.mode)
     ids = layers.get("object_id")
@@ -279,6 +303,10 @@ def _render(spec: CaptureSpec, description, run: Run, truth: bool, target, keep:
         store.clear()
     patterns = prog.stats.pattern_means() if spec.per_pattern else {}
     layers = {k: layers[k] for k in TRUTH_LAYERS if k in layers}
+    ri_map = illumination_map(spec, cam)  # None when off
+    record.relative_illumination = illumination_record(spec, cam, ri_map)
+    if ri_map is not None:
+        layers["relative_illumination"] = ri_map
     return Capture(image, patterns, record, layers, prog.stats.sigma_px())
 
 

@@ -103,6 +103,82 @@ def mode_camera(design: CameraDesign, mode: str) -> tuple[CameraDesign, dict]:
     return cam, sensor_params(cam, mode)
 
 
+def illumination_params(spec: CaptureSpec) -> dict:
+    """The sensor's relative-illumination parameters for a capture.
+
+    None when ``off`` (the plugin's default: its kernels, and the record's ``sensor_params``,
+    stay as they were) or for the pinhole ``reference``; a curve also gets the film's pixel
+    pitch, :func:`film_pixel_pitch_mm`.
+
+    Returns
+    -------
+    dict
+        ``relative_illumination`` and, for a curve, ``pixel_pitch`` (mm).
+    """
+    ri = spec.relative_illumination
+    if ri == "off" or mode(spec.mode).schedule is None:
+        return {}
+    if ri == "cos4":
+        return {"relative_illumination": ri}
+    return {"relative_illumination": ri, "pixel_pitch": film_pixel_pitch_mm(spec)}
+
+
+def film_pixel_pitch_mm(spec: CaptureSpec) -> float:
+    """The pitch of the capture's pixels on the real sensor, mm: the design's pixel pitch times
+    its full width over the capture's (a 320 px capture of the 1280 px sensor bins 4 x 4)."""
+    full = full_design(spec)
+    return full.pixel_pitch_mm * full.width_px / spec.width
+
+
+def illumination_map(spec: CaptureSpec, cam: CameraDesign):
+    """The capture's relative-illumination map, (h, w) float32 over its window, or None when
+    ``off`` or for the ``reference``
+    (:func:`~pacam_render.model.illumination.relative_illumination_map`)."""
+    params = illumination_params(spec)
+    if not params:
+        return None
+    from ..model.illumination import relative_illumination_map
+
+    m = relative_illumination_map(
+        params["relative_illumination"],
+        spec.width,
+        spec.height,
+        cam.fov_deg,
+        spec.crop,
+        params.get("pixel_pitch"),
+    )
+    return m.astype("float32")
+
+
+def illumination_record(spec: CaptureSpec, cam: CameraDesign, ri_map) -> dict | None:
+    """The record's ``relative_illumination`` block: the setting, its law, the map's range,
+    how readers flat-field, and (cos4) the exact thin-lens integral's departure from cos^4 at
+    the window's farthest corner at this capture's F-number."""
+    if ri_map is None:
+        return None
+    from ..model.illumination import film_tan_max, thin_lens_relative_illumination
+
+    ri = spec.relative_illumination
+    out = {
+        "setting": ri,
+        "law": "cos^4 of the chief ray's field angle (thin lens)"
+        if ri == "cos4"
+        else f"the curve in {ri}, linear between its points",
+        "layer": "relative_illumination",
+        "min": float(ri_map.min()),
+        "max": float(ri_map.max()),
+        "flat_field": "capture, noisy, subNN and mc_sigma are irradiance: readers divide them by "
+        "the layer (read_capture, pacam deconvolve), which raises the noise towards the "
+        "corners by 1 / map, as a camera's flat field does; sharp is the pinhole's radiance",
+    }
+    if ri == "cos4":
+        t = film_tan_max(spec.width, spec.height, cam.fov_deg, spec.crop)
+        exact = float(thin_lens_relative_illumination(t, cam.F_number)) * (1 + t * t) ** 2
+        out["thin_lens_exact_over_cos4_at_corner"] = exact
+        out["f_number"] = cam.F_number
+    return out
+
+
 def _schedule_unused(name: str) -> list[str]:
     """The parts of a designed schedule that a ``name`` capture does not use."""
     m = mode(name)
@@ -123,6 +199,12 @@ def _words(items: list[str]) -> str:
 
 def note_ignored_options(spec: CaptureSpec) -> None:
     """Options the mode does not use: say so rather than drop them silently."""
+    if spec.relative_illumination != "off" and mode(spec.mode).schedule is None:
+        note(
+            f"relative_illumination has no effect in {spec.mode} mode: the pinhole reference "
+            "is the ground truth, in radiance (captures in the other modes are flat-fielded "
+            "against it)"
+        )
     if spec.cover_px_per_ms is not None and mode(spec.mode).refocus:
         note(
             f"cover_px_per_ms has no effect in {spec.mode} mode: it focuses on the object, so the "

@@ -167,13 +167,36 @@ def load_capture_psf(
     diff = check_psf_design(path, meta, record, allow_psf_mismatch)
     origin, offset = psf_origin(path, meta)
     if path.suffix == ".npy":
-        return CapturePSF(load_npy_psf(path), path, origin, offset, diff)
+        return CapturePSF(_summed(load_npy_psf(path), path), path, origin, offset, diff)
     layers = read_exr(path)
     if "psf" in layers:
-        return CapturePSF(layers["psf"], path, origin, offset, diff)
+        return CapturePSF(_summed(layers["psf"], path), path, origin, offset, diff)
     if len(layers) == 1:
-        return CapturePSF(next(iter(layers.values())), path, origin, offset, diff)
+        k = next(iter(layers.values()))
+        return CapturePSF(_summed(k, path), path, origin, offset, diff)
     raise ParameterError(f"{path} has no 'psf' layer; it has: {', '.join(sorted(layers))}")
+
+
+SUM_TOLERANCE = 1e-3
+"""A kernel file whose sum is further than this from 1 is normalised with a note."""
+
+
+def _summed(k: np.ndarray, path: Path) -> np.ndarray:
+    """A kernel file's values, refused if they sum to nothing (not finite, or below 1e-12 of
+    their largest magnitude), with a note if they sum to other than 1 (they are normalised
+    before deblurring, as every PSF is)."""
+    total = float(np.sum(k, dtype=np.float64))
+    scale = float(np.max(np.abs(k))) if np.size(k) else 0.0
+    if not np.isfinite(total) or total <= 1e-12 * max(scale, 1e-300):
+        raise ParameterError(f"`psf` file {path} sums to {total:g}: it holds no PSF")
+    if abs(total - 1.0) > SUM_TOLERANCE:
+        warnings.warn(
+            f"`psf` file {path} sums to {total:.6g}, not 1: it is normalised to 1 (a PSF "
+            "spreads the light it receives)",
+            PacamWarning,
+            stacklevel=3,
+        )
+    return k
 
 
 def psf_sidecar(path: Path) -> dict | None:

@@ -15,6 +15,11 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import ParameterError, check_positive
+from ..model.illumination import (
+    CURVE_SUFFIXES,
+    DEFAULT_RELATIVE_ILLUMINATION,
+    parse_relative_illumination,
+)
 from ..model.modes import mode
 from ..render.samplers import DEFAULT_SAMPLER, check_sampler
 from .estimate import check_passes
@@ -61,11 +66,17 @@ class CaptureSpec:
     PSF JSON, or a legacy schedule.json (:func:`~pacam_render.model.design_file.resolve_design`)."""
     grey: bool = False
     """Render one channel (luminance) with a mono variant; see the class docstring."""
+    relative_illumination: str = DEFAULT_RELATIVE_ILLUMINATION
+    """The sensor's relative illumination: ``off`` (radiance, as ``thinlens``), ``cos4`` or a
+    curve file (:mod:`~pacam_render.model.illumination`). Not ``off``: the capture records its
+    map as the ``relative_illumination`` layer, and readers flat-field with it."""
 
     def __post_init__(self) -> None:
         if not isinstance(self.grey, (bool, np.bool_)):
             raise ParameterError(f"grey must be true or false, got {self.grey!r}")
         object.__setattr__(self, "grey", bool(self.grey))
+        ri = parse_relative_illumination(self.relative_illumination)  # a bad file: named here
+        object.__setattr__(self, "relative_illumination", ri.source)
         mode(self.mode)  # raises, listing the valid modes
         if self.crop is not None:
             object.__setattr__(self, "crop", check_crop(self.crop, self.width, self.height))
@@ -105,13 +116,17 @@ class CaptureSpec:
         -------
         str
             The first 16 hex digits of the SHA-256 of the spec's fields as sorted JSON, and of
-            the contents of the schedule file it names, or the digest of its design (a file
-            rewritten in place is another capture).
+            the contents of the schedule file and relative-illumination curve it names, or the
+            digest of its design (a file rewritten in place is another capture).
         """
         fields = asdict(self)
         if not self.grey:  # so that a colour capture keeps the key it had before `grey`
             del fields["grey"]
+        if self.relative_illumination == "off":  # and the key it had before this field
+            del fields["relative_illumination"]
         h = hashlib.sha256(json.dumps(fields, sort_keys=True).encode())
+        if Path(self.relative_illumination).suffix.lower() in CURVE_SUFFIXES:
+            h.update(Path(self.relative_illumination).read_bytes())  # a curve edited in place
         if self.schedule is not None and Path(self.schedule).is_file():
             h.update(Path(self.schedule).read_bytes())
         if self.design is not None:

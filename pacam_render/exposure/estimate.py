@@ -187,6 +187,26 @@ def main_pass_spp(pilot: PassStats, sigma_target: float, quantum: int, max_spp: 
     return max(per, 0)
 
 
+def spp_to_target(stats: PassStats, sigma_target: float) -> float:
+    """Samples per pixel at which the capture's Monte Carlo sigma meets ``sigma_target``, from
+    the passes so far and sigma^2 ~ 1 / spp, without :data:`MARGIN`: the least the target
+    takes (a moving scene's pose noise, which larger passes do not lower, only adds to it).
+
+    Parameters
+    ----------
+    stats : PassStats
+        The passes rendered so far (the pilot), two or more.
+    sigma_target : float
+        The Monte Carlo sigma to reach, the capture's units, > 0.
+
+    Returns
+    -------
+    float
+        Samples per pixel in all, the passes so far included.
+    """
+    return stats.spp * (rms(stats.variance()) / sigma_target) ** 2
+
+
 def pass_variance_fit(stats: PassStats) -> tuple[float, float]:
     """(a, b) of one pass's variance, a + b / spp (mean over the window), fitted to the groups
     that have two passes or more.

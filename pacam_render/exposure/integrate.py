@@ -13,14 +13,18 @@ import time
 from dataclasses import dataclass, field
 from typing import Any
 
+from ..errors import ParameterError
 from ..limits import DEFAULT_MAX_STEPS
 from .estimate import rms
 from .progress import (
     Progress,
     advance,
+    check_samples,
     check_state,
     fixed_schedule,
     group_stats,
+    out_of_reach,
+    pilot_done,
     pilot_schedule,
     resume,
 )
@@ -151,19 +155,29 @@ def integrate(exp: Exposure, spec, run: Run, store, target=None, record=None, de
     ------
     CaptureInterrupted
         When ``run`` says stop, or on a signal; the work done so far is saved first.
+    ParameterError
+        Before any render, when the passes as the steps round them (or a target's pilot)
+        exceed ``run.max_samples``; after the pilot, when the target is out of reach within
+        it (:func:`~.progress.out_of_reach`; the pilot is saved first, and a run with a larger
+        limit resumes from it).
     """
     from tqdm import tqdm
 
     shape = _shape(exp)
     n_steps = max(1, len(exp.windows))
     loaded = store.load(lambda st, ar: check_state(st, ar, shape, n_steps))
+    max_spp = max(1, run.max_samples // exp.pixels) if run.max_samples else 2**62
     if loaded is not None:
         prog = resume(*loaded)
+        if target is not None:  # this run's limit: a re-run with a larger one plans with it
+            prog.sched.max_spp = max_spp
     else:
-        max_spp = max(1, run.max_samples // exp.pixels) if run.max_samples else 2**62
         sched = fixed_schedule(spec, exp) if target is None else pilot_schedule(exp, max_spp)
         prog = Progress(sched, group_stats(sched, {}))
+    check_samples(prog.sched, exp, spec, run.max_samples)
     prog.resumed_from = prog.steps_done
+    if pilot_done(prog.sched):  # a pilot refused as out of reach, resumed: plan the rest now
+        _plan_main(exp, prog, run, store, target, record)
     n_steps = exp.steps_per_pass(prog.sched.groups[-1][0])  # a fixed or a main pass
     if run.pilot_only and prog.sched.phase != "pilot":  # resumed past its pilot: only predict
         prog.predicted_s = predict_seconds(exp, prog, spec)
@@ -174,7 +188,10 @@ def integrate(exp: Exposure, spec, run: Run, store, target=None, record=None, de
         while prog.sched.next_pass() is not None:
             if not render_pass_steps(exp, prog, spec, run, store, bar):
                 _stop(prog, run, store, n_steps)
-            advance(prog.sched, prog.stats, exp, target, record)
+            if pilot_done(prog.sched):
+                _plan_main(exp, prog, run, store, target, record)
+            else:
+                advance(prog.sched, prog.stats, exp, target, record)
             if run.pilot_only and prog.sched.phase != "pilot":
                 prog.predicted_s = predict_seconds(exp, prog, spec)
                 break  # the rest is planned: stop here (the caller keeps the checkpoint)
@@ -185,6 +202,23 @@ def integrate(exp: Exposure, spec, run: Run, store, target=None, record=None, de
             if more and (run.stop_after(prog.steps_done) or run.signalled()):
                 _stop(prog, run, store, n_steps)
     return prog
+
+
+def _plan_main(exp: Exposure, prog: Progress, run: Run, store, target, record) -> None:
+    """The pilot is done: refuse a target out of reach within ``run.max_samples`` at once,
+    the pilot saved for a run with a larger limit to resume from; else plan the main passes
+    (:func:`~.progress.advance`)."""
+    why = out_of_reach(prog, exp, target, record, run.max_samples)
+    if why is not None:
+        saved = store.save(prog.state(), prog.arrays())
+        where = (
+            f"; the pilot is saved in {run.partial_dir}: the same command with a larger "
+            "max_samples resumes from it"
+            if saved
+            else ""
+        )
+        raise ParameterError(why + where)
+    advance(prog.sched, prog.stats, exp, target, record)
 
 
 def predict_seconds(exp: Exposure, prog: Progress, spec) -> float:

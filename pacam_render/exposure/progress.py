@@ -13,12 +13,15 @@ costs least; the sample limit stops it.
 
 from __future__ import annotations
 
+import math
+import time
 from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
 from .estimate import (
     MAIN_PASSES,
+    MARGIN,
     PILOT_PASSES,
     PassGroup,
     PassStats,
@@ -26,6 +29,7 @@ from .estimate import (
     pass_variance_fit,
     passes_to_target,
     rms,
+    spp_to_target,
 )
 from .steps import Exposure
 
@@ -77,6 +81,116 @@ def pilot_schedule(exp: Exposure, max_spp: int) -> Schedule:
     """Two pilot passes of the smallest size; :func:`advance` plans the rest."""
     spp = sum(s.spp for s in exp.steps(exp.pass_quantum()))
     return Schedule(groups=[[spp, 0]], phase="pilot", planned=PILOT_PASSES, max_spp=max_spp)
+
+
+def check_samples(sched: Schedule, exp: Exposure, spec, max_samples: int) -> None:
+    """Refuse, before any render, passes whose samples exceed ``max_samples`` as they will be
+    rendered: a fixed capture's passes once the steps have rounded them (each step takes at
+    least the sampler's smallest render), or a targeted capture's pilot passes.
+
+    Parameters
+    ----------
+    sched : Schedule
+        The passes planned (fixed, a pilot, or a resumed main phase).
+    exp : Exposure
+        The steps and pixels of a pass.
+    spec : CaptureSpec
+        Uses ``spp``, ``sampler`` and ``image_size``, for the message.
+    max_samples : int
+        The limit, camera samples (0: none).
+
+    Raises
+    ------
+    ParameterError
+        Naming ``max_samples``, the spp that will be rendered and why they exceed ``spec.spp``.
+    """
+    from ..limits import check_count
+
+    if not max_samples:
+        return
+    w, h = spec.image_size
+    spp, per = sched.planned_spp, sched.groups[-1][0]
+    least = f"{sched.planned} passes of at least {exp.quantum} spp"
+    least += (
+        f" per time step ({spec.sampler}), {exp.steps_per_pass(per)} steps"
+        if exp.moving
+        else f" ({spec.sampler})"
+    )
+    if sched.phase == "pilot":
+        why = f"the pilot of this noise target ({least}; "
+        hint = "; or render a smaller crop" + (", or raise max_step_px" if exp.moving else "")
+    elif sched.phase == "main":  # resumed with a lower limit than it was planned with
+        why, hint = "the passes this noise target planned (", ""
+    elif spp > spec.spp:
+        why = f"this capture ({least}, take {spp} spp where `spp` {spec.spp} was asked; "
+        hint = "; or lower `passes`" + (
+            ", or raise max_step_px (fewer steps)" if exp.moving else ""
+        )
+    else:
+        why, hint = "this capture (", "; or lower `spp`"
+    check_count(
+        f"samples of {why}{spp} spp x {w} x {h} px)", spp * exp.pixels, max_samples,
+        "max_samples", hint,
+    )  # fmt: skip
+
+
+def pilot_done(sched: Schedule) -> bool:
+    """Whether a targeted capture's pilot passes are all rendered and the rest not planned."""
+    return sched.phase == "pilot" and sched.done_passes >= sched.planned
+
+
+def out_of_reach(prog: Progress, exp: Exposure, target, record, max_samples: int) -> str | None:
+    """After the pilot: why the target cannot be met within ``max_samples``, or None.
+
+    Parameters
+    ----------
+    prog : Progress
+        The capture, its pilot passes done; its :attr:`Progress.seconds` time them.
+    exp : Exposure
+        The steps and pixels of a pass.
+    target : NoiseTarget
+        What to reach.
+    record : CaptureRecord
+        What ``target`` needs to know of the capture.
+    max_samples : int
+        The limit, camera samples (0: none).
+
+    Returns
+    -------
+    str or None
+        The message, naming ``max_samples`` and the target's parameter (``noise_target`` or
+        ``noise_ratio``), with the samples the target takes and their seconds; None when the
+        pilot met the target or predicts it within the limit.
+
+    Notes
+    -----
+    The pilot predicts the samples the target takes at least (:func:`~.estimate.spp_to_target`,
+    sigma^2 ~ 1 / N); their seconds are the pilot's, per unit of :func:`pass_cost`, times the
+    cost of the rest in :data:`~.estimate.MAIN_PASSES` passes.
+    """
+    from ..limits import duration
+
+    goal = float(target.sigma(prog.stats.mean(), record))
+    sigma = rms(prog.stats.variance())
+    if not max_samples or sigma <= goal:
+        return None
+    need = spp_to_target(prog.stats, goal)
+    if need * exp.pixels <= max_samples:
+        return None
+    done = prog.stats.spp
+    rest = max(need - done, 1.0) / MAIN_PASSES
+    pilot = sum(n * pass_cost(exp, spp) for spp, n in prog.sched.groups)
+    seconds = prog.seconds * MAIN_PASSES * pass_cost(exp, math.ceil(rest)) / pilot
+    name = "noise_ratio" if target.to_json().get("kind") == "sensor" else "noise_target"
+    return (
+        f"the noise target is out of reach within max_samples {max_samples}: the pilot's "
+        f"{done} spp give a Monte Carlo sigma of {sigma:.3g} against the target's {goal:.3g}, "
+        f"and sigma falls as 1 / sqrt(spp), so the target takes at least {need:.4g} spp "
+        f"({need * exp.pixels:.4g} samples, about {duration(seconds)} at the pilot's pace), "
+        f"where max_samples allows {max_samples // exp.pixels} spp; raise max_samples to "
+        f"{math.ceil(need * exp.pixels * MARGIN)} or more, relax {name}, or render "
+        "a smaller crop"
+    )
 
 
 def advance(sched: Schedule, stats: PassStats, exp: Exposure, target, record) -> None:
@@ -191,9 +305,24 @@ class Progress:
     resumed_from: int = 0
     predicted_s: float = 0.0
     """Seconds the planned passes still need (after a pilot, :func:`predict_seconds`)."""
+    seconds_before: float = 0.0
+    """Seconds that earlier sessions spent on the work a resumed checkpoint holds."""
+    started: float = field(default_factory=time.perf_counter)
+    """When this session's work began (``time.perf_counter``)."""
+
+    @property
+    def seconds(self) -> float:
+        """Seconds spent on the work so far, over every session: :attr:`seconds_before` and
+        this session's since :attr:`started`."""
+        return self.seconds_before + (time.perf_counter() - self.started)
 
     def state(self) -> dict:
-        return {"schedule": asdict(self.sched), "step": self.step, "steps_done": self.steps_done}
+        return {
+            "schedule": asdict(self.sched),
+            "step": self.step,
+            "steps_done": self.steps_done,
+            "seconds": round(self.seconds, 6),
+        }
 
     def arrays(self) -> dict[str, np.ndarray]:
         out = stats_arrays(self.stats)
@@ -208,6 +337,7 @@ def resume(state: dict, arrays: dict) -> Progress:
     sched = Schedule(**state["schedule"])
     prog = Progress(sched, group_stats(sched, arrays), int(state["step"]))
     prog.steps_done = int(state["steps_done"])
+    prog.seconds_before = float(state.get("seconds", 0.0))  # none in an older checkpoint
     if prog.step:
         prog.partial = arrays["partial"]
         prog.partial_pats = {int(k[4:]): v for k, v in arrays.items() if k.startswith("cur_")}
@@ -225,6 +355,13 @@ def check_state(state: dict, arrays: dict, shape: tuple, n_steps: int) -> str | 
         return f"pass groups {sched.groups}"
     if sched.done_passes > sched.planned or done != sched.done_passes * n_steps + step:
         return f"{done} steps done for {sched.done_passes} passes"
+    seconds = state.get("seconds", 0.0)
+    if (
+        isinstance(seconds, bool)
+        or not isinstance(seconds, (int, float))
+        or not (math.isfinite(seconds) and seconds >= 0)
+    ):
+        return f"seconds {seconds!r}"
     for g, (_, n) in enumerate(sched.groups):
         for key in (f"s1_{g}", f"s2_{g}") if n else ():
             if key not in arrays or arrays[key].shape != shape:

@@ -11,6 +11,7 @@ the demo's older sensor block (``light_level`` for ``light_level_photons_per_px_
 
 from __future__ import annotations
 
+import math
 import os
 import re
 from dataclasses import asdict, dataclass, field, fields
@@ -37,6 +38,8 @@ LAYER_UNITS = {
     "depth": "mm (0: no surface)",
     "object_id": "1 + shape index ('objects' names it; 0: no surface)",
     "velocity": "px/ms of the capture's pixels (u right, v down)",
+    "relative_illumination": "irradiance / on-axis irradiance (1 on the axis): the capture's "
+    "layers are the radiance image times it",
 }
 """The unit of each layer a ``capture.exr`` may hold; ``subNN`` (one pattern's image) has
 ``capture``'s. Layers in :data:`CAPTURE_UNIT` are divided by ``light_factor`` to be compared
@@ -126,6 +129,10 @@ class CaptureRecord:
     ``sampler``, ``seconds``, the time steps' ``time_step_bias`` and ``time_sampling``, and,
     for a capture rendered to a target, ``target_sigma`` and ``target_met``; the sensor adds
     ``ratio_to_sensor``."""
+    relative_illumination: dict | None = None
+    """The sensor's relative illumination when not ``off``
+    (:func:`~pacam_render.exposure.capture_camera.illumination_record`): ``setting``, ``law``,
+    the map's ``min`` and ``max``, its ``layer`` and how readers ``flat_field``."""
     design: dict | None = None
     """The coded design the capture's camera was derived from, whole
     (:meth:`~pacam_render.model.camera.CameraDesign.inputs`, bitmaps included): ``psf --like``
@@ -152,6 +159,7 @@ class CaptureRecord:
         if compact and self.design == self.camera:
             out["design"] = None
         optional = ("resumed_from_step", "fastest_image_speed_px_per_ms", "noise_sigma", "design")
+        optional += ("relative_illumination",)
         for key in (*optional, "crop", "objects", "design_fit", "units", "render_error"):
             if out[key] is None:
                 del out[key]
@@ -176,6 +184,7 @@ class CaptureRecord:
         if not isinstance(d["camera"], dict):
             raise ParameterError(f"{where}: 'camera' must be an object of camera parameters")
         kw: dict[str, Any] = {k: d[k] for k in known if k in d}
+        _check_numbers(kw, where)
         kw.setdefault("light_factor", 1.0)
         kw.setdefault("exposure_ms", d["camera"].get("exposure_ms", paper.EXPOSURE_MS))
         for k in ("spec", "optics", "sensor_params", "versions"):
@@ -242,6 +251,54 @@ class CaptureFile(NamedTuple):
     """Each returned layer to its unit (None for a layer this version does not know)."""
 
 
+_POSITIVE = ("light_factor", "exposure_ms", "reference_exposure_ms")
+"""Record keys that must be finite numbers > 0 wherever they are given."""
+
+
+def _check_numbers(kw: dict, where: str) -> None:
+    """The record's scale numbers, checked once for every reader (sensor, deconvolve, study):
+    a string, NaN, 0 or a negative is named here, not met later as a bad image."""
+    for key in _POSITIVE:
+        v = kw.get(key)
+        if v is None and key not in kw:
+            continue
+        ok = isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+        if not ok or v <= 0:
+            raise ParameterError(f"{where}: {key} must be a finite number > 0, got {v!r}")
+    sigma = kw.get("noise_sigma")
+    if sigma is not None and (
+        isinstance(sigma, bool) or not isinstance(sigma, (int, float)) or not sigma >= 0
+        or not math.isfinite(sigma)
+    ):  # fmt: skip
+        raise ParameterError(f"{where}: noise_sigma must be a finite number >= 0, got {sigma!r}")
+
+
+def image_size(record: CaptureRecord) -> tuple[int, int] | None:
+    """(width, height) of the record's image, px: its crop's, else its sensor's; None if the
+    record does not say."""
+    if record.crop:
+        return int(record.crop["width"]), int(record.crop["height"])
+    cam = record.camera
+    if "width_px" in cam and "height_px" in cam:
+        return int(cam["width_px"]), int(cam["height_px"])
+    return None
+
+
+def check_layers_fit(layers: dict, record: CaptureRecord | None, exr, sidecar) -> None:
+    """Refuse an EXR and a JSON that disagree on the image's size (a kernel in px made from
+    the JSON would be the wrong one)."""
+    size = None if record is None else image_size(record)
+    if size is None:
+        return
+    for name, a in layers.items():
+        h, w = np.shape(a)[:2]
+        if (w, h) != size:
+            raise ParameterError(
+                f"{exr} and {sidecar} disagree: layer {name!r} is {w}x{h} px, the JSON says "
+                f"{size[0]}x{size[1]}; they are not one capture"
+            )
+
+
 def read_capture_layers(path: str | os.PathLike) -> tuple[dict[str, np.ndarray], CaptureRecord]:
     """A capture's layers as stored (:data:`LAYER_UNITS`) and its record.
 
@@ -270,7 +327,9 @@ def read_capture_layers(path: str | os.PathLike) -> tuple[dict[str, np.ndarray],
         record = CaptureRecord.from_json(json.loads(sidecar.read_text()), where=str(sidecar))
     except json.JSONDecodeError as exc:
         raise ParameterError(f"{sidecar} is not valid JSON ({exc})") from None
-    return read_exr(exr), record
+    layers = read_exr(exr)
+    check_layers_fit(layers, record, exr, sidecar)
+    return layers, record
 
 
 def read_record(capture: str | os.PathLike, required: bool = True) -> CaptureRecord | None:
@@ -321,6 +380,9 @@ def read_capture(path: str | os.PathLike) -> CaptureFile:
     A capture's own layers (``capture``, ``noisy``, ``subNN``, ``mc_sigma``) are radiance x
     ``light_factor``, its ground truth ``sharp`` plain radiance; this divides the former by
     ``light_factor``, so that e.g. a PSNR of ``noisy`` against ``sharp`` means what it says.
+    A capture with a relative illumination (its ``relative_illumination`` layer, the map m)
+    measured irradiance; its own layers are also divided by m (flat-fielded, as a camera
+    pipeline does: the noise grows by 1 / m towards the corners), so they are radiance again.
 
     Parameters
     ----------
@@ -344,10 +406,13 @@ def read_capture(path: str | os.PathLike) -> CaptureFile:
 
     stored, record = read_capture_layers(path)
     lf = check_positive("light_factor in the capture's JSON", record.light_factor)
+    from ..model.illumination import flat_field
+
+    ri_map = stored.get("relative_illumination")
     layers, units = {}, {}
     for name, arr in stored.items():
         unit = layer_unit(name)
         scaled = unit is not None and unit.startswith(CAPTURE_UNIT)
-        layers[name] = (arr / np.float32(lf)) if scaled else arr
+        layers[name] = flat_field(arr / np.float32(lf), ri_map) if scaled else arr
         units[name] = unit.replace(CAPTURE_UNIT, WHITE_UNIT) if scaled else unit
     return CaptureFile(layers, record, units)

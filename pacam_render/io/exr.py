@@ -84,6 +84,55 @@ def read_exr(path: str | os.PathLike) -> dict[str, np.ndarray]:
     return out
 
 
+def read_layer_shapes(path: str | os.PathLike) -> dict[str, tuple[int, ...]]:
+    """The layers :func:`read_exr` would return and their shapes, from the header alone (no
+    pixel is read): to check what reading and processing them will cost first.
+
+    Parameters
+    ----------
+    path : path-like
+        The EXR file.
+
+    Returns
+    -------
+    dict
+        Layer name to shape: (H, W, 3) for R/G/B, (H, W, 2) for U/V, (H, W) for one channel.
+
+    Raises
+    ------
+    ParameterError
+        If the file is missing or its header unreadable.
+    """
+    import OpenEXR
+
+    p = Path(path)
+    if not p.is_file():
+        raise ParameterError(f"EXR file {p} does not exist")
+    try:
+        with OpenEXR.File(str(p), header_only=True) as f:
+            header = f.header()
+            (x0, y0), (x1, y1) = header["dataWindow"]
+            names = [c.name for c in header["channels"]]
+    except Exception as exc:  # OpenEXR raises RuntimeError for corrupt files
+        raise ParameterError(f"{p} is not a readable OpenEXR file ({exc})") from exc
+    hw = (int(y1 - y0 + 1), int(x1 - x0 + 1))
+    groups: dict[str, set[str]] = {}
+    for key in names:
+        layer, _, ch = key.rpartition(".")
+        groups.setdefault(layer, set()).add(ch)
+    out: dict[str, tuple[int, ...]] = {}
+    for layer, chans in groups.items():
+        if set(RGB) <= chans:
+            out[layer] = (*hw, 3)
+        elif chans == set(UV):
+            out[layer] = (*hw, 2)
+        elif len(chans) == 1:
+            out[layer] = hw
+        else:
+            out.update({f"{layer}.{ch}" if layer else ch: hw for ch in chans})
+    return out
+
+
 def read_layer(path: str | os.PathLike, name: str) -> np.ndarray:
     """One layer, or an error naming the layers the file has."""
     return pick_layer(read_exr(path), name, path)

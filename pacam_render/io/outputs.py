@@ -43,6 +43,11 @@ def writable_dir(path: str | os.PathLike, flag: str = "`out`", create: bool = Tr
         If the path is a file, lies under a file, or cannot be created or written.
     """
     d = Path(path)
+    if d.is_symlink() and not d.exists():  # else "File exists" from mkdir
+        raise ParameterError(
+            f"{flag} {d} is a link to {os.readlink(d)}, which does not exist; remove the link "
+            "or create its target"
+        )
     probe_in = d
     while not probe_in.exists() and probe_in.parent != probe_in:
         probe_in = probe_in.parent  # the nearest existing ancestor

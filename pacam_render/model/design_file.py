@@ -54,6 +54,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import ParameterError
+from ..io.toml_file import read_text, read_toml
 from .camera import CameraDesign, preset
 from .masks import MaskStack, read_mask_source
 
@@ -77,28 +78,6 @@ _TABLES = {  # table -> {key in the file: CameraDesign field}
     "object": {"depth_mm": "object_depth_mm"},
 }
 _OPENING_KEYS = ("R_mm", "f_number", "r_px")
-
-
-def _loads_toml(text: str, where: str) -> dict:
-    try:
-        import tomllib
-    except ModuleNotFoundError:  # pragma: no cover - Python 3.10
-        import tomli as tomllib
-    if text.startswith("\ufeff"):
-        text = text[1:]
-    try:
-        return tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise ParameterError(f"{where}: not valid TOML ({exc})") from None
-
-
-def _read_text(path: Path, what: str) -> str:
-    try:
-        return path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise ParameterError(f"{what} {path} does not exist") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise ParameterError(f"{what} {path} cannot be read as UTF-8 text ({exc})") from None
 
 
 def _number(v, key: str, where: str, integer: bool = False):
@@ -176,8 +155,8 @@ def _sensor_preset(name, where: str) -> str:
     """A preset's name or file; the sensor checks that it exists where it is used."""
     if not isinstance(name, str) or not name.strip():
         raise ParameterError(
-            f"{where}: [sensor] preset must name a sensor preset (pacam sensor --help lists "
-            f"them) or a .json/.toml preset file, got {name!r}"
+            f"{where}: [sensor] preset must name a sensor preset (e.g. grasshopper-icx285) or "
+            f"a .json/.toml preset file, got {name!r}"
         )
     return name
 
@@ -267,7 +246,7 @@ def read_design(path) -> CameraDesign:
     (16, 2.0, 'parabolic')
     """
     path = Path(path)
-    d = _loads_toml(_read_text(path, "design file"), str(path))
+    d = read_toml(path, "design file")
     return design_from_dict(d, str(path), path.parent)
 
 
@@ -378,7 +357,7 @@ def _design_from_json(path: Path) -> CameraDesign:
     """The design in a capture's, a PSF's or a legacy schedule's JSON."""
     jpath = path.with_suffix(".json") if path.suffix.lower() == ".exr" else path
     try:
-        d = json.loads(_read_text(jpath, "design source"))
+        d = json.loads(read_text(jpath, "design source"))
     except json.JSONDecodeError as exc:
         raise ParameterError(f"{jpath}: not valid JSON ({exc})") from None
     if not isinstance(d, dict):

@@ -37,6 +37,7 @@ from ..model.modes import (
     t0_offset_px,
 )
 from .bitmap import bitmap_kernel, bitmap_lost_fraction
+from .diffraction import with_diffraction
 from .grid import (  # the limit and the warning are also read here by earlier callers
     MAX_LOST_FRACTION,  # noqa: F401
     R_DELTA_PX,
@@ -383,7 +384,13 @@ def least_lost_fraction(
 
 
 def design_psf(
-    design, mode: str = "coded", s: float = 0.0, size=None, origin: str = "t0", v_px_per_ms=0.0
+    design,
+    mode: str = "coded",
+    s: float = 0.0,
+    size=None,
+    origin: str = "t0",
+    v_px_per_ms=0.0,
+    diffraction_nm: float | None = None,
 ):
     """The analytic PSF of a capture in ``mode`` by camera ``design``, at speed s.
 
@@ -414,6 +421,12 @@ def design_psf(
         Vertical image speed, px/ms (rows, downwards). 0 gives the exact kernel of the
         one-dimensional motion; otherwise the point's path is two-dimensional, and the kernel
         is its quadrature (:func:`~pacam_render.psf.planar.planar_kernel`).
+    diffraction_nm : float, optional
+        None (the default): the geometric kernel. A wavelength in nm: the kernel convolved
+        with the diffraction of the mode's openings at that wavelength
+        (:func:`~pacam_render.psf.diffraction.with_diffraction`; per colour channel
+        :data:`~pacam_render.wave.patterns.CHANNEL_WAVELENGTHS_NM`). Without ``size`` the
+        kernel grows by the diffraction kernel's size less one.
 
     Returns
     -------
@@ -430,6 +443,9 @@ def design_psf(
     >>> k0.shape, round(float(k0.sum()), 12)
     ((25, 25), 1.0)
     """
+    if diffraction_nm is not None:
+        geometric = design_psf(design, mode, s, size, origin, v_px_per_ms)
+        return with_diffraction(geometric, design, mode, diffraction_nm, size=size)
     if _shows_bitmaps(design, mode):
         return _bitmap_call(bitmap_kernel, design, s, origin, size=size, v_px_per_ms=v_px_per_ms)
     segments, r = design_trajectory(design, mode, s, origin)

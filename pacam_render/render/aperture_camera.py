@@ -38,7 +38,10 @@ Parameters
                      shutter interval, close - open)
 ``time_window``      "start, end" (ms): render only this part of the exposure, or
                      "start, end, at": every ray at time ``at`` in it (see :meth:`configure`)
-``near_clip``, ``far_clip``  as thinlens (defaults 0.01 and 10000 scene units)
+``near_clip``, ``far_clip``  as thinlens (defaults 0.01 and 10000 scene units, near < far)
+``relative_illumination`` ``off`` (default: radiance, exactly thinlens) | ``cos4`` | the path
+                     of a ``.csv`` or ``.json`` curve (see Radiometry)
+``pixel_pitch``      the film's pixel pitch, mm: needed only by a ``height_mm`` curve
 ==================== ======================================================================
 
 Conventions (see also PHYSICS.md)
@@ -78,6 +81,21 @@ scales it by the open-area ratio; to compare exposures of different length, give
 the same ``reference_exposure``: doubling the exposure then doubles the signal.
 Pixel values stay in Mitsuba's units (radiance for a full opening and E = E_ref).
 
+Relative illumination (natural vignetting): with ``relative_illumination`` other than ``off``
+each ray's weight is also multiplied by the factor of its film position, w_RI, the same in
+``sample_ray`` and ``sample_direction``. ``cos4``: w_RI = cos^4 theta_c, theta_c the angle of the
+film position's chief ray (through the lens centre) to the axis,
+
+    w_RI = (z^2 / (x^2 + y^2 + z^2))^2   for any camera-space point (x, y, z) on that ray,
+
+so it tends to 0, never NaN, towards 90 deg. A curve file (relative illumination against
+``height_px``, ``height_mm`` or ``field_deg``) is interpolated linearly. Why the chief ray and
+not each ray's own angle, the format of the files and the exact thin-lens integral's departure
+from cos^4 (+2.3 % at the 1280x960 frame's corner at F2.8): :mod:`pacam_render.model.illumination`.
+The image is then irradiance relative to the axis, exactly the radiance image times the map
+:func:`~pacam_render.model.illumination.relative_illumination_map` (a function of the film
+position alone). ``off`` leaves the kernels as they were: ray for ray thinlens.
+
 Closed chops and black patterns: the time the integrator draws (uniform over the shutter) is
 mapped, measure-preservingly, onto the open patterns only, and the open fraction goes into the
 weight, so no ray or particle-tracer connection is wasted on a closed aperture. The same kind
@@ -89,7 +107,8 @@ Particle tracing (``sample_direction``) uses the same estimator: a lens point is
 a camera ray, the ray through it and the scene point meets the focal plane at a point whose
 projection through the lens centre is the film position, and the weight is
 w / (A' cos(theta) z^2) with A' the film's area at unit distance, theta the ray's angle to the
-axis and z the point's depth: exactly ``thinlens`` for the full opening.
+axis and z the point's depth: exactly ``thinlens`` for the full opening (times w_RI of the film
+position, when a relative illumination is on).
 
 Schedules and time
 ------------------
@@ -109,6 +128,17 @@ hit Dr.Jit's kernel cache. Changing Mitsuba's own shutter (``shutter_open``/``_t
 ``mi.traverse``) re-times the schedule, but recompiles the integrators, which bake it in; use
 ``time_window`` to render part of an exposure.
 
+Mitsuba's sensor contract
+-------------------------
+The sensor behaves as ``thinlens`` wherever Mitsuba's own sensor tests use one: the methods take
+Python numbers, lists and tuples (``sample_ray(0, 0, [0.5, 0.5], [0.5, 0.5])``) and convert them
+as the C++ bindings do; ``near_clip()``, ``far_clip()`` and ``focus_distance()`` are methods;
+``bbox()`` works in every variant; ``mi.traverse`` exposes ``near_clip``, ``far_clip`` and
+``x_fov`` (deg) besides ``to_world``, ``focus_distance`` and the swept scalars, and every
+``params.update()`` rebuilds the projection from the film as it then is, so a crop or film size
+changed at run time renders exactly what the same film given at load time renders. As for
+thinlens, ``eval``, ``pdf_direction`` and ``sample_position`` are not implemented.
+
 Known Mitsuba 3.9.1 limitation: with ``ptracer``, light leaving a *textured* area emitter carries
 time = shutter_open (its position sampling drops the time), so every such particle sees the
 first pattern. Uniform emitters, reflected light and the ``path`` integrator are unaffected.
@@ -122,7 +152,13 @@ import drjit as dr
 import mitsuba as mi
 import numpy as np
 
-from ..errors import ParameterError, check_positive
+from ..errors import ParameterError, check_finite, check_positive
+from ..model.illumination import (
+    DEFAULT_RELATIVE_ILLUMINATION,
+    TABLE_SIZE,
+    film_tan_max,
+    parse_relative_illumination,
+)
 from .plan import (
     PROP_KEYS,
     AperturePlan,
@@ -173,6 +209,32 @@ def make_opaque(*args):
         dr.make_opaque(*args)
 
 
+def as_type(t, v):
+    """``v`` as type ``t``, converted only if it is not one already.
+
+    Mitsuba's C++ sensors convert their arguments in the bindings, so Mitsuba's tests call
+    them with Python numbers, lists and tuples (``sample_ray(0, 0, [0.5, 0.5], [0.5, 0.5])``);
+    a Python plugin receives those as they are. Arguments of the right type (as the
+    integrators pass them) are returned untouched, so traced kernels do not change.
+    """
+    return v if isinstance(v, t) else t(v)
+
+
+def traversable(v: float):
+    """A holder of ``v`` that ``mi.traverse`` can update in place: a ``Float`` in JIT
+    variants, a one-element ``Array1f`` in scalar ones (a Python float is immutable)."""
+    return Float(v) if JIT else dr.scalar.Array1f(v)
+
+
+def held(h) -> float:
+    """The value in a :func:`traversable` holder, as a Python float."""
+    return float(h[0])
+
+
+PROJECTION_KEYS = ("x_fov", "near_clip", "far_clip")
+"""Traversed parameters of the projection (as Mitsuba's projective cameras expose them)."""
+
+
 def lookup(t, edges, n, scale, t0, bias, active):
     """Index k of the window [edges[k], edges[k+1]) containing t (the last one closed).
 
@@ -191,18 +253,64 @@ class ProgrammableApertureCamera(mi.Sensor):
 
     def __init__(self, props):
         mi.Sensor.__init__(self, props)
+        size = self.film().size()
+        self._set_projection(
+            mi.parse_fov(props, size.x / size.y),
+            props.get("near_clip", 1e-2),
+            props.get("far_clip", 1e4),
+        )
+        focus = props.get("focus_distance", self._far_clip)
+        self.m_needs_sample_3 = True
+        self._update_projection()
+
+        self._to_world = mi.AffineTransform4f(self.m_to_world)
+        self._check_to_world()
+        self._focus = opaque_scalar(check_positive("focus_distance", focus, "mm"))
+        self._traversed_cfg = {}
+        # the exposure as written (double precision); Mitsuba keeps float32 copies
+        t_open = float(props.get("shutter_open", self.shutter_open()))
+        t_close = float(props.get("shutter_close", t_open + self.shutter_open_time()))
+        self._exposure = (t_open, t_close)
+        self._cfg = config_from_props(props)
+        self._set_plan(self._build(self._cfg))
+        self._sync_traversed()
+        self._set_illumination(props)
+
+    # ---------------------------------------------------------------- projection
+    def _set_projection(self, x_fov, near, far):
+        """Check and set the field of view (deg) and the clip planes (scene units).
+
+        Raises :class:`ParameterError` (nothing changed) unless 0 < x_fov < 180 and
+        0 < near < far, as Mitsuba's projective cameras require. Call
+        :meth:`_update_projection` after it.
+        """
+        x_fov = check_finite("x_fov", x_fov)
+        if not 0.0 < x_fov < 180.0:
+            raise ParameterError(f"x_fov (the horizontal fov) must be in (0, 180) deg, got {x_fov}")
+        near = check_positive("near_clip", near)
+        far = check_positive("far_clip", far)
+        if not near < far:
+            raise ParameterError(f"near_clip ({near:g}) must be smaller than far_clip ({far:g})")
+        self._x_fov, self._near_clip, self._far_clip = x_fov, near, far
+        self._near = opaque_scalar(near)  # the kernels' copies: a new value never recompiles
+        self._far = opaque_scalar(far)
+
+    def _update_projection(self):
+        """(Re)build the projection from the film as it is now (size, crop size and offset),
+        the field of view and the clip planes, as thinlens' ``update_camera_transforms``.
+
+        Called at load time and on every ``parameters_changed``: a crop or film size changed
+        through ``mi.traverse`` then renders what the same film given at load time renders.
+        The sensor's values are opaque (a new fov or clip plane recompiles nothing), but
+        Mitsuba's integrators bake the film's crop into their kernels: a new crop or film size
+        recompiles them, with thinlens too.
+        """
         film = self.film()
         size, crop = film.size(), film.crop_size()
         self._resolution = mi.ScalarVector2f(crop)
-        self._x_fov = float(mi.parse_fov(props, size.x / size.y))
-        self._near = check_positive("near_clip", props.get("near_clip", 1e-2))
-        self._far = check_positive("far_clip", props.get("far_clip", 1e4))
-        focus = props.get("focus_distance", self._far)
         self._focal_px = 0.5 * size.x / math.tan(math.radians(self._x_fov) / 2.0)
-        self.m_needs_sample_3 = True
-
         proj = mi.perspective_projection(
-            size, crop, film.crop_offset(), self._x_fov, self._near, self._far
+            size, crop, film.crop_offset(), self._x_fov, self._near_clip, self._far_clip
         )
         self._camera_to_sample = mi.ProjectiveTransform4f(proj)
         self._sample_to_camera = self._camera_to_sample.inverse()
@@ -216,18 +324,6 @@ class ProgrammableApertureCamera(mi.Sensor):
         h = abs(first(pmax.y) / first(pmax.z) - first(pmin.y) / first(pmin.z))
         self._inv_image_area = opaque_scalar(1.0 / (w * h))  # 1/A' at z = 1
         make_opaque(self._camera_to_sample, self._sample_to_camera, self._dx, self._dy)
-
-        self._to_world = mi.AffineTransform4f(self.m_to_world)
-        self._check_to_world()
-        self._focus = opaque_scalar(check_positive("focus_distance", focus, "mm"))
-        self._traversed_cfg = {}
-        # the exposure as written (double precision); Mitsuba keeps float32 copies
-        t_open = float(props.get("shutter_open", self.shutter_open()))
-        t_close = float(props.get("shutter_close", t_open + self.shutter_open_time()))
-        self._exposure = (t_open, t_close)
-        self._cfg = config_from_props(props)
-        self._set_plan(self._build(self._cfg))
-        self._sync_traversed()
 
     # ---------------------------------------------------------------- configuration
     def _check_to_world(self):
@@ -308,9 +404,17 @@ class ProgrammableApertureCamera(mi.Sensor):
         """(W/2)/tan(fov/2): the film's focal length in pixels."""
         return self._focal_px
 
-    @property
     def focus_distance(self) -> float:
+        """Distance from the lens to the plane in focus (mm), as thinlens' method."""
         return first(self._focus)
+
+    def near_clip(self) -> float:
+        """Distance to the near clip plane (scene units), as Mitsuba's projective cameras."""
+        return self._near_clip
+
+    def far_clip(self) -> float:
+        """Distance to the far clip plane (scene units), as Mitsuba's projective cameras."""
+        return self._far_clip
 
     def _set_plan(self, plan: AperturePlan):
         self._plan = plan
@@ -367,8 +471,9 @@ class ProgrammableApertureCamera(mi.Sensor):
         xs = plan.camera_offset_at(ts)
         self._travel = (float(np.min(xs)), float(np.max(xs)))
 
-    # ---- traversal: to_world and the swept scalars
+    # ---- traversal: to_world, the projection and the swept scalars
     def _sync_traversed(self):
+        """Write the current values into the holders that ``mi.traverse`` exposes."""
         p = self._plan
         c = self._cfg
         vals = {
@@ -378,17 +483,24 @@ class ProgrammableApertureCamera(mi.Sensor):
             "camera_acceleration": float(c.get("camera_acceleration") or 0.0)
             if c.get("image_acceleration") is None
             else float(c["image_acceleration"]) * first(self._focus) / self._focal_px,
+            "x_fov": self._x_fov,
+            "near_clip": self._near_clip,
+            "far_clip": self._far_clip,
         }
-        self._traversed_vals = dict(vals)
-        if not JIT:  # plain floats cannot be updated in place: use configure()
-            return
         for k, v in vals.items():
             if k in self._traversed_cfg:
-                mi.set_property(self._traversed_cfg[k], Float(v))
+                mi.set_property(self._traversed_cfg[k], traversable(v))
             else:
-                self._traversed_cfg[k] = Float(v)
+                self._traversed_cfg[k] = traversable(v)
+        # as held (float32): a value read back unchanged is not a change
+        self._traversed_vals = {k: held(h) for k, h in self._traversed_cfg.items()}
 
     def traverse(self, callback):
+        """Expose, besides Mitsuba's sensor parameters (shutter, film, sampler), ``to_world``,
+        the projection's ``near_clip``, ``far_clip`` and ``x_fov`` (as Mitsuba's projective
+        cameras do), ``focus_distance``, ``aperture_radius``, ``lens_radius`` and
+        ``camera_acceleration``; all non-differentiable. Values are ``Float`` holders in JIT
+        variants and one-element ``Array1f`` in scalar ones."""
         super().traverse(callback)
         flags = mi.ParamFlags.NonDifferentiable
         callback.put("to_world", self._to_world, flags)
@@ -396,6 +508,14 @@ class ProgrammableApertureCamera(mi.Sensor):
             callback.put(k, v, flags)
 
     def parameters_changed(self, keys):
+        """Apply changes made through ``mi.traverse``: ``to_world``, the film (crop, size),
+        the projection, the shutter and the swept scalars.
+
+        The projection is rebuilt on every call, as thinlens does, so a run-time crop or
+        film size renders as if given at load time. A bad value raises
+        :class:`ParameterError` and changes nothing of ours (the film's own change stands,
+        and the projection follows it).
+        """
         super().parameters_changed(keys)
         old_tw = mi.AffineTransform4f(self._from_world.inverse())
         if not keys or "to_world" in keys:
@@ -405,11 +525,25 @@ class ProgrammableApertureCamera(mi.Sensor):
                 self._to_world.assign(old_tw)
                 self._check_to_world()
                 raise
+        old_projection = (self._x_fov, self._near_clip, self._far_clip)
+
+        def restore():
+            self._set_projection(*old_projection)
+            self._update_projection()
+            self._sync_traversed()
+
         changes = {}
         for k, holder in self._traversed_cfg.items():
-            v = first(holder)
+            v = held(holder)
             if v != self._traversed_vals[k]:
                 changes[k] = v
+        projection = {k: changes.pop(k, v) for k, v in zip(PROJECTION_KEYS, old_projection)}
+        try:
+            self._set_projection(*(projection[k] for k in PROJECTION_KEYS))
+        except ParameterError:
+            restore()
+            raise
+        self._update_projection()  # film, fov or clip planes: before the plan (f_px)
         if "camera_acceleration" in changes:
             changes["image_acceleration"] = None
         shutter = (self.shutter_open(), self.shutter_open() + self.shutter_open_time())
@@ -419,10 +553,10 @@ class ProgrammableApertureCamera(mi.Sensor):
             self._exposure = shutter
             changes["time_window"] = None
         try:
-            self.configure(**changes)  # also rebuilds for a changed shutter
+            self.configure(**changes)  # also rebuilds for a changed shutter or f_px
         except ParameterError:
             self._exposure = old_exposure
-            self._sync_traversed()
+            restore()
             raise
 
     # ---------------------------------------------------------------- kernels
@@ -522,6 +656,8 @@ class ProgrammableApertureCamera(mi.Sensor):
         time, k = self._time_and_pattern(time, active)
         weight = self._weight_at(k, active)
         near_p = self._sample_to_camera @ Point3f(position_sample.x, position_sample.y, 0.0)
+        if self._ri.kind != "off":  # off: the kernel is thinlens', untouched
+            weight = weight * self._illumination(near_p)
         a, _ = self._aperture(k, time, aperture_sample, active)
         aperture_p = Point3f(a.x, a.y, 0.0)
         origin = Point3f(a.x + self._camera_x(k, time, active), a.y, 0.0)
@@ -539,7 +675,22 @@ class ProgrammableApertureCamera(mi.Sensor):
         if shift is not None:
             ray.o = ray.o - shift  # the scene moved by +shift: meet it at o - shift
 
+    def _ray_args(self, time, sample1, sample2, sample3, active):
+        """The arguments of ``sample_ray*`` as Mitsuba types (see :func:`as_type`)."""
+        return (
+            as_type(Float, time),
+            as_type(Float, sample1),
+            as_type(Point2f, sample2),
+            as_type(Point2f, sample3),
+            as_type(mi.Bool, active),
+        )
+
     def sample_ray(self, time, sample1, sample2, sample3, active=True):
+        """A camera ray: wavelengths from ``sample1``, film position ``sample2``, lens point
+        ``sample3``, at integrator time ``time``; returns (ray, weight)."""
+        time, sample1, sample2, sample3, active = self._ray_args(
+            time, sample1, sample2, sample3, active
+        )
         wavelengths, wav_weight = self.sample_wavelengths(
             dr.zeros(mi.SurfaceInteraction3f), sample1, active
         )
@@ -551,6 +702,11 @@ class ProgrammableApertureCamera(mi.Sensor):
         return ray, wav_weight * weight
 
     def sample_ray_differential(self, time, sample1, sample2, sample3, active=True):
+        """:meth:`sample_ray` with the differentials of one pixel step in x and y, through the
+        same lens point (as thinlens.cpp's own differentials)."""
+        time, sample1, sample2, sample3, active = self._ray_args(
+            time, sample1, sample2, sample3, active
+        )
         wavelengths, wav_weight = self.sample_wavelengths(
             dr.zeros(mi.SurfaceInteraction3f), sample1, active
         )
@@ -574,6 +730,7 @@ class ProgrammableApertureCamera(mi.Sensor):
     def sample_direction(self, it, sample, active=True):
         """Connect a scene point to the lens (particle tracing): a lens point, the film
         position its ray lands on, and importance / pdf (same estimator as sample_ray)."""
+        sample, active = as_type(Point2f, sample), as_type(mi.Bool, active)
         time, k = self._time_and_pattern(it.time, active)
         shift = self.scene_shift(time - self._t_mid)
         p = it.p if shift is None else it.p + shift  # where the moving scene puts the point
@@ -600,6 +757,8 @@ class ProgrammableApertureCamera(mi.Sensor):
         # ray through a (collinear: |focus_p - a| / dist = F / z), this is w / (A' cos z^2)
         weight = self._weight_at(k, active)
         weight = weight * self._inv_image_area * dr.rcp(cos_t * z * z)
+        if self._ri.kind != "off":  # the film position's factor, as in sample_ray
+            weight = weight * self._illumination(focus_p)
 
         if JIT:
             ds = dr.zeros(mi.DirectionSample3f)
@@ -614,6 +773,52 @@ class ProgrammableApertureCamera(mi.Sensor):
         ds.time = time
         ds.pdf = dr.select(active, pdf_area * dist * dist / cos_t, 0.0)
         return ds, mi.Spectrum(dr.select(active, weight, 0.0))
+
+    # ---------------------------------------------------------------- relative illumination
+    def _set_illumination(self, props):
+        """Parse ``relative_illumination`` (and ``pixel_pitch`` for a ``height_mm`` curve)
+        and upload a curve's table (:mod:`pacam_render.model.illumination`).
+
+        A curve's abscissae become chief-ray tangents with the film's load-time f_px, and the
+        curve must reach the film's farthest corner; past its last point it holds its last
+        value. The table has a fixed size, so a new curve never recompiles.
+        """
+        value = props.get("relative_illumination", DEFAULT_RELATIVE_ILLUMINATION)
+        pitch = props.get("pixel_pitch", None)
+        self._ri = ri = parse_relative_illumination(value)
+        self._ri_pitch = None if pitch is None else check_positive("pixel_pitch", pitch, "mm")
+        if ri.kind != "curve":
+            return
+        film = self.film()
+        size, crop, off = film.size(), film.crop_size(), film.crop_offset()
+        window = (int(off.x), int(off.y), int(crop.x), int(crop.y))
+        tan_max = film_tan_max(int(size.x), int(size.y), self._x_fov, window)
+        ri.check_covers(tan_max, self._focal_px, self._ri_pitch)
+        t_last = float(ri.knots_tan(self._focal_px, self._ri_pitch)[-1])
+        self._ri_table = opaque_array(
+            ri.table(self._focal_px, self._ri_pitch).astype(np.float32), Float
+        )
+        self._ri_scale = opaque_scalar((TABLE_SIZE - 1) / t_last)
+
+    def _illumination(self, p):
+        """Relative illumination of the film position whose chief ray (through the lens
+        centre) passes through the camera-space point ``p`` (p.z > 0).
+
+        ``cos4``: cos^4 theta_c = (z^2 / (x^2 + y^2 + z^2))^2, which stays finite (-> 0)
+        towards 90 deg. A curve: linear interpolation in its table, uniform in
+        tan theta_c = sqrt(x^2 + y^2) / z.
+        """
+        r2 = p.x * p.x + p.y * p.y
+        z2 = p.z * p.z
+        if self._ri.kind == "cos4":
+            c2 = z2 / (z2 + r2)
+            return c2 * c2
+        u = dr.sqrt(r2 / z2) * self._ri_scale
+        i = dr.clip(Int(dr.floor(u)), 0, TABLE_SIZE - 2)
+        f = dr.clip(u - Float(i), 0.0, 1.0)
+        lo = gather(Float, self._ri_table, UInt(i))
+        hi = gather(Float, self._ri_table, UInt(i + 1))
+        return lo + f * (hi - lo)
 
     # ---------------------------------------------------------------- extension hook
     def scene_shift(self, tau):
@@ -648,11 +853,17 @@ class ProgrammableApertureCamera(mi.Sensor):
         return np.array(p.x), np.array(p.y), np.array(w)
 
     def bbox(self):
+        """The lens centre's path over the exposure, in world space (a point for a camera
+        that does not move, as thinlens), as a scalar bounding box in every variant."""
         lo = self._to_world @ Point3f(self._travel[0], 0.0, 0.0)
         hi = self._to_world @ Point3f(self._travel[1], 0.0, 0.0)
-        box = mi.ScalarBoundingBox3f()
+        # scalar variants have no Scalar* aliases of their own (only after a JIT variant
+        # was loaded in the process)
+        box_t = mi.ScalarBoundingBox3f if JIT else mi.BoundingBox3f
+        point_t = mi.ScalarPoint3f if JIT else mi.Point3f
+        box = box_t()
         for p in (lo, hi):
-            box.expand(mi.ScalarPoint3f(first(p.x), first(p.y), first(p.z)))
+            box.expand(point_t(first(p.x), first(p.y), first(p.z)))
         return box
 
     def to_string(self):
@@ -665,12 +876,13 @@ class ProgrammableApertureCamera(mi.Sensor):
             f"  aperture_radius = {p.radius_mm:g} mm,\n"
             f"  x_fov = {self._x_fov:g} deg,\n"
             f"  focus_distance = {first(self._focus):g} mm,\n"
-            f"  near_clip = {self._near:g}, far_clip = {self._far:g},\n"
+            f"  near_clip = {self._near_clip:g}, far_clip = {self._far_clip:g},\n"
             f"  exposure = [{p.t_open:g}, {p.t_close:g}] ms,"
             f" time_window = {p.window},\n"
             f"  open_fraction = {p.open_fraction:g}, exposure_factor = "
             f"{p.exposure_factor:g},\n"
             f"  mean weight (image / thinlens) = {p.mean_weight():.6g},\n"
+            f"  relative_illumination = {self._ri.source},\n"
             f"  film = {self.film()},\n"
             f"  to_world = {self._to_world.matrix}\n"
             "]"

@@ -163,9 +163,10 @@ def sensor_dict(**params) -> dict:
         The sensor's properties (see :mod:`pacam_render.render.aperture_camera`): the plugin's own
         (:data:`~pacam_render.render.plan.PROP_KEYS`, e.g. ``lens_radius`` R_max and
         ``aperture_radius`` R in mm, ``schedule``, ``n_patterns``, ``image_acceleration`` in
-        px/ms^2, ``reference_exposure`` in ms) and the camera's (``fov`` in deg, ``fov_axis``,
-        ``focus_distance`` in mm, ``shutter_open`` and ``shutter_close`` in ms, ``film``,
-        ``sampler``, ...).
+        px/ms^2, ``reference_exposure`` in ms, ``relative_illumination`` off, cos4 or a curve
+        file, and ``pixel_pitch`` in mm for a ``height_mm`` curve) and the camera's (``fov`` in
+        deg, ``fov_axis``, ``focus_distance`` in mm, ``shutter_open`` and ``shutter_close`` in
+        ms, ``film``, ``sampler``, ...).
 
     Returns
     -------
@@ -177,8 +178,10 @@ def sensor_dict(**params) -> dict:
     ------
     ParameterError
         If ``lens_radius`` is missing, the focus distance (``focus_distance``, else
-        ``far_clip``) is not > 0 mm, ``fov`` is not in (0, 180) deg, or the schedule's
-        parameters are invalid (:func:`~pacam_render.render.plan.build_plan`).
+        ``far_clip``) is not > 0 mm, ``fov`` is not in (0, 180) deg, the schedule's
+        parameters are invalid (:func:`~pacam_render.render.plan.build_plan`), or
+        ``relative_illumination`` is not off, cos4 or a valid curve file that reaches the
+        film's corner (:mod:`pacam_render.model.illumination`).
 
     Notes
     -----
@@ -209,6 +212,8 @@ def sensor_dict(**params) -> dict:
         focal_px = 0.5 * width / math.tan(math.radians(fov) / 2.0)
     if focal_px is not None or cfg.get("image_acceleration") is None:
         build_plan(cfg, t0, t1, focal_px=focal_px, focus_mm=focus)
+    if "relative_illumination" in params:
+        _check_illumination(params, focal_px)
 
     out = {"type": PLUGIN_NAME}
     for k, v in params.items():
@@ -220,6 +225,27 @@ def sensor_dict(**params) -> dict:
             v = mi.TensorXf(np.asarray(v, dtype=np.float32))
         out[k] = v
     return out
+
+
+def _check_illumination(params: dict, focal_px: float | None) -> None:
+    """``relative_illumination`` (and ``pixel_pitch``) as the plugin will parse them, and a
+    curve against the film's farthest corner when the horizontal fov is known."""
+    from ..model.illumination import film_tan_max, parse_relative_illumination
+
+    ri = parse_relative_illumination(params["relative_illumination"])
+    pitch = params.get("pixel_pitch")
+    pitch = None if pitch is None else check_positive("pixel_pitch", pitch, "mm")
+    if ri.kind != "curve" or focal_px is None:
+        return
+    film = params.get("film") or {}
+    w, h = int(film.get("width", 768)), int(film.get("height", 576))
+    crop = (
+        int(film.get("crop_offset_x", 0)),
+        int(film.get("crop_offset_y", 0)),
+        int(film.get("crop_width", w)),
+        int(film.get("crop_height", h)),
+    )
+    ri.check_covers(film_tan_max(w, h, float(params["fov"]), crop), focal_px, pitch)
 
 
 def sensor_entry(spec, design: CameraDesign, params: dict, exposure_ms: float) -> dict:

@@ -12,13 +12,12 @@ import numpy as np
 
 from ..errors import ParameterError
 from ..exposure.record import CaptureRecord
+from .deconvolve import SIGMA_METHODS
 from .noise import estimate_noise_sigma
 
 NOISE_SIGMA_MAX = 1e3
 """The largest ``noise_sigma``, in multiples of the layer's peak (or of white, 1, if the peak
 is lower): beyond it the image is all noise, and its square overflows."""
-SIGMA_METHODS = ("wiener", "hl", "tv", "bm3d", "pnp")
-"""The methods that take a noise sigma."""
 
 
 def check_noise_sigma(sigma: float | None, image) -> None:
@@ -35,12 +34,29 @@ def check_noise_sigma(sigma: float | None, image) -> None:
         )
 
 
+NOT_IMAGES = {
+    "depth": "depth in mm",
+    "velocity": "image velocity in px/ms",
+    "object_id": "object numbers",
+    "raw": "the sensor's Bayer mosaic in DN (deblur its demosaicked noisy layer)",
+    "mc_sigma": "the render's Monte Carlo sigma",
+}
+"""Capture layers that are not images of the scene: deblurring them means nothing."""
+
+
 def deblur_layer(layers, layer: str | None = None) -> str:
     """The layer to deblur: ``layer`` if given, else ``noisy`` when the capture has one (a
-    sensor capture), else ``capture``."""
-    if layer is not None:
-        return layer
-    return "noisy" if "noisy" in layers else "capture"
+    sensor capture), else ``capture``. A layer that is not an image (:data:`NOT_IMAGES`) is
+    refused, naming what it holds and the image layers there are."""
+    if layer is None:
+        return "noisy" if "noisy" in layers else "capture"
+    if layer in NOT_IMAGES:
+        images = [k for k in layers if k not in NOT_IMAGES]
+        raise ParameterError(
+            f"`layer` {layer} holds {NOT_IMAGES[layer]}, not an image of the scene; deblur one "
+            f"of {', '.join(images)}"
+        )
+    return layer
 
 
 def sparse_options(

@@ -28,6 +28,7 @@ import scipy.fft as sfft
 from scipy.optimize import minimize_scalar
 
 from ..errors import ParameterError
+from .cost import DEFAULT_ITERATIONS, check_deconvolve
 from .fourier import WORKERS, check_image, check_psf, pad_width, psf_to_otf, taper_pad
 from .metrics import psnr
 from .noise import SIGMA_FLOOR, check_sigma, estimate_noise_sigma
@@ -36,6 +37,9 @@ from .pnp import pnp_deconvolve
 from .sparse import sparse_deconvolve
 
 METHODS = ("wiener", "hl", "tv", "rl", "uwiener", "bm3d", "pnp")
+SIGMA_METHODS = ("wiener", "hl", "tv", "bm3d", "pnp")
+"""The methods that take a ``noise_sigma`` (rl regularises by its iterations, uwiener
+estimates its own)."""
 BM3D_LICENCE = (
     "bm3d (Tampere University) is free for non-commercial use only; see the bm3d package licence"
 )
@@ -305,8 +309,8 @@ def _padded(fn):
     return run
 
 
-def richardson_lucy(image, psf, iterations: int = 30):
-    """Richardson-Lucy deconvolution (scikit-image).
+def richardson_lucy(image, psf, iterations: int = 30, callback=None):
+    """Richardson-Lucy deconvolution (scikit-image's iteration).
 
     Needs a non-negative image; amplifies noise with more iterations, so ``iterations`` is the
     regulariser. Runs on the tapered, padded image (:func:`~.fourier.taper_pad`), cropped back.
@@ -319,6 +323,8 @@ def richardson_lucy(image, psf, iterations: int = 30):
         PSF, as for :func:`wiener`.
     iterations : int, optional
         Number of iterations, an integer >= 1.
+    callback : callable, optional
+        ``callback(i, estimate)`` after each iteration, with the cropped estimate.
 
     Returns
     -------
@@ -334,10 +340,13 @@ def richardson_lucy(image, psf, iterations: int = 30):
     Notes
     -----
     Each iteration multiplies the estimate by the back-projected ratio of data to prediction,
-    x <- x (k' * (y / (k * x))), with * convolution and k' the PSF flipped in both axes.
-    scikit-image's ``richardson_lucy`` is called with ``clip=False``: nothing is clipped.
+    x <- x (k' * (y / (k * x + 1e-12))), with * ``scipy.signal.convolve`` (``mode="same"``)
+    and k' the PSF flipped in both axes, from x = 0.5: scikit-image's ``richardson_lucy``
+    with ``clip=False`` (nothing clipped), operation for operation, so the estimates are the
+    same to the bit; run here, every channel an iteration at a time, so that ``callback`` can
+    follow it.
     """
-    from skimage.restoration import richardson_lucy as rl
+    from scipy.signal import convolve
 
     y = check_image(image)
     k = check_psf(psf, y.shape)
@@ -347,9 +356,24 @@ def richardson_lucy(image, psf, iterations: int = 30):
         raise ParameterError(f"richardson_lucy needs a non-negative image, min is {y.min():g}")
     if not y.any():
         return np.zeros_like(y)  # RL divides by the prediction: 0 / 0
-    return _per_channel(
-        y, k, _padded(lambda c, kk: rl(c, kk, num_iter=int(iterations), clip=False))
-    )
+    planes = [y] if y.ndim == 2 else [y[..., c] for c in range(y.shape[2])]
+    padded = [taper_pad(c, pad_width(k.shape)) for c in planes]
+    keep = padded[0][1]
+    data = [p for p, _ in padded]
+    kernels = [k if k.ndim == 2 else k[..., c] for c in range(len(data))]
+    est = [np.full(d.shape, 0.5) for d in data]
+
+    def crop() -> np.ndarray:
+        out = [x[keep] for x in est]
+        return out[0] if y.ndim == 2 else np.stack(out, axis=-1)
+
+    for i in range(int(iterations)):
+        for x, d, kk in zip(est, data, kernels):
+            conv = convolve(x, kk, mode="same") + 1e-12
+            x *= convolve(d / conv, np.flip(kk), mode="same")
+        if callback is not None:
+            callback(i, crop())
+    return crop()
 
 
 def unsupervised_wiener(image, psf, seed: int = 0):
@@ -451,6 +475,16 @@ def bm3d_deblur(image, psf, noise_sigma: float | None = None):
     return _per_channel(y, k, _padded(one))
 
 
+def nonnegative_for(method: str, image: np.ndarray) -> tuple[np.ndarray, int]:
+    """``image`` clipped at 0 for ``rl``, which needs non-negative data (read noise makes a
+    dark pixel of a noisy layer slightly negative), and how many values were clipped; every
+    other method gets it as it is."""
+    if method != "rl":
+        return image, 0
+    neg = int(np.count_nonzero(np.asarray(image) < 0))
+    return (np.maximum(image, 0.0), neg) if neg else (image, 0)
+
+
 def deconvolve(image, psf, method: str = "hl", **kwargs):
     """Dispatch to one of :data:`METHODS`.
 
@@ -479,7 +513,14 @@ def deconvolve(image, psf, method: str = "hl", **kwargs):
     Raises
     ------
     ParameterError
-        If ``method`` is not one of :data:`METHODS`, or as the method raises it.
+        If ``method`` is not one of :data:`METHODS`; before any work, if its memory is not
+        available (:func:`~.cost.check_deconvolve`, naming the methods that fit); or as the
+        method raises it.
+
+    Notes
+    -----
+    The iterative methods (hl, tv, rl, pnp) show a progress bar over their iterations
+    (``tqdm``, after 2 s, on a terminal only).
     """
     funcs = {
         "wiener": wiener,
@@ -492,4 +533,33 @@ def deconvolve(image, psf, method: str = "hl", **kwargs):
     }
     if method not in funcs:
         raise ParameterError(f"unknown method {method!r}; valid: {', '.join(METHODS)}")
-    return funcs[method](image, psf, **kwargs)
+    shape, kshape = np.shape(image), np.shape(psf)
+    if len(shape) in (2, 3) and len(kshape) in (2, 3):  # else the method names the shape
+        check_deconvolve(shape, kshape, method, kwargs)
+    steps = _iterations(method, kwargs)
+    if steps is None:
+        return funcs[method](image, psf, **kwargs)
+    from tqdm import tqdm
+
+    with tqdm(total=steps, desc=method, unit="it", delay=2.0, disable=None, leave=False) as bar:
+        return funcs[method](image, psf, **{**kwargs, "callback": _ticking(kwargs, bar)})
+
+
+def _iterations(method: str, kwargs: dict) -> int | None:
+    """The iterations a progress bar counts for ``method`` (None: no bar)."""
+    if method not in DEFAULT_ITERATIONS:
+        return None
+    n = kwargs.get("iterations", DEFAULT_ITERATIONS[method])
+    return n if isinstance(n, (int, np.integer)) and not isinstance(n, bool) and n > 0 else None
+
+
+def _ticking(kwargs: dict, bar):
+    """A callback that moves ``bar`` on, then calls the caller's own ``callback``, if any."""
+    own = kwargs.get("callback")
+
+    def tick(i: int, estimate: np.ndarray) -> None:
+        bar.update(1)
+        if own is not None:
+            own(i, estimate)
+
+    return tick

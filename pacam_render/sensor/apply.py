@@ -204,7 +204,7 @@ def check_grey_sensor(grey: bool, model: SensorModel, preset: str) -> None:
     )
     raise ParameterError(
         f"`sensor` {preset} has a colour filter array ({model.bayer} Bayer), but the capture "
-        f"is grey (one channel: rendered with --grey or a mono variant); {use}"
+        f"is grey (one channel: rendered with `grey=True` or a mono variant); {use}"
     )
 
 

@@ -51,7 +51,7 @@ Presets (:data:`PRESETS`, :func:`available_presets`, :meth:`SensorModel.from_pre
   (:func:`~pacam_render.sensor.apply.add_sensor_layers`), since a grey image is not a mosaic.
 - User presets: JSON or TOML files with the constructor's parameter names as top-level keys,
   optionally ``base`` (a built-in preset to start from), ``sigma`` (read noise as a fraction of
-  the full well) and ``description``. TOML needs Python >= 3.11 (tomllib); on 3.10 use JSON.
+  the full well) and ``description``. (TOML on Python 3.10 reads through ``tomli``.)
 
 Light levels (:func:`photons_from_render`, :func:`simulate_capture`). A render is linear and
 radiance-like: 1.0 is a white diffuse surface. ``light_level`` is the number of photons per pixel
@@ -76,12 +76,8 @@ from typing import Any
 import numpy as np
 
 from ..errors import ParameterError, check_finite, check_positive
+from ..io.toml_file import parse_toml, read_text
 from . import bayer as _bayer
-
-try:  # Python >= 3.11
-    import tomllib as _tomllib
-except ModuleNotFoundError:  # pragma: no cover - Python 3.10
-    _tomllib = None
 
 BLOCK_PIXELS = 1 << 16
 """Pixels per noise block; each block has its own child SeedSequence (see module docstring)."""
@@ -629,11 +625,8 @@ def _read_preset_file(path: Path) -> dict[str, Any]:
     suffix = path.suffix.lower()
     if suffix not in (".json", ".toml"):
         raise ParameterError(f"preset file must end in .json or .toml, got {str(path)!r}")
-    try:
-        text = path.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as exc:
-        raise ParameterError(f"preset file {path} cannot be read: {exc}") from None
-    data = _parse_json(path, text) if suffix == ".json" else _parse_toml(path, text)
+    text = read_text(path, "preset file")  # strictly UTF-8, a byte-order mark allowed
+    data = _parse_json(path, text) if suffix == ".json" else parse_toml(text, f"preset file {path}")
     if not isinstance(data, dict):
         raise ParameterError(f"preset file {path} must hold one table/object of parameters")
     return data
@@ -644,17 +637,6 @@ def _parse_json(path: Path, text: str) -> Any:
         return json.loads(text)
     except json.JSONDecodeError as exc:
         raise ParameterError(f"preset file {path} is not valid JSON: {exc}") from None
-
-
-def _parse_toml(path: Path, text: str) -> Any:
-    if _tomllib is None:  # pragma: no cover - Python 3.10
-        raise ParameterError(
-            f"preset file {path}: TOML needs Python >= 3.11 (tomllib); use a .json preset"
-        )
-    try:
-        return _tomllib.loads(text)
-    except _tomllib.TOMLDecodeError as exc:
-        raise ParameterError(f"preset file {path} is not valid TOML: {exc}") from None
 
 
 def _frame_seed(seed: int | np.random.SeedSequence | None) -> np.random.SeedSequence:

@@ -222,8 +222,8 @@ def _check_budget(estimate_s: float, budget_hours: float | None) -> None:
         raise ParameterError(
             f"the study's renders would take about {estimate_s / 3600:.2f} h (predicted from "
             f"their pilot passes, which are kept), over budget_hours = {budget_hours:g} h; "
-            "raise it, or make the study cheaper (a tighter crop, a larger noise_ratio, fewer "
-            "points)"
+            "raise it, or make the study cheaper (in its file: a tighter [render] crop, a "
+            "larger [render] noise_ratio, fewer points)"
         )
 
 

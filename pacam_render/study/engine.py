@@ -11,9 +11,11 @@
 :func:`open_client` can serve the LocalCluster's dashboard (with bokeh); :func:`dashboard_link`
 gives its address.
 
-A task whose worker dies is retried once by the scheduler (``allowed-failures = 1`` on the
-embedded cluster; a cluster of your own keeps its own setting); if it dies again its result is
-the exception (``KilledWorker``), handed to ``on_done`` like any result, and the rest go on.
+A worker process runs one task at a time, even with several threads (a lock around each
+task): Mitsuba's JIT state is the process's. A task whose worker dies is retried once by the
+scheduler (``allowed-failures = 1`` on the embedded cluster; a cluster of your own keeps its
+own setting); if it dies again its result is the exception (``KilledWorker``), handed to
+``on_done`` like any result, and the rest go on.
 """
 
 from __future__ import annotations
@@ -21,6 +23,7 @@ from __future__ import annotations
 import contextlib
 import logging
 import os
+import threading
 import uuid
 import warnings
 from collections.abc import Callable, Iterator, Sequence
@@ -228,13 +231,22 @@ def _submit_all(client, fn: Callable, tasks: Sequence, on_done: Callable, thread
         raise
 
 
-def _call(fn: Callable, task, threads: int | None):
-    """``fn(task)`` on a worker, with Dr.Jit's thread count set first (cores / workers)."""
-    if threads:
-        import drjit as dr
+_ONE_AT_A_TIME = threading.Lock()
+"""Held while a task runs: a worker process runs one pacam task at a time, whatever its
+thread count. A client of your own may give a worker several threads (LocalCluster's default
+on 2 cores: 2), and Mitsuba's variant and Dr.Jit's JIT state are the process's: two renders at
+once in one process are the likely cause of points that failed only under load."""
 
-        dr.set_thread_count(int(threads))
-    return fn(task)
+
+def _call(fn: Callable, task, threads: int | None):
+    """``fn(task)`` on a worker, one at a time per process (:data:`_ONE_AT_A_TIME`), with
+    Dr.Jit's thread count set first (cores / workers)."""
+    with _ONE_AT_A_TIME:
+        if threads:
+            import drjit as dr
+
+            dr.set_thread_count(int(threads))
+        return fn(task)
 
 
 @contextlib.contextmanager

@@ -29,7 +29,7 @@ COLUMNS = (
     "noise_sigma", "render_noise_sigma", "render_noise_ratio", "sharp_noise_sigma",
     "model_sigma", "deconv_sigma", "render_spp", "psnr_moving_no_model_sigma_db",
     "psnr_moving_floor_db", "psnr_moving_exact_model_db", "render_s", "total_s", "status",
-    "point_key",
+    "point_key", "row_digest",
 )  # fmt: skip
 """The columns of ``results.csv``, in order. Speeds are in the preset's own pixels (px/ms of
 the full sensor); r, a_i and the invariant range are the capture camera's at the study's
@@ -256,10 +256,13 @@ def _edge_px(cap) -> int:
 
 
 def _deconvolve(cap, noisy, sigma: float, method: str) -> np.ndarray:
-    """Restore with the mode's kernel (:func:`kernel`) and ``method``'s prior."""
-    from ..restore.deconvolve import deconvolve
+    """Restore with the mode's kernel (:func:`kernel`) and ``method``'s prior: ``sigma`` goes
+    to the methods that take one; ``rl`` gets the noisy layer clipped at 0 (its data must be
+    non-negative; a pacam deconvolve of the same layer does the same, with a note)."""
+    from ..restore.deconvolve import SIGMA_METHODS, deconvolve, nonnegative_for
 
-    return deconvolve(noisy, kernel(cap), method, noise_sigma=sigma)
+    kw = {"noise_sigma": sigma} if method in SIGMA_METHODS else {}
+    return deconvolve(nonnegative_for(method, noisy)[0], kernel(cap), method, **kw)
 
 
 def kernel(cap) -> np.ndarray:

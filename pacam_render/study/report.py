@@ -38,8 +38,17 @@ def load_rows(out: Path) -> list[dict]:
     rows = read_csv(out / RESULTS)
     for r in rows:
         for k in NUMERIC:
-            r[k] = float(r[k]) if r.get(k) not in (None, "") else math.nan
+            r[k] = _number(r.get(k))
     return rows
+
+
+def _number(cell) -> float:
+    """A cell as a float; nan where it is empty or not a number (a damaged file is reported
+    on, not crashed on; the study re-runs such rows, :func:`.results.row_is_intact`)."""
+    try:
+        return float(cell) if cell not in (None, "") else math.nan
+    except (TypeError, ValueError):
+        return math.nan
 
 
 def label(row: dict, designs: int) -> str:

@@ -13,13 +13,20 @@ files are named by render and point numbers, moves to ``images.before-KEY`` on a
 :class:`~pacam_render.limits.PacamWarning` says how many rows were kept, how many points are
 to run and how many rows were set aside, and where. A folder written before rows had keys is
 resumed only by the same spec, as before.
+
+Each row also records ``row_digest``, a hash of its other cells as written. A resumed row
+whose digest does not match (edited by hand, or damaged), or an ``ok`` row whose PSNR, SSIM or
+seconds do not read as finite numbers, is not taken as done: its point runs again, and a note
+says how many rows and which points.
 """
 
 from __future__ import annotations
 
 import csv
+import hashlib
 import io
 import json
+import math
 import os
 import warnings
 from pathlib import Path
@@ -60,6 +67,7 @@ class Results:
         if self.meta_path.exists() and not force:
             old = _read_json(self.meta_path)
             rows, keyed = _resumed_rows(self.path)
+            rows = _intact_rows(out, rows)
             if keyed:
                 self._by_key(out, rows, str(old.get("key")), meta["key"], len(spec.points))
             elif old.get("key") == meta["key"]:  # the same points in the same order: keys follow
@@ -70,6 +78,7 @@ class Results:
                     "same study with other settings); pass `force=True` to start afresh there, "
                     "or choose another `out`"
                 )
+            self.rows = {k: {**r, "row_digest": row_digest(r)} for k, r in self.rows.items()}
             self.resumed = len(self.done())
         elif self.path.exists() and not force:
             raise ParameterError(
@@ -116,7 +125,8 @@ class Results:
     def add(self, rows: list[dict]) -> None:
         """Record finished rows (replacing earlier rows of the same points) and save."""
         for r in rows:
-            self.rows[int(r["point"])] = {**r, "point_key": self.keys.get(int(r["point"]), "")}
+            row = {**r, "point_key": self.keys.get(int(r["point"]), "")}
+            self.rows[int(r["point"])] = {**row, "row_digest": row_digest(row)}
         self._write()
 
     def ordered(self) -> list[dict]:
@@ -128,6 +138,47 @@ class Results:
         writer.writeheader()
         writer.writerows(self.ordered())
         write_text(self.path, buf.getvalue(), force=True)
+
+
+def _intact_rows(out: Path, rows: dict[int, dict]) -> dict[int, dict]:
+    """The rows that are what the study wrote (:func:`row_is_intact`); a note names the
+    others, whose points run again."""
+    bad = sorted(k for k, r in rows.items() if not row_is_intact(r))
+    if bad:
+        more = ", ..." if len(bad) > 10 else ""
+        warnings.warn(
+            f"`out` {out}: {len(bad)} row(s) of {RESULTS} are not what the study wrote (edited "
+            f"or damaged: point(s) {', '.join(map(str, bad[:10]))}{more}); they run again",
+            PacamWarning,
+            stacklevel=4,
+        )
+    return {k: r for k, r in rows.items() if k not in bad}
+
+
+def row_digest(row: dict) -> str:
+    """16 hex digits of SHA-256 over the row's cells as the CSV writes them (str of each
+    value, "" for None), every column but ``row_digest`` itself."""
+    cells = ["" if row.get(c) is None else str(row.get(c)) for c in COLUMNS if c != "row_digest"]
+    return hashlib.sha256(json.dumps(cells).encode()).hexdigest()[:16]
+
+
+NUMBER_COLUMNS = ("psnr_db", "ssim", "render_s", "total_s")
+"""Cells an ``ok`` row must hold as finite numbers."""
+
+
+def row_is_intact(row: dict) -> bool:
+    """The row is what the study wrote (its digest matches, where it has one), and an ``ok``
+    row's numbers read as finite numbers."""
+    if row.get("row_digest") and row["row_digest"] != row_digest(row):
+        return False
+    if row.get("status") != "ok":
+        return True
+    try:
+        return all(
+            math.isfinite(float(row[c])) for c in NUMBER_COLUMNS if row.get(c) not in (None, "")
+        )
+    except (TypeError, ValueError):
+        return False
 
 
 def _read_json(path: Path) -> dict:

@@ -28,6 +28,7 @@ from importlib import resources
 from pathlib import Path
 
 from ..errors import FileKeyError, ParameterError
+from ..io.toml_file import parse_toml, read_text
 from ..sensor.model import DEFAULT_LIGHT_LEVEL
 
 AXES = {
@@ -239,10 +240,7 @@ def load_study(name_or_path: str, quick: bool = False, grey: bool = False) -> St
         text = resources.files("pacam_render.study") / "builtin" / f"{name_or_path}.toml"
         text = text.read_text()
     elif path.suffix == ".toml" or path.exists():
-        try:
-            text = path.read_text()
-        except OSError as exc:
-            raise ParameterError(f"cannot read study file {str(path)!r}: {exc}") from None
+        text = read_text(path, "study file")  # strictly UTF-8, a byte-order mark allowed
     else:
         raise ParameterError(
             f"unknown study {name_or_path!r}; built-in: {', '.join(builtin_studies())}, or a "
@@ -252,14 +250,7 @@ def load_study(name_or_path: str, quick: bool = False, grey: bool = False) -> St
 
 
 def _toml(text: str, where: str) -> dict:
-    try:
-        import tomllib
-    except ModuleNotFoundError:  # Python 3.10
-        import tomli as tomllib
-    try:
-        return tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise ParameterError(f"study {where!r} is not valid TOML: {exc}") from None
+    return parse_toml(text, f"study {where!r}")
 
 
 def parse_study(doc: dict, quick: bool = False, source: str = "", grey: bool = False) -> StudySpec:

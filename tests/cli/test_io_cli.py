@@ -98,7 +98,9 @@ def test_cli_deconvolve_analytic(tmp_path, capsys):
     cap = tmp_path / "capture.exr"
     exrio.write_exr(cap, {"capture": y})
     (tmp_path / "capture.json").write_text(
-        json.dumps({"camera": cam.inputs(), "mode": "coded", "noise_sigma": 0.01})
+        json.dumps(
+            {"camera": cam.inputs(), "mode": "coded", "noise_sigma": 0.01, "crop": _window(y)}
+        )  # fmt: skip
     )
     out = tmp_path / "deblurred.exr"
     assert main(["deconvolve", str(cap), "--psf", "analytic", "--out", str(out)]) == 0
@@ -241,7 +243,8 @@ def test_read_capture_divides_the_capture_layers_by_the_light_factor(tmp_path):
     img = rng.random((4, 5, 3)).astype(np.float32)
     layers = {"capture": img, "noisy": img, "sub03": img, "sharp": img, "raw": img}
     exrio.write_exr(tmp_path / "capture.exr", {**layers, "depth": img[..., 0]})
-    meta = {"camera": prototype().inputs(), "mode": "coded", "light_factor": 0.25}
+    meta = {"camera": prototype().inputs(), "mode": "coded", "light_factor": 0.25,
+            "crop": _window(img)}  # fmt: skip
     (tmp_path / "capture.json").write_text(json.dumps(meta))
     got = read_capture(tmp_path)  # the folder works as well as the file
     for name in ("capture", "noisy", "sub03"):
@@ -299,7 +302,7 @@ def _blurred_camera_capture(folder, sigma=0.01):
     y = y + np.random.default_rng(0).normal(0, sigma, y.shape)
     cap = folder / "capture.exr"
     exrio.write_exr(cap, {"capture": y})
-    meta = {"camera": cam.inputs(), "mode": "coded", "noise_sigma": sigma}
+    meta = {"camera": cam.inputs(), "mode": "coded", "noise_sigma": sigma, "crop": _window(y)}
     (folder / "capture.json").write_text(json.dumps(meta))
     return cap, x
 
@@ -423,3 +426,11 @@ def test_deconvolve_out_dir_records_and_scores(coded_capture, tmp_path, capsys):
     assert "is an input" in capsys.readouterr().err
     assert main([*cmd, "--out", str(tmp_path / "d.exr")]) == 0
     assert "writes the image only" in capsys.readouterr().err
+
+
+def _window(image) -> dict:
+    """The JSON ``crop`` of a hand-made capture: a window of the prototype's full sensor (its
+    px scale) the image's size, as a rendered ``--crop`` capture records it."""
+    h, w = np.shape(image)[:2]
+    return {"x": 0, "y": 0, "width": w, "height": h, "sensor_width_px": 1280,
+            "sensor_height_px": 960}  # fmt: skip

@@ -894,4 +894,4 @@ def test_traverse_bbox_and_to_string():
     # focus through traverse
     params["focus_distance"] = 321.0
     params.update()
-    assert sensor.focus_distance == pytest.approx(321.0)
+    assert sensor.focus_distance() == pytest.approx(321.0)

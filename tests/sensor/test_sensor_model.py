@@ -671,7 +671,7 @@ def test_malformed_preset_files_raise(tmp_path, name, text, match):
 
 
 def test_missing_preset_file_raises(tmp_path):
-    with pytest.raises(ParameterError, match=r"cannot be read"):
+    with pytest.raises(ParameterError, match=r"preset file .*nope.json' does not exist"):
         SensorModel.from_preset(str(tmp_path / "nope.json"))
 
 

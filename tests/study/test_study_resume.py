@@ -15,7 +15,7 @@ from pacam_render.errors import ParameterError
 from pacam_render.limits import PacamWarning
 from pacam_render.study import load_study, run_study
 from pacam_render.study.point import COLUMNS, point_row, render_target
-from pacam_render.study.results import RESULTS, STUDY, Results
+from pacam_render.study.results import RESULTS, STUDY, Results, row_digest
 
 TINY = """
 [study]
@@ -118,7 +118,9 @@ def test_an_edited_spec_keeps_matching_rows_renumbered_and_sets_the_rest_aside(t
     assert sorted(now) == [1, 3]
     for p in new.points:
         if p.light_level == 30.0:  # the old row, renumbered, every other column as it was
-            assert now[p.index] == {**old[_values(p)], "point": str(p.index)}
+            row = {**old[_values(p)], "point": str(p.index)}
+            assert {**now[p.index], "row_digest": ""} == {**row, "row_digest": ""}
+            assert now[p.index]["row_digest"] == row_digest(row)  # its digest follows the number
     backup = out / "results.before-{}.csv".format(json.loads((out / STUDY).read_text())["key"])
     assert not backup.exists()  # study.json now names the new spec: the backup is the old one's
     (backup,) = out.glob("results.before-*.csv")
@@ -161,10 +163,10 @@ def test_the_same_spec_resumes_quietly_and_force_starts_afresh(tmp_path):
 
 
 def _legacy(out, spec) -> None:
-    """A folder as written before rows had keys: no point_key column."""
+    """A folder as written before rows had keys: no point_key column (nor row_digest)."""
     _fake_run(out, spec)
     rows = _rows(out / RESULTS)
-    old_columns = [c for c in COLUMNS if c != "point_key"]
+    old_columns = [c for c in COLUMNS if c not in ("point_key", "row_digest")]
     with open(out / RESULTS, "w", newline="") as f:
         writer = csv.DictWriter(f, old_columns, extrasaction="ignore", lineterminator="\n")
         writer.writeheader()
@@ -247,12 +249,14 @@ def test_an_edited_study_renders_only_its_new_points_and_equals_a_fresh_run(tmp_
     rows = _rows(out / RESULTS)
     for r in rows:
         if r[level] == "30.0":
-            assert r == {**old[(r["mode"], 30.0)], "point": r["point"]}  # timings too: not re-run
+            kept = {**old[(r["mode"], 30.0)], "point": r["point"]}  # timings too: not re-run
+            assert {**r, "row_digest": ""} == {**kept, "row_digest": ""}
+            assert r["row_digest"] == row_digest(kept)  # renumbered: its digest follows
     (backup,) = out.glob("results.before-*.csv")
     assert backup.read_bytes() == before
     monkeypatch.setattr(P, "_render", real)
     run_study(new, tmp_path / "fresh", workers=0, progress=False)
-    drop = ("render_s", "total_s")
+    drop = ("render_s", "total_s", "row_digest")  # the digest hashes the timings too
     strip = lambda rows: [{k: v for k, v in r.items() if k not in drop} for r in rows]  # noqa: E731
     assert strip(rows) == strip(_rows(tmp_path / "fresh" / RESULTS))
 
@@ -274,7 +278,7 @@ def test_a_point_added_to_a_rendered_group_gets_the_groups_noise_target(tmp_path
         s = run_study(load_study(str(tmp_path / "b.toml")), out, workers=0, progress=False)
     assert (s.skipped, s.ran, s.failed) == (2, 1, 0)
     run_study(load_study(str(tmp_path / "b.toml")), tmp_path / "fresh", workers=0, progress=False)
-    drop = ("render_s", "total_s")
+    drop = ("render_s", "total_s", "row_digest")  # the digest hashes the timings too
     strip = lambda rows: [{k: v for k, v in r.items() if k not in drop} for r in rows]  # noqa: E731
     rows = _rows(out / RESULTS)
     assert rows[:2] == before and strip(rows) == strip(_rows(tmp_path / "fresh" / RESULTS))

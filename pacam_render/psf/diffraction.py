@@ -1,0 +1,120 @@
+"""The diffraction factor of the analytic model: any kernel convolved with the diffraction
+kernel of the capture's openings (:mod:`pacam_render.wave`).
+
+The analytic model (Eq. 14) is geometric: a point images to pillboxes of radius r = |beta| R
+along its path. Diffraction at the opening adds the Fraunhofer PSF of each pattern, so the
+kernel becomes the geometric one convolved with
+:func:`~pacam_render.wave.patterns.mode_diffraction_kernel` (one Airy kernel for disc
+schedules, the patterns' kernels weighted by open area x time for bitmaps).
+
+This is the combination "geometric defocus convolved with Fraunhofer diffraction", and it is
+an approximation: against the exact Fourier-optics PSF of a defocused disc it is off by an L1
+of 0.09-0.50 for r = 0.5-4 px at F9.85 (``benchmarks/RESULTS.md``, "Defocus + diffraction",
+and ``tests/psf/test_diffraction.py``), exact at r = 0. Both factors are pixel-integrated,
+the package's kernel convention, which makes the combination exact for an in-focus point at a
+pixel's centre. A kernel meant to deconvolve captures that were diffracted as a post-process
+(:mod:`pacam_render.wave.image`, ``band`` kernels) should use ``sampling="band"`` here too:
+the pixel-integrated factor applies the pixel's box twice (an extra sinc(nu) in the transfer
+function, 0.70 at 0.45 cycles/px), the band factor has the optics' transfer function exactly
+on the pixel grid's band.
+
+Opt-in: :func:`~pacam_render.psf.analytic.design_psf` applies it only with ``diffraction_nm``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..wave.fraunhofer import DEFAULT_MAX_LOST
+from ..wave.patterns import mode_diffraction_kernel
+from .grid import kernel_shape, normalise
+
+
+def convolve_kernels(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """The full 2-D convolution of two odd, centred kernels: odd, centred, sum a x sum b.
+
+    Examples
+    --------
+    >>> k = convolve_kernels(np.ones((3, 3)) / 9, np.ones((1, 5)) / 5)
+    >>> k.shape, round(float(k.sum()), 12), round(float(k[1, 3]), 4)
+    ((3, 7), 1.0, 0.0667)
+    """
+    a, b = np.asarray(a, float), np.asarray(b, float)
+    shape = (a.shape[0] + b.shape[0] - 1, a.shape[1] + b.shape[1] - 1)
+    if a.size * b.size <= 2**22:  # small: the direct sum is exact and fast enough
+        out = np.zeros(shape)
+        for (i, j), v in np.ndenumerate(b if b.size <= a.size else a):
+            if v != 0.0:
+                other = a if b.size <= a.size else b
+                out[i : i + other.shape[0], j : j + other.shape[1]] += v * other
+        return out
+    fa = np.fft.rfft2(a, shape)
+    fb = np.fft.rfft2(b, shape)
+    return np.fft.irfft2(fa * fb, shape)
+
+
+def crop_centred(kernel: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
+    """The centred ``shape`` window of an odd kernel (zero-padded where it is larger)."""
+    h, w = shape
+    H, W = kernel.shape
+    out = np.zeros((h, w))
+    ci, cj, oi, oj = H // 2, W // 2, h // 2, w // 2
+    r = min(oi, ci), min(h - oi, H - ci)
+    c = min(oj, cj), min(w - oj, W - cj)
+    out[oi - r[0] : oi + r[1], oj - c[0] : oj + c[1]] = kernel[
+        ci - r[0] : ci + r[1], cj - c[0] : cj + c[1]
+    ]
+    return out
+
+
+def with_diffraction(
+    kernel: np.ndarray,
+    cam,
+    mode: str,
+    wavelength_nm: float,
+    size=None,
+    max_lost: float = DEFAULT_MAX_LOST,
+    sampling: str = "pixel",
+) -> np.ndarray:
+    """``kernel`` convolved with the diffraction kernel of a ``mode`` capture by ``cam``.
+
+    Parameters
+    ----------
+    kernel : numpy.ndarray
+        An odd, centred, normalised kernel (e.g. :func:`~pacam_render.psf.analytic.design_psf`).
+    cam : CameraDesign
+        The camera that takes the capture (as for ``design_psf``).
+    mode : str
+        The capture mode (not ``reference``).
+    wavelength_nm : float
+        nm, in [300, 1100]: one colour channel's
+        (:data:`~pacam_render.wave.patterns.CHANNEL_WAVELENGTHS_NM`) or 550 for grey.
+    size : int or (int, int), optional
+        Odd output size; default the full convolution (the kernel's size plus the
+        diffraction kernel's, less one). A smaller size crops, renormalises and warns
+        (``PSFTruncationWarning``) with the light it leaves out.
+    max_lost, sampling
+        As for :func:`~pacam_render.wave.fraunhofer.fraunhofer_kernel`.
+
+    Returns
+    -------
+    numpy.ndarray
+        Odd, centred, summing to 1.
+
+    Examples
+    --------
+    The prototype's coded kernel at rest, in green:
+
+    >>> from pacam_render.model.camera import prototype
+    >>> from pacam_render.psf.analytic import design_psf
+    >>> cam = prototype()
+    >>> k = with_diffraction(design_psf(cam, "coded"), cam, "coded", 549.0)
+    >>> k.shape, round(float(k.sum()), 12)
+    ((177, 177), 1.0)
+    """
+    d = mode_diffraction_kernel(cam, mode, wavelength_nm, max_lost=max_lost, sampling=sampling)
+    out = convolve_kernels(kernel, d.kernel)
+    if size is None:
+        return out / out.sum()
+    shape = kernel_shape(size, 0.0, 0.0, 0.0)
+    return normalise(crop_centred(out, shape), float(out.sum()))

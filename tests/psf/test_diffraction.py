@@ -1,0 +1,128 @@
+"""The diffraction factor of the analytic model, and the error of the defocus + diffraction
+combination against the exact Fourier-optics PSF (issue 36)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from pacam_render.errors import ParameterError
+from pacam_render.model.camera import prototype
+from pacam_render.model.masks import MaskStack, disc_masks
+from pacam_render.model.modes import MODES_WITH_PSF, capture_camera
+from pacam_render.psf.analytic import design_psf
+from pacam_render.psf.combination import combination_error
+from pacam_render.psf.diffraction import convolve_kernels, crop_centred, with_diffraction
+from pacam_render.wave.fraunhofer import fraunhofer_kernel
+from pacam_render.wave.patterns import CHANNEL_WAVELENGTHS_NM, mode_diffraction_kernel
+from pacam_render.wave.pupil import DiscPupil, mask_pupil
+from pacam_render.wave.scale import DiffractionScale, scale_for
+
+LCOS = 0.01362
+S550 = DiffractionScale(550.0, 0.00645, 2 * 2.8 * 512 * LCOS)
+R9 = 145.5 * LCOS
+
+COMBINATION_L1 = {  # r px: (l1_simulator, l1_continuous), benchmarks/RESULTS.md
+    0.0: (0.0, 0.0),
+    0.5: (0.0880, 0.2124),
+    1.0: (0.4996, 0.4926),
+    2.0: (0.3569, 0.3672),
+    4.0: (0.3505, 0.3606),
+}
+"""The tabulated L1 of the combinations to the exact PSF at F9.85, 550 nm, 81 px kernels."""
+MARGIN = 0.005
+
+
+@pytest.mark.parametrize("r", sorted(COMBINATION_L1))
+def test_the_combination_error_does_not_grow(r):
+    e = combination_error(R9, r, S550)
+    simulator, continuous = COMBINATION_L1[r]
+    assert e["l1_simulator"] <= simulator + MARGIN
+    assert e["l1_continuous"] <= continuous + MARGIN
+    assert e["l1_geometric"] > e["l1_simulator"]  # diffraction helps at every r
+    if r == 0.0:
+        assert e["l1_simulator"] < 1e-12  # in focus the combination is exact
+
+
+@pytest.mark.parametrize("mode", MODES_WITH_PSF)
+def test_the_default_kernel_is_unchanged(mode):
+    cam = capture_camera(prototype(), mode)
+    geometric = design_psf(cam, mode, 0.3)
+    assert np.array_equal(design_psf(cam, mode, 0.3, diffraction_nm=None), geometric)
+    k = design_psf(cam, mode, 0.3, diffraction_nm=549.0)
+    d = mode_diffraction_kernel(cam, mode, 549.0).kernel
+    assert k.shape == tuple(np.add(geometric.shape, d.shape) - 1)
+    assert k.sum() == pytest.approx(1.0, abs=1e-12)
+    assert np.abs(k - convolve_kernels(geometric, d)).max() < 1e-15
+
+
+def test_in_focus_the_normal_kernel_is_the_airy_pattern():
+    """A still point in focus (r = 0): the kernel is the pixel-integrated Airy pattern at the
+    opening's F-number (F9.85)."""
+    cam = capture_camera(prototype(), "normal")
+    assert cam.r_px == pytest.approx(0.0, abs=1e-9) and cam.F_number == pytest.approx(
+        9.853, abs=1e-3
+    )
+    k = design_psf(cam, "normal", 0.0, diffraction_nm=550.0)
+    airy = fraunhofer_kernel(DiscPupil(cam.R_mm), scale_for(cam, 550.0)).kernel
+    assert np.abs(crop_centred(k, airy.shape) - airy).max() < 1e-15
+    assert crop_centred(k, airy.shape).sum() == pytest.approx(1.0, abs=1e-15)  # a zero border
+
+
+def test_colour_channels_diffract_with_their_wavelengths():
+    cam = capture_camera(prototype(), "normal")
+    peaks = [mode_diffraction_kernel(cam, "normal", w).kernel.max() for w in CHANNEL_WAVELENGTHS_NM]
+    assert peaks[0] < peaks[1] < peaks[2]  # red spreads most, blue least
+    assert CHANNEL_WAVELENGTHS_NM == (611.0, 549.0, 464.0)
+
+
+def test_a_bitmap_schedule_weights_its_patterns_by_open_area():
+    """Per-pattern kernels weighted by open area x time; black patterns pass nothing."""
+    cam = prototype().with_(n_patterns=4)
+    m = disc_masks(cam.pattern_centres_xy_mm(), cam.R_mm, pitch_mm=LCOS)
+    m[1] = 0.0  # closed during one window
+    m[2] = disc_masks(cam.pattern_centres_xy_mm()[2:3], 0.5 * cam.R_mm, pitch_mm=LCOS)[0]
+    stack = MaskStack(m, LCOS)
+    bitmap = cam.with_(pattern_masks=stack, R_mm=stack.equivalent_radius_mm())
+    got = mode_diffraction_kernel(bitmap, "coded", 550.0)
+    scale = scale_for(bitmap, 550.0)
+    parts = [
+        (fraunhofer_kernel(mask_pupil(m[k], LCOS), scale).kernel, m[k].sum()) for k in (0, 2, 3)
+    ]
+    n = max(p.shape[0] for p, _ in parts)
+    want = sum(w * np.pad(p, (n - p.shape[0]) // 2) for p, w in parts) / sum(w for _, w in parts)
+    assert got.kernel.shape == (n, n)
+    assert np.abs(got.kernel - want / want.sum()).max() < 1e-15
+    # normal mode opens the equivalent disc: one Airy kernel
+    normal = capture_camera(bitmap, "normal")
+    airy = fraunhofer_kernel(DiscPupil(normal.R_mm), scale).kernel
+    assert np.array_equal(mode_diffraction_kernel(normal, "normal", 550.0).kernel, airy)
+
+
+def test_the_parabola_of_lcos_discs_diffracts_like_the_ideal_disc():
+    cam = prototype()
+    m = disc_masks(cam.pattern_centres_xy_mm(), cam.R_mm, pitch_mm=LCOS)
+    bitmap = cam.with_(pattern_masks=MaskStack(m, LCOS))
+    got = mode_diffraction_kernel(bitmap, "coded", 550.0).kernel
+    ideal = fraunhofer_kernel(DiscPupil(cam.R_mm), scale_for(cam, 550.0), size=got.shape[0]).kernel
+    assert np.abs(got - ideal).sum() < 5e-3
+
+
+def test_the_reference_has_no_aperture():
+    with pytest.raises(ParameterError, match="pinhole.*no aperture"):
+        mode_diffraction_kernel(prototype(), "reference", 550.0)
+
+
+def test_a_cropped_kernel_warns_with_its_lost_light():
+    from pacam_render.psf.grid import PSFTruncationWarning
+
+    cam = prototype()
+    with pytest.warns(PSFTruncationWarning, match="outside the 21x21 kernel"):
+        k = with_diffraction(design_psf(cam, "coded"), cam, "coded", 550.0, size=21)
+    assert k.shape == (21, 21) and k.sum() == pytest.approx(1.0)
+
+
+def test_a_one_lcos_pixel_opening_is_refused_for_a_design():
+    cam = prototype().with_(R_mm=LCOS)  # the smallest opening the display can show
+    with pytest.raises(ParameterError, match=r"needs about \d+ px.*max_lost"):
+        design_psf(capture_camera(cam, "normal"), "normal", diffraction_nm=550.0)
