@@ -28,7 +28,7 @@ from pacam_render.cli import main as pacam
 from pacam_render.io.exr import read_layer
 from pacam_render.model.camera import preset
 from pacam_render.model.design_file import write_design
-from pacam_render.model.masks import DISPLAY_SHAPE, MaskStack, pixel_centres_mm
+from pacam_render.model.masks import MaskStack, square_masks
 from pacam_render.psf.analytic import design_psf
 from pacam_render.restore.metrics import rel_l1
 
@@ -43,13 +43,9 @@ def _inputs(root: Path) -> dict[str, list[str]]:
         "n_patterns": 8, "centres_mm": (0.7 * centres).tolist(), "radius_mm": proto.R_mm,
         "focus_distance_mm": proto.focus_distance_mm,
     }))  # fmt: skip
-    x, y = pixel_centres_mm(DISPLAY_SHAPE)  # local frame: x to the image's left
-    half = 0.5 * np.sqrt(np.pi) * proto.R_mm  # squares of the disc's area
-    masks = np.stack([
-        (np.abs(-x[None, :] - cx) <= half) & (np.abs(-y[:, None] - cy) <= half)
-        for cx, cy in centres
-    ]).astype(np.float32)  # fmt: skip
-    stack = MaskStack(masks)
+    stack = MaskStack(
+        square_masks(centres, 0.5 * np.sqrt(np.pi) * proto.R_mm)
+    )  # squares of the disc's area
     cam = proto.with_(pattern_masks=stack, n_patterns=8, R_mm=stack.equivalent_radius_mm())
     write_design(root / "squares.toml", cam.with_(name="8 squares"))
     return {

@@ -100,6 +100,27 @@ def disc_masks(
     return np.stack([disc_mask(ci, radius_mm, shape, pitch_mm, supersample) for ci in c])
 
 
+def square_masks(
+    centres_xy_mm,
+    half_side_mm: float,
+    shape: tuple[int, int] = DISPLAY_SHAPE,
+    pitch_mm: float = LCOS_PITCH_MM,
+) -> np.ndarray:
+    """Binary square openings, one pattern per centre, ``(N, H, W)`` float32.
+
+    Unlike :func:`disc_masks`, the centres are in the design's frame (x to the image's right,
+    y downwards, mm: as ``CameraDesign.pattern_centres_mm``); a pixel is open when its centre
+    lies within ``half_side_mm`` of the centre along both axes. A square of the area of a disc
+    of radius R has ``half_side_mm = sqrt(pi) R / 2``.
+    """
+    half = check_positive("half_side_mm", half_side_mm, "mm")
+    x, y = pixel_centres_mm(shape, pitch_mm)  # the plugin's local frame: -x, -y of the design's
+    c = np.asarray(centres_xy_mm, dtype=float).reshape(-1, 2)
+    return np.stack(
+        [(np.abs(-x[None, :] - cx) <= half) & (np.abs(-y[:, None] - cy) <= half) for cx, cy in c]
+    ).astype(np.float32)
+
+
 def _as_array(source) -> np.ndarray:
     """ndarray from an array-like, a Dr.Jit tensor/array or a Mitsuba Bitmap."""
     if isinstance(source, np.ndarray):

@@ -267,18 +267,14 @@ def test_a_bitmap_schedule_renders_its_own_kernel_at_the_monte_carlo_floor():
     centroids; discs of the same area at the same centres would be a visibly other kernel."""
     from pacam_render.experiments import validate_psf as V
     from pacam_render.model.camera import preset
-    from pacam_render.model.masks import DISPLAY_SHAPE, MaskStack, pixel_centres_mm
+    from pacam_render.model.masks import MaskStack, square_masks
     from pacam_render.psf.analytic import design_psf
 
     proto = preset("prototype")
     centres = proto.pattern_centres_xy_mm()[::2]
-    x, y = pixel_centres_mm(DISPLAY_SHAPE)  # local frame: x to the image's left
-    half = 0.5 * np.sqrt(np.pi) * proto.R_mm  # a square of the disc's area
-    masks = np.stack([
-        (np.abs(-x[None, :] - cx) <= half) & (np.abs(-y[:, None] - cy) <= half)
-        for cx, cy in centres
-    ]).astype(np.float32)  # fmt: skip
-    stack = MaskStack(masks)
+    stack = MaskStack(
+        square_masks(centres, 0.5 * np.sqrt(np.pi) * proto.R_mm)
+    )  # a square of the disc's area
     cam = proto.with_(pattern_masks=stack, n_patterns=8, R_mm=stack.equivalent_radius_mm())
     grid = V.Grid("bitmap", (500.0,), (cam.F_number,), (0.0, 1.0), 1 << 15, design=cam)
     rows = V.pair_task((500.0, cam.F_number, grid))

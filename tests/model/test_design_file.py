@@ -240,3 +240,13 @@ def test_resolve_design_reads_presets_files_and_records(tmp_path):
     (tmp_path / "x.json").write_text("{}")
     with pytest.raises(ParameterError, match="holds no camera design"):
         resolve_design(tmp_path / "x.json")
+
+
+def test_square_masks_open_squares_centred_where_the_design_frame_says():
+    from pacam_render.model.masks import square_masks
+
+    centres = [[2.0, 0.0], [-1.0, 0.5]]  # x right, y down, mm
+    stack = MaskStack(square_masks(centres, 0.5))
+    assert np.abs(stack.centroids_xy_mm() - centres).max() < 0.5 * stack.pitch_mm
+    side = 2 * 0.5 / stack.pitch_mm  # LCoS px
+    assert stack.open_areas_mm2() == pytest.approx(1.0, rel=2 / side)
