@@ -143,39 +143,11 @@ def _add_sensor(p: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from ..exposure.capture import check_budget, render_capture
-    from ..exposure.capture_spec import CaptureSpec
     from ..io.lock import output_lock
 
     target = _noise_target(args)
-    spec = CaptureSpec(
-        scene=args.scene,
-        mode=args.mode,
-        **_sensor_size(args),
-        spp=64 if args.spp is None else args.spp,
-        seed=args.seed,
-        max_step_px=args.max_step_px,
-        per_pattern=args.per_pattern,
-        **design_spec_fields(args),
-        object_depth_mm=args.depth,
-        passes=_passes(args, target),
-        sampler=args.sampler,
-        grey=grey_request(args.grey),  # refused with an RGB PACAM_VARIANT, before any work
-        relative_illumination=args.relative_illumination,
-    )
-    from ..exposure.capture_camera import capture_design
-
-    design = capture_design(spec)  # a design file or schedule read and checked before rendering
-    if args.sensor is None and design.sensor_preset is not None:  # the design names its sensor
-        args.sensor = design.sensor_preset
-    model = _sensor_model(args.sensor) if args.sensor else None
-    if model is not None:  # a Bayer sensor on a grey capture: refused before rendering
-        from ..sensor.apply import check_grey_sensor
-
-        check_grey_sensor(spec.grey, model, args.sensor)
-    if args.light_level is not None and model is None:
-        raise ParameterError("--light-level needs --sensor")
-    if args.light_level is not None:  # refuse before rendering, not after
-        check_positive("--light-level", args.light_level, "photons/px/ms")
+    spec = _spec(args, target)
+    model = _checked_sensor(args, spec)
     for flag in ("max_steps", "max_samples"):
         check_positive("--" + flag.replace("_", "-"), getattr(args, flag))
     if not args.checkpoint_every >= 0:  # 0: after every step
@@ -205,6 +177,54 @@ def run(args: argparse.Namespace) -> int:
 
             add_sensor_layers(cap, model, args.sensor, args.light_level, spec.seed)
         paths = write_or_rescue(cap, out, args.force, args.mc_sigma_layer)
+    _print_summary(cap, spec, paths, args.mc_sigma_layer)
+    return 0
+
+
+def _spec(args: argparse.Namespace, target):
+    """The CaptureSpec the flags ask for; its design (a design file, a schedule) is read and
+    checked here, before any rendering, and names the sensor when --sensor does not."""
+    from ..exposure.capture_camera import capture_design
+    from ..exposure.capture_spec import CaptureSpec
+
+    spec = CaptureSpec(
+        scene=args.scene,
+        mode=args.mode,
+        **_sensor_size(args),
+        spp=64 if args.spp is None else args.spp,
+        seed=args.seed,
+        max_step_px=args.max_step_px,
+        per_pattern=args.per_pattern,
+        **design_spec_fields(args),
+        object_depth_mm=args.depth,
+        passes=_passes(args, target),
+        sampler=args.sampler,
+        grey=grey_request(args.grey),  # refused with an RGB PACAM_VARIANT, before any work
+        relative_illumination=args.relative_illumination,
+    )
+    design = capture_design(spec)
+    if args.sensor is None and design.sensor_preset is not None:  # the design names its sensor
+        args.sensor = design.sensor_preset
+    return spec
+
+
+def _checked_sensor(args: argparse.Namespace, spec):
+    """The sensor model of --sensor (None without one), with --light-level checked and a
+    Bayer sensor on a grey capture refused, before rendering."""
+    model = _sensor_model(args.sensor) if args.sensor else None
+    if model is not None:
+        from ..sensor.apply import check_grey_sensor
+
+        check_grey_sensor(spec.grey, model, args.sensor)
+    if args.light_level is not None and model is None:
+        raise ParameterError("--light-level needs --sensor")
+    if args.light_level is not None:
+        check_positive("--light-level", args.light_level, "photons/px/ms")
+    return model
+
+
+def _print_summary(cap, spec, paths, mc_sigma_layer: bool) -> None:
+    """What was rendered, where, at what scale and error, and which layers."""
     m = cap.meta
     w, h = spec.image_size
     where = f"{w}x{h}" + (f" window at ({spec.crop[0]}, {spec.crop[1]})" if spec.crop else "")
@@ -222,11 +242,8 @@ def run(args: argparse.Namespace) -> int:
             f"relative illumination {ri['setting']}: {ri['min']:.3f}-{ri['max']:.3f} of the "
             "axis over the window (layer relative_illumination; deconvolve flat-fields with it)"
         )
-    print(
-        "layers: "
-        + ", ".join(["capture", *cap.extra_layers, *(["mc_sigma"] if args.mc_sigma_layer else [])])
-    )
-    return 0
+    extra = ["mc_sigma"] if mc_sigma_layer else []
+    print("layers: " + ", ".join(["capture", *cap.extra_layers, *extra]))
 
 
 def _passes(args: argparse.Namespace, target) -> int:
