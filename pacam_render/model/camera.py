@@ -166,7 +166,7 @@ class CameraDesign:
 
     def check_lcos_rate(self) -> None:
         """Raise unless the LCoS can show n_patterns in the exposure at ``lcos_rate_fps``."""
-        top = int(math.floor(self.lcos_rate_fps * self.exposure_ms / 1000.0 + 1e-9))
+        top = sch.max_patterns(self.exposure_ms, self.lcos_rate_fps)
         if self.n_patterns > top:
             raise ParameterError(
                 f"n_patterns = {self.n_patterns} in exposure_ms = {self.exposure_ms:g} needs "

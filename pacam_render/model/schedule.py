@@ -10,6 +10,8 @@ The LCoS shows ``n`` discrete patterns: pattern k is on during
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from ..errors import ParameterError, check_positive
@@ -56,6 +58,12 @@ def aperture_centre_mm(t_ms, R_max_mm: float, R_mm: float, T_ms: float) -> np.nd
     R_max, R = _check_radii(R_max_mm, R_mm)
     a_a = aperture_acceleration(R_max, R, T_ms)
     return 0.5 * a_a * np.asarray(t_ms, dtype=float) ** 2 - (R_max - R)
+
+
+def max_patterns(exposure_ms: float, rate_fps: float) -> int:
+    """The most patterns an LCoS showing ``rate_fps`` per second shows in ``exposure_ms``
+    (Table 1: 365 per s, so 16 in the paper's 45 ms)."""
+    return int(math.floor(rate_fps * exposure_ms / 1000.0 + 1e-9))
 
 
 def check_n_patterns(n: int) -> int:

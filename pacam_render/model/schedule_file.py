@@ -22,12 +22,13 @@ import numpy as np
 
 from ..errors import ParameterError
 from . import paper
+from . import schedule as sch
 from .camera import CameraDesign
 
 
 def max_patterns(exposure_ms: float, rate_fps: float = paper.LCOS_RATE_FPS) -> int:
     """The most patterns the LCoS can show in one exposure (Table 1's 365 fps by default)."""
-    return int(math.floor(rate_fps * exposure_ms / 1000.0 + 1e-9))
+    return sch.max_patterns(exposure_ms, rate_fps)
 
 
 def check_pattern_count(
