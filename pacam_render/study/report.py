@@ -1,9 +1,12 @@
 """A study's ``report.md`` and plots, written from ``results.csv`` (so a resumed or partly failed
 study reports everything finished so far).
 
-* ``crossover`` (Fig. 8 rendered): PSNR of the moving objects against light level, one line per
-  capture, one panel per speed; and the light levels at which each coded capture overtakes the
-  short and the normal exposure.
+* light level x speed with several cameras (``crossover``, Fig. 8 rendered): a map of the
+  winning camera per light level and speed, with its margin and where it is not resolved
+  (:mod:`.crossover_map`).
+* ``crossover``: PSNR of the moving objects against light level as small multiples, one panel
+  per camera and speed (:mod:`.small_multiples`); and the light levels at which each coded
+  capture overtakes the short and the normal exposure.
 * ``speed`` (Fig. 6 rendered): PSNR of the moving objects against their speed, one line per
   capture.
 * every report: a table of all points.
@@ -19,7 +22,9 @@ import numpy as np
 
 from ..errors import ParameterError
 from ..io.outputs import save_figure, write_text
+from .crossover_map import map_applies, map_section, write_map
 from .results import RESULTS, read_csv
+from .small_multiples import curves_section, write_curves
 from .spec import StudySpec
 
 NUMERIC = (
@@ -146,18 +151,12 @@ def write_report(spec: StudySpec, out: Path) -> list[str]:
     else:
         text += [spec.description.strip(), "", _setup(spec, rows, ok), ""]
     title = plot_title(spec)
+    if ok and map_applies(ok):  # light level x speed with several cameras
+        files.append(write_map(out, ok, title))
+        text += map_section(ok)
     if spec.report == "crossover" and ok:
-        files.append(
-            _plot(
-                out,
-                "crossover.png",
-                curves_ci(ok, LIGHT, "psnr_moving_db", "speed_px_per_ms"),
-                "light level (photons/px/ms, white, F2.8)",
-                "speed",
-                log=True,
-                title=title,
-            )
-        )
+        files.append(write_curves(out, ok, title))
+        text += curves_section(ok)
         text += _crossover_text(ok)
     if spec.report == "speed" and ok:
         for y, name in (("psnr_moving_db", "speed"), ("psnr_moving_interior_db", "speed_interior")):

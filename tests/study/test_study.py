@@ -334,7 +334,7 @@ def test_cli_runs_a_study_and_resumes(tmp_path, capsys):
     assert "4 points run, 0 already done, 0 failed" in capsys.readouterr().out
     assert main(argv) == 0
     assert "0 points run, 4 already done" in capsys.readouterr().out
-    assert {"results.csv", "report.md", "crossover.png", "study.json"} <= {
+    assert {"results.csv", "report.md", "crossover.png", "crossover_map.png", "study.json"} <= {
         p.name for p in (tmp_path / "o").iterdir()
     }
 

@@ -9,6 +9,7 @@ import csv
 
 import pytest
 
+from pacam_render.study import crossover_map, small_multiples
 from pacam_render.study import report as report_module
 from pacam_render.study.point import COLUMNS, point_row
 from pacam_render.study.results import RESULTS
@@ -51,7 +52,8 @@ def titles(monkeypatch):
         seen.append(fig._suptitle.get_text() if fig._suptitle else "")
         return real(fig, path, dpi)
 
-    monkeypatch.setattr(report_module, "save_figure", save)
+    for module in (report_module, crossover_map, small_multiples):  # every figure's writer
+        monkeypatch.setattr(module, "save_figure", save)
     return seen
 
 
@@ -76,10 +78,12 @@ def test_a_quick_report_describes_the_quick_run(tmp_path, titles):
     assert "(`ldsampler`; the renders took 256 to 512 spp)" in head  # as they ran
     assert "400x160" not in head and "three seeds" not in head
     assert "> Fig. 8 rendered" in rest  # the full study's description, quoted as such
-    assert titles == [
+    quick = (
         "study crossover, QUICK run (--quick): 96x64 px window of a 320x240 sensor, 1 seed; "
         "not the full study"
-    ]
+    )
+    assert "crossover_map.png" in files  # issue 38: the map, then the small multiples
+    assert [t.split("\n")[0] for t in titles] == [quick, quick]  # each over its caption
 
 
 def test_a_full_report_describes_the_full_run(tmp_path, titles):
@@ -96,4 +100,4 @@ def test_a_full_report_describes_the_full_run(tmp_path, titles):
     assert f"6 of {len(spec.points)} points done" in text
     assert "3 seed(s) (0, 1, 2)" in text
     assert "quick" not in text.lower()
-    assert titles == ["study crossover"]
+    assert titles and [t.split("\n")[0] for t in titles] == ["study crossover"] * len(titles)
