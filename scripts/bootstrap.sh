@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
-# One-time set-up shared by `make demo` and `make test`: create or reuse .venv, install the
-# package into it, and make sure drjit's LLVM backend renders (drjit 1.5 needs libLLVM >= 16).
+# One-time set-up shared by `make demo`, `make test` and `make docs`: create or reuse .venv,
+# install the package with its test and docs extras into it, and make sure drjit's LLVM backend renders (drjit 1.5 needs libLLVM >= 16).
 # Re-running is cheap: each step is skipped when already done.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -42,8 +42,8 @@ fi
 if [ ! -f $STAMP ] || [ pyproject.toml -nt $STAMP ]; then
   echo "installing pacam_render into $VENV ..."
   $VENV/bin/python -m pip install -q --upgrade pip 2>&1 | grep -v 'is ignored' || true
-  $VENV/bin/python -m pip install -q -e '.[test]' 2>&1 | grep -v 'is ignored' || true
-  $VENV/bin/python -c 'import pacam_render, mitsuba, drjit' || {
+  $VENV/bin/python -m pip install -q -e '.[test,docs]' 2>&1 | grep -v 'is ignored' || true
+  $VENV/bin/python -c 'import pacam_render, mitsuba, drjit, sphinx, myst_nb' || {
     echo "error: installing pacam_render into $VENV failed (see pip's output above)" >&2; exit 1; }
   touch $STAMP
 fi

@@ -250,21 +250,35 @@ class SensorModel:
     All parameters are validated, against :data:`PHYSICAL_RANGES` too; bad ones raise
     :class:`ParameterError` naming the valid range.
 
-    Attributes:
-        qe: quantum efficiency, e-/photon, in (0, 1].
-        dark_current_e_per_s: mean dark current, e-/s, in [0, 1e9].
-        read_noise_e: temporal read noise (EMVA sigma_d without dark-current shot noise), e-,
-            in [0, 1e6].
-        full_well_e: full-well capacity, e-, in [1, 1e9].
-        K: overall system gain, DN/e-, in [1e-6, 1e6].
-        black_offset_dn: black level added before the ADC, DN, in [0, 2**bit_depth - 1].
-        bit_depth: ADC bits, integer 1..32.
-        prnu: photo-response non-uniformity, std/mean of the pixel gain (0.01 = 1 %), [0, 1].
-        dsnu_e: dark-signal non-uniformity, std of a per-pixel offset, e-, in [0, 1e6].
-        bayer: None, or a 2x2 colour-filter tile ("RGGB", "BGGR", "GRBG", "GBRG").
-        shot_noise: False only for idealised models such as the ``paper`` preset.
-        seed: seed of the fixed pattern (PRNU, DSNU), integer >= 0.
-        name: a label, recorded with captures.
+    Attributes
+    ----------
+    qe
+        quantum efficiency, e-/photon, in (0, 1].
+    dark_current_e_per_s
+        mean dark current, e-/s, in [0, 1e9].
+    read_noise_e
+        temporal read noise (EMVA sigma_d without dark-current shot noise), e-,
+        in [0, 1e6].
+    full_well_e
+        full-well capacity, e-, in [1, 1e9].
+    K
+        overall system gain, DN/e-, in [1e-6, 1e6].
+    black_offset_dn
+        black level added before the ADC, DN, in [0, 2**bit_depth - 1].
+    bit_depth
+        ADC bits, integer 1..32.
+    prnu
+        photo-response non-uniformity, std/mean of the pixel gain (0.01 = 1 %), [0, 1].
+    dsnu_e
+        dark-signal non-uniformity, std of a per-pixel offset, e-, in [0, 1e6].
+    bayer
+        None, or a 2x2 colour-filter tile ("RGGB", "BGGR", "GRBG", "GBRG").
+    shot_noise
+        False only for idealised models such as the ``paper`` preset.
+    seed
+        seed of the fixed pattern (PRNU, DSNU), integer >= 0.
+    name
+        a label, recorded with captures.
     """
 
     qe: float = 1.0
@@ -473,14 +487,21 @@ class SensorModel:
     ) -> np.ndarray:
         """One frame: mean photons per pixel over the exposure -> DN (integer array).
 
-        Args:
-            photons: mean photons reaching each pixel during the exposure, before qe; finite and
-                >= 0. Any shape without a Bayer filter; (H, W, 3) or (H, W) with one.
-            exposure_ms: exposure time, ms (for the dark current; may be omitted without one).
-            seed: per-frame noise seed (int >= 0 or SeedSequence); None draws fresh entropy.
-            workers: threads to use (default: all cores); the result does not depend on it.
+        Parameters
+        ----------
+        photons
+            mean photons reaching each pixel during the exposure, before qe; finite and
+            >= 0. Any shape without a Bayer filter; (H, W, 3) or (H, W) with one.
+        exposure_ms
+            exposure time, ms (for the dark current; may be omitted without one).
+        seed
+            per-frame noise seed (int >= 0 or SeedSequence); None draws fresh entropy.
+        workers
+            threads to use (default: all cores); the result does not depend on it.
 
-        Returns:
+        Returns
+        -------
+        numpy.ndarray
             DN as ``self.dtype``: the input's shape, or (H, W) for a Bayer model.
         """
         plane = self._sensor_plane(photons)

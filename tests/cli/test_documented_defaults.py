@@ -1,5 +1,6 @@
-"""What the README and ``--help`` say about the commands' defaults is what the code does
-(issue 35: the README once said every command's light level defaulted to 7000)."""
+"""What the docs and ``--help`` say about the commands' defaults is what the code does
+(issue 35: the README once said every command's light level defaulted to 7000; issue 38 moved
+those sentences from the README to the docs pages read here)."""
 
 from __future__ import annotations
 
@@ -13,7 +14,9 @@ from pacam_render.sensor.apply import _light_level
 from pacam_render.sensor.model import DEFAULT_LIGHT_LEVEL, SensorModel
 from pacam_render.study.spec import AXES
 
-README = Path(__file__).resolve().parents[2] / "README.md"
+DOCS = Path(__file__).resolve().parents[2] / "docs"
+SENSOR_PAGE = DOCS / "concepts" / "sensor.md"
+VALIDATE_PSF_PAGE = DOCS / "validation" / "validate_psf.md"
 
 
 def _help(command: str, flag: str) -> str:
@@ -40,19 +43,19 @@ def test_the_light_level_defaults_in_help_and_readme_are_the_codes():
     assert code["render"] == DEFAULT_LIGHT_LEVEL
     for command in ("render", "sensor", "optimize"):
         assert _help_default(command) == code[command], command
-    text = " ".join(README.read_text().split())
+    text = " ".join(SENSOR_PAGE.read_text().split())
     said = re.search(
         r"its default is (\d+) for `render`, `sensor` and `study` \(a point without "
         r"`light_level`\), and (\d+) for `optimize`",
         text,
     )
-    assert said, "the README's sentence on the --light-level defaults is gone or reworded"
+    assert said, "docs/concepts/sensor.md's sentence on the --light-level defaults is gone"
     assert float(said.group(1)) == code["render"] == code["sensor"] == code["study"]
     assert float(said.group(2)) == code["optimize"]
 
 
 def test_validate_psf_quick_is_described_as_it_is():
-    """``--quick``'s help and the README give its grid and a measured time, not ~30 s."""
+    """``--quick``'s help and the docs give its grid and a measured time, not ~30 s."""
     from pacam_render.experiments.validate_psf import QUICK
 
     help_text = _help("validate-psf", "--quick")
@@ -60,5 +63,5 @@ def test_validate_psf_quick_is_described_as_it_is():
     assert 1 << particles == QUICK.particles_per_window
     assert f"{QUICK.n_points} points at 2^{particles} particles per window" in help_text
     assert "30 s" not in help_text
-    text = " ".join(README.read_text().split())
+    text = " ".join(VALIDATE_PSF_PAGE.read_text().split())
     assert f"`--quick` has {QUICK.n_points} points and takes about a minute on 2 cores" in text
