@@ -15,7 +15,9 @@ plugin's full opening, ``off``: ray for ray thinlens), ``parabolic``, and each o
 ``relative_illumination=cos4`` (``+cos4``); the table then also gives each ``+cos4`` sensor's
 time over the same sensor with ``off`` in the same round (``vs off``; goal < 1.05), and a fourth
 case, ``camera/rays``: ``sample_ray`` alone for N film positions (its ``spp`` column is N),
-nothing traced, the bound on the factor's cost when the camera is all the work.
+nothing traced, the bound on the factor's cost when the camera is all the work. With
+``--diffraction`` the same set is timed with diffraction in the rays (``+diff``: the Airy pattern
+of an F9.85 opening at 611/549/464 nm, 6.45 um pixels) against none.
 
 Scenes:
 - ``cornell/path``: Mitsuba's Cornell box, path tracer (a typical render: the camera's share
@@ -24,7 +26,7 @@ Scenes:
   one emitter sample (little work per camera ray: the camera's overhead shows most);
 - ``psf/ptracer``: a small disc emitter seen by the particle tracer (``sample_direction``).
 
-    python benchmarks/bench_aperture_camera.py [--quick] [--relative-illumination]
+    python benchmarks/bench_aperture_camera.py [--quick] [--relative-illumination | --diffraction]
 """
 
 from __future__ import annotations
@@ -59,14 +61,12 @@ def sensors(
         return {
             "thinlens": dict(type="thinlens", aperture_radius=R_max, **common),
             **{
-                name + suffix: ac.sensor_dict(
-                    lens_radius=R_max, relative_illumination=setting, **kw, **common
-                )
+                name + suffix: ac.sensor_dict(lens_radius=R_max, **extra, **kw, **common)
                 for name, kw in (
                     ("static", {}),
                     ("parabolic", dict(aperture_radius=R, schedule="parabolic")),
                 )
-                for suffix, setting in (("", "off"), ("+cos4", "cos4"))
+                for suffix, extra in _optics_variants(ri, R)
             },
         }
     masks = disc_masks(sch.pattern_centres_mm(R_max, R, 22.5, 16), R, pitch_mm=pitch)
@@ -137,7 +137,23 @@ def rays_once(sensor, n: int) -> None:
     dr.sync_thread()
 
 
-def case_sets(quick: bool, ri: bool = False):
+def _optics_variants(ri, R: float):
+    """("", off) and the one effect on: ``+cos4`` (``ri`` is ``"ri"``) or ``+diff`` (rays'
+    diffraction at the R/G/B wavelengths, the F9.85 opening at 6.45 um pixels)."""
+    if ri == "diffraction":
+        on = dict(
+            diffraction_wavelengths="611, 549, 464",
+            pupil_distance=2 * 9.85 * R,  # R is the F9.85 opening
+            pixel_pitch=0.00645,
+        )
+        return (("", {}), (SUFFIX[ri], on))
+    return (("", {"relative_illumination": "off"}), ("+cos4", {"relative_illumination": "cos4"}))
+
+
+SUFFIX = {"ri": "+cos4", "diffraction": "+diff"}
+
+
+def case_sets(quick: bool, ri=False):
     T = mi.ScalarTransform4f
     size = 128 if quick else 256
     cb = mi.cornell_box()["sensor"]
@@ -176,6 +192,11 @@ def main() -> None:
         action="store_true",
         help="time relative_illumination=cos4 against off (issue 36) instead of bitmap",
     )
+    ap.add_argument(
+        "--diffraction",
+        action="store_true",
+        help="time diffraction in the rays against none (issue 36) instead of bitmap",
+    )
     args = ap.parse_args()
     variant = select_variant()
     ac.register()
@@ -183,7 +204,8 @@ def main() -> None:
     rounds = args.rounds or (5 if args.quick else 9)
 
     rows = []
-    ri = args.relative_illumination
+    ri = "diffraction" if args.diffraction else ("ri" if args.relative_illumination else False)
+    suffix = SUFFIX.get(ri, "")
     for scene_name, make, sens, spp in case_sets(args.quick, ri):
         scenes = {k: mi.load_dict(make(v)) for k, v in sens.items()}
         names = list(scenes)
@@ -203,9 +225,9 @@ def main() -> None:
             med, spread = median_spread(wall[k])
             rw = median_spread(list(np.array(wall[k]) / np.array(wall["thinlens"])))
             rc = median_spread(list(np.array(cpu[k]) / np.array(cpu["thinlens"])))
-            base = k.removesuffix("+cos4")
+            base = k.removesuffix(suffix) if suffix else k
             vs_off = {}
-            if ri:  # each +cos4 sensor against the same sensor with off, round by round
+            if ri:  # each sensor with the effect against the same one without, round by round
                 off_w = median_spread(list(np.array(wall[k]) / np.array(wall[base])))
                 off_c = median_spread(list(np.array(cpu[k]) / np.array(cpu[base])))
                 vs_off = {
@@ -226,7 +248,7 @@ def main() -> None:
                     "ratio (CPU)": float(rc[0]),
                     "± (CPU)": float(rc[1]),
                     **vs_off,
-                    "target": _target(k, ri),
+                    "target": _target(k, ri, suffix),
                 }
             )
         print(f"{scene_name}: done", flush=True)
@@ -235,22 +257,21 @@ def main() -> None:
         "time in the same round (median, ± half the min-max range); wall = common.timeit, "
         "CPU = process CPU time of all threads (less sensitive to other load on the machine); "
         + (
-            "vs off = time / the same sensor's time with relative_illumination off, same round"
+            f"vs off = time / the same sensor's time without {suffix[1:]}, same round"
             if ri
             else f"bitmap: 16 masks of {DISPLAY_SHAPE[1]}x{DISPLAY_SHAPE[0]}"
         )
     )
-    title = (
-        "relative_illumination cos4 vs off render time (issue 36)"
-        if ri
-        else "programmable_aperture vs thinlens render time (issue 3)"
-    )
+    title = {
+        "ri": "relative_illumination cos4 vs off render time (issue 36)",
+        "diffraction": "diffraction in the rays vs none: render time (issue 36)",
+    }.get(ri, "programmable_aperture vs thinlens render time (issue 3)")
     record(title, rows, notes)
     for r in rows:
-        if ri and r["sensor"].endswith("+cos4"):
+        if ri and r["sensor"].endswith(suffix):
             print(
                 f"{r['sensor']}, {r['scene']}: {r['vs off (wall)']:.3f} wall, "
-                f"{r['vs off (CPU)']:.3f} CPU against off (goal < 1.05)"
+                f"{r['vs off (CPU)']:.3f} CPU against off"
             )
         if r["sensor"] == "parabolic":
             print(
@@ -259,9 +280,9 @@ def main() -> None:
             )
 
 
-def _target(sensor: str, ri: bool) -> str:
+def _target(sensor: str, ri, suffix: str) -> str:
     if ri:
-        return "vs off < 1.05" if sensor.endswith("+cos4") else ""
+        return "vs off < 1.05" if sensor.endswith(suffix) else ""
     return "<= 1.03" if sensor == "parabolic" else ""
 
 

@@ -71,3 +71,22 @@ def scale_line(optics: dict, coded: dict) -> str:
         f"a_i = {optics['a_i_px_per_ms2']:.3g} px/ms^2; the coded design keeps |s| <= "
         f"{coded['velocity_range_px_per_ms']:.3g} px/ms invariant (r = {coded['r_px']:.3g} px)"
     )
+
+
+def optics_lines(block: dict | None) -> list[str]:
+    """The diffraction decision and the largest left-out optical effect of a capture
+    (:mod:`~pacam_render.exposure.optics_error`); none for an older capture."""
+    if not block:
+        return []
+    from ..exposure.optics_error import summary_line
+
+    info = block["diffraction"]
+    head = f"diffraction {info['decision']}"
+    waves = "/".join(f"{w:g}" for w in info.get("wavelengths_nm", []))
+    if "lambda_n_px" in info:
+        ln = "/".join(f"{x:.3g}" for x in info["lambda_n_px"])
+        head += f"; in the rays at {waves} nm (lambda N = {ln} px)"
+    elif "kernel_px" in info:
+        head += f" ({info['kernel_px']} px kernels at {waves} nm)"
+    line = summary_line(block)
+    return [head] + ([line] if line else [])

@@ -47,6 +47,7 @@ FLAGS = {
     "quantum_px": "--quantum",
     "per_pattern": "--per-pattern",
     "relative_illumination": "--relative-illumination",
+    "diffraction": "--diffraction",
     "velocity_px_per_ms": "--velocity",
     "velocity": "--velocity",
     "spp": "--spp",

@@ -91,6 +91,12 @@ def add(sub) -> None:
         "(as 'deconvolve --psf analytic' registers captures; the default with --like). "
         "psf.json records it, and deconvolve moves a t0 kernel's result onto the pinhole image",
     )
+    p.add_argument(
+        "--diffraction",
+        choices=("on", "off"),
+        help="convolve the kernel with the opening's Fraunhofer diffraction (green, 549 nm; "
+        "550 for --grey); default off, and with --like the capture's own setting",
+    )
     add_grey(p, "render (with --render; the analytic PSF is one channel either way)")
     add_quiet(p)
     add_out(p)
@@ -121,8 +127,21 @@ def run(args: argparse.Namespace) -> int:
         check_positive("--max-samples", args.max_samples)
     elif args.spp is not None or args.seed is not None:
         raise ParameterError("--spp and --seed need --render")
+    diffraction = _diffraction(args, cam)
+    if diffraction is not None and args.render:
+        raise ParameterError(
+            "--render traces the PSF through an ideal aperture (the PSF renderer has no "
+            "diffraction yet); leave out --render, or give --diffraction off"
+        )
     out = prepare_out_dir(args.out, args.force, PSF_FILES)  # a capture's folder is fine
     k = _checked_psf(cam, args)
+    if diffraction is not None:
+        from ..psf.diffraction import with_diffraction
+
+        k = with_diffraction(
+            k, cam, args.mode, diffraction["wavelength_nm"],
+            pixel_pitch_mm=diffraction["pixel_pitch_mm"],
+        )  # fmt: skip
     r = _rendered_psf(cam, k, seed, args) if args.render else None
     # nothing is written before the render ends: an interrupt leaves no half set of files
     write_exr(out / "psf_analytic.exr", {"psf": k}, force=args.force)
@@ -134,6 +153,7 @@ def run(args: argparse.Namespace) -> int:
         "camera": cam.inputs(),  # whole: deconvolve compares it with the capture's
         "velocity_px_per_ms": args.velocity,
         "size_px": list(k.shape),
+        "diffraction": diffraction,
         **({"crop": crop} if crop else {}),
         **origin_record(cam, args.mode, args.origin),
         "psf_origin": "centre pixel = where the point images at mid-exposure (t = 0)"
@@ -158,6 +178,27 @@ def run(args: argparse.Namespace) -> int:
     write_json(out / "psf.json", meta, force=args.force)
     print(f"wrote {out}/: {written}, psf.json ({k.shape[0]}x{k.shape[1]} px)")
     return 0
+
+
+def _diffraction(args: argparse.Namespace, cam: CameraDesign) -> dict | None:
+    """The diffraction the kernel gets: --diffraction, or with --like the capture's
+    (:func:`~pacam_render.exposure.record.capture_diffraction`, at the capture's pixels);
+    None for none."""
+    from ..exposure.record import capture_diffraction
+
+    own = capture_diffraction(read_record(Path(args.like))) if args.like is not None else None
+    if args.diffraction == "off" or (args.diffraction is None and own is None):
+        return None
+    if own is not None:
+        return own
+    from ..model.camera import preset
+    from ..model.design_file import resolve_design
+
+    full = resolve_design(args.design) if args.design else preset(args.preset)
+    return {  # a binned sensor's pixels are larger than the preset's
+        "wavelength_nm": 550.0 if args.grey else 549.0,
+        "pixel_pitch_mm": full.pixel_pitch_mm * full.width_px / cam.width_px,
+    }
 
 
 def _rendered_psf(cam: CameraDesign, k: np.ndarray, seed: int, args: argparse.Namespace):

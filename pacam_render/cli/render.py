@@ -13,7 +13,7 @@ from ..model.modes import MODES
 from ..render.samplers import DEFAULT_SAMPLER, SAMPLERS
 from ..render.variant import grey_request
 from ..sensor.model import DEFAULT_LIGHT_LEVEL
-from .capture_out import error_line, scale_line, write_or_rescue
+from .capture_out import error_line, optics_lines, scale_line, write_or_rescue
 from .common import (
     add_design_flags,
     add_force,
@@ -71,6 +71,14 @@ def add(sub) -> None:
         help="natural vignetting: off (default: radiance, as Mitsuba's thinlens), cos4 (cos^4 of "
         "the field angle) or a .csv/.json curve against height_px, height_mm or field_deg; "
         "the map is kept as a layer and deconvolve flat-fields with it",
+    )
+    p.add_argument(
+        "--diffraction",
+        default="off",
+        choices=("auto", "on", "off"),
+        help="the openings' Fraunhofer diffraction, added per colour channel after the render: "
+        "off (default: geometric optics), on, or auto (on unless its measured effect is below "
+        "the noise target, or without one the Monte Carlo sigma; the decision is recorded)",
     )
     add_grey(p)
     add_limit_args(p)
@@ -201,6 +209,7 @@ def _spec(args: argparse.Namespace, target):
         sampler=args.sampler,
         grey=grey_request(args.grey),  # refused with an RGB PACAM_VARIANT, before any work
         relative_illumination=args.relative_illumination,
+        diffraction=args.diffraction,
     )
     design = capture_design(spec)
     if args.sensor is None and design.sensor_preset is not None:  # the design names its sensor
@@ -242,6 +251,8 @@ def _print_summary(cap, spec, paths, mc_sigma_layer: bool) -> None:
             f"relative illumination {ri['setting']}: {ri['min']:.3f}-{ri['max']:.3f} of the "
             "axis over the window (layer relative_illumination; deconvolve flat-fields with it)"
         )
+    for line in optics_lines(m.get("optics_error")):
+        print(line)
     extra = ["mc_sigma"] if mc_sigma_layer else []
     print("layers: " + ", ".join(["capture", *cap.extra_layers, *extra]))
 

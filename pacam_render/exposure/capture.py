@@ -46,6 +46,7 @@ from .capture_camera import (
     note_binning,
     note_ignored_options,
 )
+from .capture_optics import diffraction_params
 from .capture_record import build_record, record_design_fit, render_error_summary, versions
 from .capture_spec import CaptureSpec
 from .checkpoint import deferred_signals, partial_lock
@@ -178,9 +179,41 @@ def render_capture(
         warnings.simplefilter("always", PacamWarning)
         run = Run(partial_dir, progress, save_every_s, stop_after_steps, max_steps, flag)
         run = replace(run, max_samples=max_samples, pilot_only=pilot_only and target is not None)
-        cap = _render(spec, description, run, truth, target, keep_partial)
+        choice = _diffraction_choice(spec, description, run, target)
+        cap = _render(spec, description, run, truth, target, keep_partial, choice)
     cap.record.notes = _replay(caught)
     return cap
+
+
+def _diffraction_choice(spec: CaptureSpec, description, run: Run, target) -> tuple[bool, str]:
+    """``spec.diffraction`` resolved: (in the capture, the decision in words). ``auto`` renders
+    a short geometric preview (2 passes, no truth) and measures diffraction's effect on it
+    with the post-process (:func:`~.capture_diffraction.diffract`, its Monte Carlo share
+    removed): included unless below the noise target, or without one below the Monte Carlo
+    sigma that ``spec.spp`` will reach (the preview's, scaled by sqrt(spp ratio))."""
+    from ..model.modes import mode as mode_of
+    from .capture_camera import film_pixel_pitch_mm
+    from .capture_diffraction import decide, diffract
+    from .estimate import rms
+
+    if spec.diffraction != "auto" or mode_of(spec.mode).schedule is None:
+        return spec.diffraction == "on", f"diffraction={spec.diffraction}"
+    t0 = time.perf_counter()
+    quick = replace(spec, diffraction="off", spp=8, passes=2, per_pattern=False)
+    quiet = replace(run, progress=False, partial_dir=None, pilot_only=False)
+    pre = _render(quick, description, quiet, False, None, False, (False, "preview"))
+    cam, _ = mode_camera(capture_design(spec), spec.mode)
+    var = pre.mc_sigma**2
+    d = diffract(pre.image, {}, var, cam, spec.mode, film_pixel_pitch_mm(spec))
+    if target is not None:
+        threshold, why = float(target.sigma(pre.image, pre.record)), "the noise target"
+    else:
+        spp = max(spec.spp, pre.record.effective_spp)  # the steps' quantum sets a floor
+        threshold = rms(var) * (pre.record.effective_spp / spp) ** 0.5
+        why = f"the Monte Carlo sigma at {spp} spp"
+    on, text = decide("auto", d.record["effect_rms"], threshold, why)
+    took = time.perf_counter() - t0
+    return on, f"{text} (a {pre.record.effective_spp} spp geometric preview, {took:.1f} s)"
 
 
 def _replay(caught) -> list[str]:
@@ -243,7 +276,10 @@ def check_budget(
     )  # fmt: skip
 
 
-def _render(spec: CaptureSpec, description, run: Run, truth: bool, target, keep: bool) -> Capture:
+def _render(
+    spec: CaptureSpec, description, run: Run, truth: bool, target, keep: bool, diffraction
+) -> Capture:
+    """The capture; ``diffraction`` is (in the capture, why) from :func:`_diffraction_choice`."""
     from ..render.backend import select_variant
     from ..render.variant import is_mono
     from ..scenes import load_scene
@@ -257,7 +293,11 @@ def _render(spec: CaptureSpec, description, run: Run, truth: bool, target, keep:
     note_ignored_options(spec)
     design = capture_design(spec)
     cam, params = mode_camera(design, spec.mode)
-    params = {**params, **illumination_params(spec)}
+    params = {
+        **params,
+        **illumination_params(spec),
+        **diffraction_params(spec, cam, diffraction[0]),
+    }
     note_binning(spec, cam)
     desc = description if description is not None else load_scene(spec.scene)
     t_start = time.perf_counter()
@@ -301,13 +341,38 @@ def _render(spec: CaptureSpec, description, run: Run, truth: bool, target, keep:
     )
     if not run.pilot_only and not keep:
         store.clear()
-    patterns = prog.stats.pattern_means() if spec.per_pattern else {}
     layers = {k: layers[k] for k in TRUTH_LAYERS if k in layers}
     ri_map = illumination_map(spec, cam)  # None when off
     record.relative_illumination = illumination_record(spec, cam, ri_map)
     if ri_map is not None:
         layers["relative_illumination"] = ri_map
-    return Capture(image, patterns, record, layers, prog.stats.sigma_px())
+    ctx = {"record": record, "target": target}
+    ctx["diffraction_on"], ctx["diffraction_decision"] = diffraction
+    optics = _optics(spec, design, cam, desc, image, prog, ctx)
+    record.optics_error = optics.block
+    return Capture(optics.image, optics.patterns, record, layers, np.sqrt(optics.variance))
+
+
+def _optics(spec: CaptureSpec, design, cam, desc, image, prog, ctx: dict):
+    """Diffraction as ``spec.diffraction`` asks, and the record's ``optics_error``
+    (:func:`~pacam_render.exposure.capture_optics.finish_optics`)."""
+    from ..model.illumination import relative_illumination_map
+    from ..model.modes import mode as mode_of
+    from .capture_camera import film_pixel_pitch_mm
+
+    lens = mode_of(spec.mode).schedule is not None
+    w, h = spec.width, spec.height
+    cos4 = relative_illumination_map("cos4", w, h, cam.fov_deg, spec.crop) if lens else None
+    ctx.update(
+        pitch_mm=film_pixel_pitch_mm(spec),
+        ri_record=ctx["record"].relative_illumination,
+        cos4_map=cos4,
+    )
+    patterns = prog.stats.pattern_means() if spec.per_pattern else {}
+    variance = prog.stats.variance()
+    from .capture_optics import finish_optics
+
+    return finish_optics(spec, design, cam, desc, image, patterns, variance, ctx)
 
 
 def _note_samples(spec: CaptureSpec, exp, prog, target) -> None:

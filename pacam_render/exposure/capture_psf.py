@@ -66,6 +66,13 @@ def psf_mismatch(meta: dict, record: CaptureRecord) -> tuple[str, ...]:
         ):
             continue
         out.append(f"{words} {fmt.format(a)} (PSF) against {fmt.format(b)} (capture)")
+    if "diffraction" in meta:  # psf.json from before diffraction compares nothing here
+        from .record import capture_diffraction
+
+        words = {True: "diffraction included", False: "no diffraction"}
+        a, b = meta["diffraction"] is not None, capture_diffraction(record) is not None
+        if a != b:
+            out.append(f"{words[a]} (PSF) against {words[b]} (capture)")
     digest = meta.get("design_digest")
     if not out and digest is not None and digest != mine["design_digest"]:
         out.append(f"design digest {digest} (PSF) against {mine['design_digest']} (capture)")

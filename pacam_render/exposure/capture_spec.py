@@ -22,6 +22,7 @@ from ..model.illumination import (
 )
 from ..model.modes import mode
 from ..render.samplers import DEFAULT_SAMPLER, check_sampler
+from .capture_diffraction import DEFAULT_DIFFRACTION, check_diffraction
 from .estimate import check_passes
 
 
@@ -70,6 +71,10 @@ class CaptureSpec:
     """The sensor's relative illumination: ``off`` (radiance, as ``thinlens``), ``cos4`` or a
     curve file (:mod:`~pacam_render.model.illumination`). Not ``off``: the capture records its
     map as the ``relative_illumination`` layer, and readers flat-field with it."""
+    diffraction: str = DEFAULT_DIFFRACTION
+    """The openings' diffraction, added after the render: ``on``, ``off`` or ``auto`` (on
+    unless its effect is below the noise target; :mod:`~.capture_diffraction`). A post-process:
+    it does not change the passes, so a stopped capture resumes whatever it is."""
 
     def __post_init__(self) -> None:
         if not isinstance(self.grey, (bool, np.bool_)):
@@ -78,6 +83,7 @@ class CaptureSpec:
         ri = parse_relative_illumination(self.relative_illumination)  # a bad file: named here
         object.__setattr__(self, "relative_illumination", ri.source)
         mode(self.mode)  # raises, listing the valid modes
+        check_diffraction(self.diffraction)
         if self.crop is not None:
             object.__setattr__(self, "crop", check_crop(self.crop, self.width, self.height))
         for k, lo in (("width", 2), ("height", 2), ("spp", 1)):
@@ -120,6 +126,7 @@ class CaptureSpec:
             digest of its design (a file rewritten in place is another capture).
         """
         fields = asdict(self)
+        del fields["diffraction"]  # a post-process: the passes are the same
         if not self.grey:  # so that a colour capture keeps the key it had before `grey`
             del fields["grey"]
         if self.relative_illumination == "off":  # and the key it had before this field

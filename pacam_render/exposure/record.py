@@ -133,6 +133,11 @@ class CaptureRecord:
     """The sensor's relative illumination when not ``off``
     (:func:`~pacam_render.exposure.capture_camera.illumination_record`): ``setting``, ``law``,
     the map's ``min`` and ``max``, its ``layer`` and how readers ``flat_field``."""
+    optics_error: dict | None = None
+    """The physics error budget (:mod:`~pacam_render.exposure.optics_error`): ``diffraction``
+    (its ``setting``, ``decision`` and kernels), then per effect (diffraction, relative
+    illumination, the LCoS's leakage, grid and switching, bounces past ``max_depth``) whether
+    it is included, how, and its size where it is left out, against the sensor's noise."""
     design: dict | None = None
     """The coded design the capture's camera was derived from, whole
     (:meth:`~pacam_render.model.camera.CameraDesign.inputs`, bitmaps included): ``psf --like``
@@ -159,7 +164,7 @@ class CaptureRecord:
         if compact and self.design == self.camera:
             out["design"] = None
         optional = ("resumed_from_step", "fastest_image_speed_px_per_ms", "noise_sigma", "design")
-        optional += ("relative_illumination",)
+        optional += ("relative_illumination", "optics_error")
         for key in (*optional, "crop", "objects", "design_fit", "units", "render_error"):
             if out[key] is None:
                 del out[key]
@@ -219,25 +224,57 @@ class CaptureRecord:
         return self.noise_sigma / self.light_factor
 
 
+def capture_diffraction(record: CaptureRecord) -> dict | None:
+    """The diffraction a capture includes, for its analytic kernels: ``wavelength_nm`` (the
+    green channel's, or grey's) and ``pixel_pitch_mm``; None when it has none (or an older
+    capture, which had none)."""
+    block = record.optics_error or {}
+    info = block.get("diffraction") or {}
+    included = (block.get("effects") or {}).get("diffraction", {}).get("included")
+    if not included or "wavelengths_nm" not in info:
+        return None
+    waves = info["wavelengths_nm"]
+    return {
+        "wavelength_nm": float(waves[1] if len(waves) == 3 else waves[0]),
+        "pixel_pitch_mm": info.get("pixel_pitch_mm"),
+    }
+
+
+def _diffracted(k, record: CaptureRecord, cam, size):
+    """``k`` with the capture's diffraction (:func:`capture_diffraction`), when it has one."""
+    d = capture_diffraction(record)
+    if d is None or record.mode == "reference":
+        return k
+    from ..psf.diffraction import with_diffraction
+
+    return with_diffraction(
+        k, cam, record.mode, d["wavelength_nm"], size, pixel_pitch_mm=d["pixel_pitch_mm"]
+    )
+
+
 def analytic_psf(record: CaptureRecord, s: float = 0.0, size=None):
     """The analytic PSF of a recorded capture at speed s (px/ms), registered to the pinhole
-    image as the ``reference`` capture and the scene are (``origin="pinhole"``)."""
+    image as the ``reference`` capture and the scene are (``origin="pinhole"``); with the
+    capture's diffraction, when it includes it (:func:`capture_diffraction`)."""
     from ..model.camera import CameraDesign
     from ..psf.analytic import design_psf
 
     cam = CameraDesign.from_inputs(record.camera)
-    return design_psf(cam, record.mode, s, size, origin="pinhole")
+    k = design_psf(cam, record.mode, s, size, origin="pinhole")
+    return _diffracted(k, record, cam, size)
 
 
 def robust_psf(record: CaptureRecord, size=None):
     """The speed-robust analytic PSF of a recorded capture: averaged over the design's invariant
-    range (:func:`~pacam_render.psf.robust.speed_robust_psf`), registered as :func:`analytic_psf`.
+    range (:func:`~pacam_render.psf.robust.speed_robust_psf`), registered as :func:`analytic_psf`,
+    with the capture's diffraction as there.
     """
     from ..model.camera import CameraDesign
     from ..psf.robust import speed_robust_psf
 
     cam = CameraDesign.from_inputs(record.camera)
-    return speed_robust_psf(cam, record.mode, size=size, origin="pinhole")
+    k = speed_robust_psf(cam, record.mode, size=size, origin="pinhole")
+    return _diffracted(k, record, cam, size)
 
 
 class CaptureFile(NamedTuple):

@@ -75,6 +75,7 @@ def with_diffraction(
     size=None,
     max_lost: float = DEFAULT_MAX_LOST,
     sampling: str = "pixel",
+    pixel_pitch_mm: float | None = None,
 ) -> np.ndarray:
     """``kernel`` convolved with the diffraction kernel of a ``mode`` capture by ``cam``.
 
@@ -95,6 +96,9 @@ def with_diffraction(
         (``PSFTruncationWarning``) with the light it leaves out.
     max_lost, sampling
         As for :func:`~pacam_render.wave.fraunhofer.fraunhofer_kernel`.
+    pixel_pitch_mm : float, optional
+        The image's pixel pitch, mm: a binned capture's (``capture.json`` records it in
+        ``optics_error.diffraction``); default the design's native pitch.
 
     Returns
     -------
@@ -112,7 +116,9 @@ def with_diffraction(
     >>> k.shape, round(float(k.sum()), 12)
     ((177, 177), 1.0)
     """
-    d = mode_diffraction_kernel(cam, mode, wavelength_nm, max_lost=max_lost, sampling=sampling)
+    d = mode_diffraction_kernel(
+        cam, mode, wavelength_nm, None, max_lost, sampling, pixel_pitch_mm=pixel_pitch_mm
+    )
     out = convolve_kernels(kernel, d.kernel)
     if size is None:
         return out / out.sum()

@@ -41,7 +41,13 @@ Parameters
 ``near_clip``, ``far_clip``  as thinlens (defaults 0.01 and 10000 scene units, near < far)
 ``relative_illumination`` ``off`` (default: radiance, exactly thinlens) | ``cos4`` | the path
                      of a ``.csv`` or ``.json`` curve (see Radiometry)
-``pixel_pitch``      the film's pixel pitch, mm: needed only by a ``height_mm`` curve
+``pixel_pitch``      the film's pixel pitch, mm: needed by a ``height_mm`` curve and by
+                     diffraction
+``diffraction_wavelengths`` nm, one per colour channel (``"611, 549, 464"`` RGB, one value
+                     mono): each ray's film position is moved by a draw from the disc
+                     opening's Airy pattern (see Diffraction); absent: no diffraction
+``pupil_distance``   D = 2 F_min R_max, mm: the pupil's distance, which with the opening's
+                     radius sets the F-number D / 2R of the Airy pattern (with diffraction)
 ==================== ======================================================================
 
 Conventions (see also PHYSICS.md)
@@ -95,6 +101,18 @@ from cos^4 (+2.3 % at the 1280x960 frame's corner at F2.8): :mod:`pacam_render.m
 The image is then irradiance relative to the axis, exactly the radiance image times the map
 :func:`~pacam_render.model.illumination.relative_illumination_map` (a function of the film
 position alone). ``off`` leaves the kernels as they were: ray for ray thinlens.
+
+Diffraction
+-----------
+With ``diffraction_wavelengths``, a ray through film position x carries the radiance seen
+from x + d, d drawn from the opening's Airy pattern (lambda N px, N = D / 2R): the film then
+integrates the geometric image convolved with the continuous Airy pattern, so an in-focus
+point renders as the pixel-integrated Airy pattern, while defocus, motion and occlusion stay
+the rays'. One pattern serves every disc schedule (a shifted disc diffracts alike); a bitmap
+schedule is refused (its captures are diffracted after the render, per pattern window). In
+RGB a channel is drawn per ray and each channel weighted by its pattern's density over the
+mixture's; particle tracing moves the landing film position the same way. Tables, random
+numbers and their cost: :mod:`pacam_render.render.ray_diffraction`.
 
 Closed chops and black patterns: the time the integrator draws (uniform over the shutter) is
 mapped, measure-preservingly, onto the open patterns only, and the open fraction goes into the
@@ -168,6 +186,7 @@ from .plan import (
     index_bias,
     pad_table,
 )
+from .ray_diffraction import RayDiffractionSpec, radial_table
 
 if mi.variant() is None:  # mi.Sensor and the array types below belong to one variant
     raise ImportError(
@@ -275,6 +294,7 @@ class ProgrammableApertureCamera(mi.Sensor):
         self._set_plan(self._build(self._cfg))
         self._sync_traversed()
         self._set_illumination(props)
+        self._set_diffraction(props)
 
     # ---------------------------------------------------------------- projection
     def _set_projection(self, x_fov, near, far):
@@ -470,6 +490,8 @@ class ProgrammableApertureCamera(mi.Sensor):
         ts = np.linspace(plan.t_open, plan.t_close, 4 * n + 1)
         xs = plan.camera_offset_at(ts)
         self._travel = (float(np.min(xs)), float(np.max(xs)))
+        if getattr(self, "_diff", None) is not None:
+            self._update_diffraction(plan)
 
     # ---- traversal: to_world, the projection and the swept scalars
     def _sync_traversed(self):
@@ -657,7 +679,13 @@ class ProgrammableApertureCamera(mi.Sensor):
         weight = self._weight_at(k, active)
         near_p = self._sample_to_camera @ Point3f(position_sample.x, position_sample.y, 0.0)
         if self._ri.kind != "off":  # off: the kernel is thinlens', untouched
-            weight = weight * self._illumination(near_p)
+            weight = weight * self._illumination(near_p)  # the pixel's, where the light lands
+        if self._diff is not None:  # the film position moves by a draw from the Airy pattern
+            seeds = (position_sample.x, position_sample.y, aperture_sample.x, aperture_sample.y)
+            off, w_diff = self._diffraction_draw(seeds, active)
+            moved = position_sample + off
+            near_p = self._sample_to_camera @ Point3f(moved.x, moved.y, 0.0)
+            weight = weight * w_diff
         a, _ = self._aperture(k, time, aperture_sample, active)
         aperture_p = Point3f(a.x, a.y, 0.0)
         origin = Point3f(a.x + self._camera_x(k, time, active), a.y, 0.0)
@@ -747,6 +775,13 @@ class ProgrammableApertureCamera(mi.Sensor):
         focus_p = Point3f(aperture_p + v * (self._focus / z))
         screen = self._camera_to_sample @ focus_p
         uv = Point2f(screen.x, screen.y)
+        w_diff = None
+        if self._diff is not None:  # the light lands a draw from the Airy pattern away
+            seeds = (sample.x, sample.y, ref_p.x, ref_p.y)
+            off, w_diff = self._diffraction_draw(seeds, active)
+            uv = uv + off
+            landed = self._sample_to_camera @ Point3f(uv.x, uv.y, 0.0)
+            focus_p = landed * (self._focus / landed.z)  # for the landing pixel's factor
         active &= (uv.x >= 0.0) & (uv.x <= 1.0) & (uv.y >= 0.0) & (uv.y <= 1.0)
         dist = dr.norm(v)
         inv_dist = dr.rcp(dr.maximum(dist, 1e-20))
@@ -772,7 +807,77 @@ class ProgrammableApertureCamera(mi.Sensor):
         ds.uv = uv * self._resolution
         ds.time = time
         ds.pdf = dr.select(active, pdf_area * dist * dist / cos_t, 0.0)
-        return ds, mi.Spectrum(dr.select(active, weight, 0.0))
+        spectrum = mi.Spectrum(dr.select(active, weight, 0.0))
+        return ds, spectrum if w_diff is None else spectrum * w_diff
+
+    # ---------------------------------------------------------------- diffraction
+    def _set_diffraction(self, props):
+        """Parse ``diffraction_wavelengths`` (with ``pupil_distance`` and ``pixel_pitch``) and
+        upload the Airy pattern's radial table (:mod:`.ray_diffraction`). Absent: no
+        diffraction, and the kernels are those without it."""
+        self._diff = None
+        value = props.get("diffraction_wavelengths", "")
+        if value in ("", None):
+            return
+        for key in ("pupil_distance", "pixel_pitch"):
+            if key not in props:
+                raise ParameterError(f"diffraction_wavelengths needs {key} (mm)")
+        spec = RayDiffractionSpec(value, props.get("pupil_distance"), props.get("pixel_pitch"))
+        channels = 1 if mi.is_monochromatic else 3
+        if mi.is_spectral or len(spec.wavelengths_nm) != channels:
+            raise ParameterError(
+                f"diffraction_wavelengths: give one wavelength per colour channel of the "
+                f"{mi.variant()} variant ({channels}; spectral variants are not supported), "
+                f"got {len(spec.wavelengths_nm)}"
+            )
+        v_max, pdf, _, _ = radial_table()
+        self._diff_dist = mi.ContinuousDistribution(mi.ScalarVector2f(0.0, v_max), pdf)
+        self._diff = spec
+        self._update_diffraction(self._plan)
+
+    def _update_diffraction(self, plan):
+        """lambda N (px) per channel for the plan's disc; a bitmap schedule is refused."""
+        if "bitmap" in plan.kernel_features:
+            raise ParameterError(
+                "diffraction_wavelengths: diffraction in the rays needs disc openings; a "
+                "bitmap schedule's capture is diffracted after the render, per pattern window"
+            )
+        self._diff_ln = [opaque_scalar(x) for x in self._diff.lambda_n_px(plan.radius_mm)]
+
+    def _diffraction_text(self) -> str:
+        if self._diff is None:
+            return "none"
+        ln = ", ".join(f"{x:.4g}" for x in self._diff.lambda_n_px(self._plan.radius_mm))
+        waves = ", ".join(f"{w:g}" for w in self._diff.wavelengths_nm)
+        return f"Airy at {waves} nm (lambda N = {ln} px)"
+
+    def _diffraction_draw(self, seeds, active):
+        """An offset (film-sample units) drawn from the Airy pattern and each channel's weight
+        (:mod:`.ray_diffraction`). The draws come from a TEA hash of ``seeds`` (four Floats of
+        the ray's samples): Mitsuba's RGB and mono integrators pass a wavelength sample of 0,
+        and no other dimension is free."""
+        bits = [dr.reinterpret_array(UInt, as_type(Float, x)) for x in seeds]
+        h0, h1 = mi.sample_tea_32(bits[0] ^ (bits[2] * UInt(0x9E3779B1)), bits[1] ^ bits[3], 4)
+        h2, _ = mi.sample_tea_32(h0, h1, 4)
+        unit = 2.0**-32
+        u_c, u_phi, u_v = Float(h0) * unit, Float(h1) * unit, Float(h2) * unit
+        v = self._diff_dist.sample(dr.minimum(u_v, 0.99999994), active)
+        ln = self._diff_ln
+        if len(ln) == 1:
+            ln_c, weight = ln[0], Float(1.0)
+        else:
+            c = dr.clip(Int(dr.floor(u_c * 3.0)), 0, 2)
+            ln_c = dr.select(c == 0, ln[0], dr.select(c == 1, ln[1], ln[2]))
+        r = v * ln_c * (1.0 / math.pi)
+        if len(ln) == 3:  # each channel's density over the mixture's
+            q = [self._diff_dist.eval_pdf_normalized(math.pi * r / x, active) / x for x in ln]
+            mean = (q[0] + q[1] + q[2]) * (1.0 / 3.0)
+            inv = dr.select(mean > 0.0, dr.rcp(mean), 0.0)
+            weight = mi.Spectrum(q[0] * inv, q[1] * inv, q[2] * inv)
+        phi = 2.0 * math.pi * u_phi
+        s, c_ = dr.sincos(phi)
+        off = Point2f(r * c_ / self._resolution.x, r * s / self._resolution.y)
+        return off, weight
 
     # ---------------------------------------------------------------- relative illumination
     def _set_illumination(self, props):
@@ -883,6 +988,7 @@ class ProgrammableApertureCamera(mi.Sensor):
             f"{p.exposure_factor:g},\n"
             f"  mean weight (image / thinlens) = {p.mean_weight():.6g},\n"
             f"  relative_illumination = {self._ri.source},\n"
+            f"  diffraction = {self._diffraction_text()},\n"
             f"  film = {self.film()},\n"
             f"  to_world = {self._to_world.matrix}\n"
             "]"

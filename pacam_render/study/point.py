@@ -29,6 +29,7 @@ COLUMNS = (
     "noise_sigma", "render_noise_sigma", "render_noise_ratio", "sharp_noise_sigma",
     "model_sigma", "deconv_sigma", "render_spp", "psnr_moving_no_model_sigma_db",
     "psnr_moving_floor_db", "psnr_moving_exact_model_db", "render_s", "total_s", "status",
+    "diffraction", "diffraction_sigma", "optics_left_out", "optics_left_out_sigma",
     "point_key", "row_digest",
 )  # fmt: skip
 """The columns of ``results.csv``, in order. Speeds are in the preset's own pixels (px/ms of
@@ -40,8 +41,14 @@ measured departure from its deconvolver's model (:mod:`.model_error`), and ``dec
 the root sum of squares of the three that the deconvolver is told. ``render_spp`` and
 ``render_s`` are the shared render of the point's group. The ``psnr_moving_*_db`` columns
 after it decompose the score (:mod:`.plateau`; with ``[study] decompose = true``).
+The optics (``capture.json``'s ``optics_error``, white = 1): ``diffraction`` is ``in`` or
+``out`` of the capture, ``diffraction_sigma`` its measured effect where it is left out, and
+``optics_left_out`` / ``optics_left_out_sigma`` the largest left-out effect and its size
+(:data:`OPTICS_COLUMNS`: rows written before them lack them, and stay intact).
 ``point_key`` is the point's :meth:`~pacam_render.study.spec.StudySpec.point_keys`: a resume
 keeps a row whose key a point of the new spec has."""
+OPTICS_COLUMNS = ("diffraction", "diffraction_sigma", "optics_left_out", "optics_left_out_sigma")
+"""Columns that older results.csv files lack (:func:`~.results.row_digest` skips them there)."""
 
 
 @dataclass(frozen=True)
@@ -118,6 +125,7 @@ def capture_inputs(render: dict, p: Point):
         preset=render["preset"],
         object_depth_mm=render["object_depth_mm"],
         grey=bool(render.get("grey", False)),
+        diffraction=render.get("diffraction", "off"),
         **parse_design(p.design),
     )
     full = full_design(spec)  # speeds are in the design's own (full sensor) pixels
@@ -149,7 +157,24 @@ def _render(task: Task):
         render_spp=err["spp"],
     )
     info["model_sigma"] = _model_sigma(cap, desc)
+    info.update(optics_columns(rec.optics_error, rec.light_factor))
     return cap, desc, info
+
+
+def optics_columns(block: dict | None, light_factor: float) -> dict:
+    """The :data:`OPTICS_COLUMNS` of a capture's ``optics_error``, white = 1."""
+    if not block or light_factor <= 0:
+        return {}
+    effects = block["effects"]
+    diff = effects["diffraction"]
+    worst = block.get("largest_left_out")
+    size = effects[worst]["size_rms"] if worst else None
+    return {
+        "diffraction": "in" if diff["included"] else "out",
+        "diffraction_sigma": None if diff["size_rms"] is None else diff["size_rms"] / light_factor,
+        "optics_left_out": worst,
+        "optics_left_out_sigma": None if size is None else size / light_factor,
+    }
 
 
 def pilot_task(task: Task) -> dict:

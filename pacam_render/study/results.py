@@ -34,7 +34,7 @@ from pathlib import Path
 from ..errors import ParameterError
 from ..io.outputs import write_json, write_text
 from ..limits import PacamWarning
-from .point import COLUMNS
+from .point import COLUMNS, OPTICS_COLUMNS
 from .spec import StudySpec
 
 RESULTS, STUDY = "results.csv", "study.json"
@@ -158,7 +158,12 @@ def _intact_rows(out: Path, rows: dict[int, dict]) -> dict[int, dict]:
 def row_digest(row: dict) -> str:
     """16 hex digits of SHA-256 over the row's cells as the CSV writes them (str of each
     value, "" for None), every column but ``row_digest`` itself."""
-    cells = ["" if row.get(c) is None else str(row.get(c)) for c in COLUMNS if c != "row_digest"]
+    # an optics cell counts only when it holds a value: rows from before those columns match
+    cols = [
+        c for c in COLUMNS
+        if c != "row_digest" and (c not in OPTICS_COLUMNS or row.get(c) not in (None, ""))
+    ]  # fmt: skip
+    cells = ["" if row.get(c) is None else str(row.get(c)) for c in cols]
     return hashlib.sha256(json.dumps(cells).encode()).hexdigest()[:16]
 
 

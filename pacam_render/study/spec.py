@@ -76,6 +76,10 @@ channel with Mitsuba's mono variant (:attr:`~pacam_render.exposure.capture_spec.
 monochrome twins (:data:`~pacam_render.sensor.model.MONO_PRESETS`: ``grasshopper-icx285`` ->
 ``grasshopper-icx285-mono``, the same camera without its Bayer filter); a preset file with a
 ``bayer`` key is refused. It enters the study's keys only when true."""
+DIFFRACTION_RENDER = "diffraction"
+"""The ``[render]`` key ``diffraction``: ``off`` (default), ``on`` or ``auto``, as
+:attr:`~pacam_render.exposure.capture_spec.CaptureSpec.diffraction`. It enters the study's keys
+only when not ``off``; results.csv says per row whether the capture has it."""
 QUICK_RENDER = {"width": 160, "height": 120, "crop": None, "spp": 16}
 """--quick for a study without a [quick] table: a small binned frame at 16 spp."""
 REPORTS = ("crossover", "speed", "table")
@@ -290,7 +294,7 @@ def _parse(doc: dict, quick: bool, source: str, grey: bool = False) -> StudySpec
         grid = {**grid, **small} if both else small
     if grey:
         render["grey"] = True
-    _keys(render, "[render]", set(RENDER) | {"grey"})
+    _keys(render, "[render]", set(RENDER) | {"grey", DIFFRACTION_RENDER})
     render = _check_render(render)
     pts = _expand(grid, points, render)
     return StudySpec(
@@ -349,6 +353,15 @@ def _check_render(r: dict) -> dict:
         )
     except ParameterError as exc:
         raise ParameterError(f"[render] {exc}") from None
+    if DIFFRACTION_RENDER in r:
+        from ..exposure.capture_diffraction import check_diffraction
+
+        try:
+            check_diffraction(r[DIFFRACTION_RENDER])
+        except ParameterError as exc:
+            raise ParameterError(f"[render] {exc}") from None
+        if r[DIFFRACTION_RENDER] == "off":  # absent and off: the same study and keys
+            del r[DIFFRACTION_RENDER]
     if "grey" in r:
         if not isinstance(r["grey"], bool):
             raise ParameterError(f"[render] grey must be true or false, got {r['grey']!r}")

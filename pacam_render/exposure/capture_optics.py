@@ -1,0 +1,156 @@
+"""The optics after the rays: a capture's diffraction and its physics error budget.
+
+:func:`finish_optics` runs once the render has met its error: it adds the openings'
+diffraction when the capture's ``diffraction`` setting asks for it (``auto`` decides from the
+effect's measured size, :mod:`.capture_diffraction`), and writes the record's
+``optics_error`` (:mod:`.optics_error`) with the sizes of what is left out.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..model.modes import mode as mode_of
+from ..wave.patterns import shows_bitmaps
+from . import optics_error as oe
+from .capture_diffraction import diffract
+from .estimate import rms
+
+
+@dataclass
+class Optics:
+    """What :func:`finish_optics` returns: the image, its pattern windows and Monte Carlo
+    variance (diffracted when included), and the record's ``optics_error`` block."""
+
+    image: np.ndarray
+    patterns: dict
+    variance: np.ndarray
+    block: dict
+
+
+def reference_noise(spec, design, record, image, target) -> tuple[float | None, str]:
+    """The sensor's temporal noise at the capture's mean level, its units, and which sensor:
+    a noise target's (its lowest), else the design's preset or the ICX285 at the default light
+    level (``pacam render --sensor`` replaces it with the capture's own)."""
+    from ..sensor.apply import sensor_sigma
+    from ..sensor.model import DEFAULT_LIGHT_LEVEL, SensorModel, mono_preset
+
+    if target is not None and hasattr(target, "sensor_sigmas"):
+        return min(target.sensor_sigmas(image, record)), "the noise target's sensor"
+    preset = design.sensor_preset or "grasshopper-icx285"
+    preset = mono_preset(preset) if spec.grey else preset
+    model = SensorModel.from_preset(preset)
+    light = DEFAULT_LIGHT_LEVEL if model.shot_noise else None
+    lf = record.light_factor
+    if lf <= 0:
+        return None, preset
+    level = float(np.mean(image)) / lf
+    where = f"{preset}" + (f" at {light:g} photons/px/ms" if light else "")
+    return sensor_sigma(record, model, light, level) * lf, where
+
+
+def _diffraction(spec, cam, image, patterns, variance, ctx):
+    """(the post-processed capture or None, whether diffraction is in the capture, the
+    block's ``diffraction``): in the rays (disc openings), after the render (a bitmap
+    schedule's patterns), or left out and its effect measured by the post-process."""
+    head = {"setting": spec.diffraction}
+    if mode_of(spec.mode).schedule is None:
+        return None, False, {**head, "decision": "not applicable: a pinhole"}
+    on, decision = ctx["diffraction_on"], ctx["diffraction_decision"]
+    head["decision"] = decision
+    if on and not shows_bitmaps(cam, spec.mode):
+        return None, True, {**head, **rays_record(spec, cam, ctx["pitch_mm"])}
+    d = diffract(image, patterns, variance, cam, spec.mode, ctx["pitch_mm"])
+    return (d if on else None), on, {**head, **d.record}
+
+
+def rays_record(spec, cam, pitch_mm: float) -> dict:
+    """How the rays diffract (:mod:`pacam_render.render.ray_diffraction`)."""
+    from ..render.ray_diffraction import MAX_LOST, RayDiffractionSpec, radial_table
+
+    params = diffraction_params(spec, cam, True)
+    rays = RayDiffractionSpec(params["diffraction_wavelengths"], params["pupil_distance"], pitch_mm)
+    _, _, lost, l1 = radial_table(MAX_LOST)
+    return {
+        "how": "in the rays: each film position moved by a draw from the opening's Airy "
+        "pattern, per colour channel",
+        "wavelengths_nm": list(rays.wavelengths_nm),
+        "lambda_n_px": rays.lambda_n_px(cam.R_mm),
+        "pixel_pitch_mm": pitch_mm,
+        "airy_lost": lost,
+        "airy_table_l1": l1,
+    }
+
+
+def _diffraction_entry(info: dict, included: bool) -> dict:
+    approx = (
+        "geometric defocus x Fraunhofer (L1 to the exact defocused PSF: 0 in focus, up to "
+        "0.50 at r = 1 px; benchmarks/RESULTS.md)"
+    )
+    if "effect_rms" not in info and not included:
+        return oe.entry(False, info["decision"], 0.0)
+    if included:
+        return oe.entry(True, info["how"], approximation=approx)
+    return oe.entry(
+        False,
+        "left out: geometric optics through the opening",
+        info["effect_rms"],
+        "measured: the post-process's change, Monte Carlo noise removed",
+        approximation=approx,
+    )
+
+
+def finish_optics(spec, design, cam, desc, image, patterns, variance, ctx) -> Optics:
+    """Diffraction as decided, and the ``optics_error`` block (module docstring).
+
+    ``ctx`` holds ``record``, ``target`` (the noise target or None), ``pitch_mm`` (the
+    capture's pixel pitch), ``diffraction_on`` and ``diffraction_decision`` (resolved by
+    :func:`resolve_diffraction`), ``ri_record`` and ``cos4_map`` (the window's cos^4 map,
+    None for the pinhole).
+    """
+    rec = ctx["record"]
+    d, included, info = _diffraction(spec, cam, image, patterns, variance, ctx)
+    if d is not None:
+        image, patterns, variance = d.image, d.patterns or patterns, d.variance
+        info["mc_sigma_after"] = rms(variance)
+    effects = {
+        "diffraction": _diffraction_entry(info, included),
+        "relative_illumination": oe.relative_illumination_entry(
+            image, ctx["cos4_map"], ctx["ri_record"]
+        ),
+        "lcos_leakage": oe.leakage_entry(image, full_over_coded(rec)),
+        "lcos_grid": oe.grid_entry(image),
+        "lcos_switching": oe.switching_entry(image, cam.n_patterns, cam.exposure_ms),
+        "bounces": oe.bounces_entry(image, spec.scene, getattr(desc, "integrator", None)),
+    }
+    block = {"diffraction": info, "effects": effects}
+    noise, where = reference_noise(spec, design, rec, image, ctx["target"])
+    oe.add_ratios(block, noise, where)
+    return Optics(image, patterns, variance, block)
+
+
+def diffraction_params(spec, cam, on: bool) -> dict:
+    """The sensor's parameters that put diffraction in the rays: none when off, for the
+    pinhole, or for a bitmap schedule's patterns (diffracted after the render)."""
+    if not on or mode_of(spec.mode).schedule is None or shows_bitmaps(cam, spec.mode):
+        return {}
+    from ..wave.patterns import channel_wavelengths_nm
+    from .capture_camera import film_pixel_pitch_mm
+
+    waves = channel_wavelengths_nm(1 if spec.grey else 3)
+    return {
+        "diffraction_wavelengths": ", ".join(f"{w:g}" for w in waves),
+        "pupil_distance": 2.0 * float(cam.F_min) * float(cam.R_max_mm),
+        "pixel_pitch": film_pixel_pitch_mm(spec),
+    }
+
+
+def full_over_coded(rec) -> float:
+    """The full aperture's light over the capture's, for the same exposure: (E / E_ref) /
+    light_factor (1 for a full-aperture capture, whose leakage is nil)."""
+    lf = rec.light_factor
+    if lf <= 0:
+        return 1.0
+    return (rec.exposure_ms / rec.reference_exposure_ms) / lf

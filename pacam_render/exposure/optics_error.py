@@ -1,0 +1,173 @@
+"""A capture's physics error budget, ``capture.json``'s ``optics_error`` (issue 36, item 4).
+
+Next to ``render_error`` (the Monte Carlo error, which the render controls), each effect that
+rays through an ideal aperture leave out, or include only approximately, gets an entry:
+
+``included``      whether the capture has it;
+``how``           how it is included, or why it is left out;
+``approximation`` the error of how it is included (where it is), in its own terms;
+``size_rms``      its estimated size on this capture where it is left out: RMS over the
+                  window in the capture's units (measured on the image where it can be, an
+                  estimate otherwise, ``estimate`` says which);
+``ratio_to_sensor`` ``size_rms`` over the sensor's temporal noise at the capture's mean level
+                  (``reference_noise`` names the sensor; ``pacam render --sensor`` replaces it
+                  with the capture's own).
+
+The effects: ``diffraction`` (:mod:`.capture_diffraction`), ``relative_illumination``
+(:mod:`pacam_render.model.illumination`), the LCoS's ``lcos_leakage`` (finite contrast),
+``lcos_grid`` (the pixel grid's diffraction orders) and ``lcos_switching`` (the time between
+patterns), and ``bounces`` past the integrator's ``max_depth``. The LCoS is ideal in every
+render (infinite contrast, fill factor 1, instant switching: no datasheet value is known for
+the prototype's display), so their entries state the sensitivity instead: the contrast, fill
+factor and switching time at which each would equal the sensor's noise, from closed forms
+on this capture's image:
+
+- leakage adds (full-aperture image - coded image) / contrast; the full-aperture image is
+  taken as the capture scaled to the full aperture's light (its defocus differs: an estimate);
+- a grid of area fill factor f sends (1 - f) of the transmitted light into ghost orders at
+  lambda f_lens / pitch (about 244 px at 550 nm for the prototype): (1 - f) x RMS(image);
+- switching of time t between N patterns blends neighbours for (N - 1) t / E of the exposure:
+  at most that fraction x RMS(image) (an upper bound).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+EFFECTS = (
+    "diffraction",
+    "relative_illumination",
+    "lcos_leakage",
+    "lcos_grid",
+    "lcos_switching",
+    "bounces",
+)
+"""The entries of ``optics_error``, in order."""
+
+BOUNCE_SHARE = {"train": 8e-4, "soccer": 9e-5, "walker": 1.2e-3}
+"""Share of a built-in scene's light that paths past ``max_depth`` 3 add, measured noise-free by
+``benchmarks/bench_render_error.py`` (part 3; ``benchmarks/RESULTS.md``)."""
+BOUNCE_DEPTH = 3
+
+
+def image_rms(image) -> float:
+    """RMS of an image's values over the window and channels."""
+    return float(np.sqrt(np.mean(np.square(np.asarray(image, float)))))
+
+
+def entry(included: bool, how: str, size=None, estimate: str | None = None, **extra) -> dict:
+    """One effect's entry (module docstring); ``size`` in the capture's units."""
+    out = {"included": bool(included), "how": how, "size_rms": size}
+    if estimate:
+        out["estimate"] = estimate
+    out.update(extra)
+    return out
+
+
+def relative_illumination_entry(image, cos4_map, ri_record: dict | None) -> dict:
+    """Included: the cos^4 law's departure from the exact thin lens at the window's corner.
+    Left out: RMS of image x (1 - cos^4) over the window, measured."""
+    if ri_record is not None:
+        exact = ri_record.get("thin_lens_exact_over_cos4_at_corner")
+        approx = None if exact is None else abs(exact - 1.0)
+        return entry(True, ri_record["law"], approximation=approx)
+    if cos4_map is None:  # the pinhole reference: no lens
+        return entry(False, "not applicable: the reference is a pinhole", 0.0)
+    m = np.asarray(cos4_map, float)
+    m = m[..., None] if np.ndim(image) == 3 else m
+    size = image_rms(np.asarray(image, float) * (1.0 - m))
+    return entry(
+        False, "off: radiance, as Mitsuba's thinlens", size, "measured: image x (1 - cos^4)"
+    )
+
+
+def leakage_entry(image, full_over_coded: float) -> dict:
+    """Ideal (infinite contrast); the size per 1 / contrast (module docstring)."""
+    per = image_rms(image) * max(full_over_coded - 1.0, 0.0)
+    return entry(
+        False,
+        "ideal LCoS: infinite contrast (no datasheet value known)",
+        0.0,
+        "closed form: (full-aperture - coded) / contrast",
+        size_rms_per_inverse_contrast=per,
+    )
+
+
+def grid_entry(image) -> dict:
+    """Ideal (fill factor 1); the ghosts' size per (1 - fill factor)."""
+    return entry(
+        False,
+        "ideal LCoS: fill factor 1, no grid orders (no datasheet value known)",
+        0.0,
+        "closed form: (1 - fill factor) of the light into orders at lambda f / pitch",
+        size_rms_per_unfilled_fraction=image_rms(image),
+    )
+
+
+def switching_entry(image, n_patterns: int, exposure_ms: float) -> dict:
+    """Ideal (instant); an upper bound of the size per ms of switching time."""
+    frac = max(n_patterns - 1, 0) / exposure_ms
+    return entry(
+        False,
+        "ideal LCoS: patterns switch instantly (no datasheet value known)",
+        0.0,
+        "upper bound: (N - 1) t / E of the exposure blends neighbouring patterns",
+        size_rms_per_ms=frac * image_rms(image),
+    )
+
+
+def bounces_entry(image, scene: str, integrator: dict | None) -> dict:
+    """The light past ``max_depth``: measured for the built-in scenes at depth 3."""
+    # a scene file's own integrator arrives as a Mitsuba object: its depth is not readable
+    depth = integrator.get("max_depth") if isinstance(integrator, dict) else None
+    how = f"left out: paths past max_depth {depth}"
+    share = BOUNCE_SHARE.get(scene) if depth == BOUNCE_DEPTH else None
+    if share is None:
+        return entry(
+            False, how, None, "not measured for this scene and depth: "
+            "benchmarks/bench_render_error.py measures it",
+        )  # fmt: skip
+    return entry(
+        False, how, share * image_rms(image),
+        f"{share:.2g} of the light (bench_render_error, part 3) x RMS(image)",
+    )  # fmt: skip
+
+
+def add_ratios(block: dict, noise_sigma: float | None, where: str) -> None:
+    """Each entry's sizes over the sensor's noise, and the LCoS values at which an ideal
+    effect would equal it; ``where`` names the sensor."""
+    block["reference_noise"] = {"sigma": noise_sigma, "sensor": where}
+    ok = noise_sigma is not None and noise_sigma > 0
+    for e in block["effects"].values():
+        size = e.get("size_rms")
+        e["ratio_to_sensor"] = size / noise_sigma if ok and size is not None else None
+    lcos = block["effects"]
+    if ok:
+        per = lcos["lcos_leakage"]["size_rms_per_inverse_contrast"]
+        lcos["lcos_leakage"]["contrast_at_sensor_noise"] = per / noise_sigma if per else None
+        per = lcos["lcos_grid"]["size_rms_per_unfilled_fraction"]
+        lcos["lcos_grid"]["fill_factor_at_sensor_noise"] = 1 - noise_sigma / per if per else None
+        per = lcos["lcos_switching"]["size_rms_per_ms"]
+        lcos["lcos_switching"]["switching_ms_at_sensor_noise"] = noise_sigma / per if per else None
+    block["largest_left_out"] = largest_left_out(block)
+
+
+def largest_left_out(block: dict) -> str | None:
+    """The left-out effect of the largest size (None when every one is 0 or unknown)."""
+    sizes = {
+        k: e["size_rms"]
+        for k, e in block["effects"].items()
+        if not e["included"] and e.get("size_rms")
+    }
+    return max(sizes, key=sizes.get) if sizes else None
+
+
+def summary_line(block: dict | None) -> str | None:
+    """One line: the largest left-out effect and its size against the sensor's noise."""
+    if not block or not block.get("largest_left_out"):
+        return None
+    k = block["largest_left_out"]
+    e = block["effects"][k]
+    ratio = e.get("ratio_to_sensor")
+    vs = f", {ratio:.2g}x the sensor's noise" if ratio is not None else ""
+    return f"optics left out: largest is {k.replace('_', ' ')}, RMS {e['size_rms']:.3g}{vs}"

@@ -1,0 +1,269 @@
+"""Diffraction in the rays, through whole captures (issue 36's must-shows).
+
+References, all independent of the sampler under test: the circular pupil's
+diffraction-limited MTF (closed form, :func:`~pacam_render.wave.reference.circular_mtf`), the
+Airy pattern integrated over each pixel by Gauss-Legendre quadrature
+(:func:`~pacam_render.wave.reference.airy_kernel_quadrature`), and a uniform emitter, which
+any jitter of the film position leaves exactly as it is.
+"""
+
+from __future__ import annotations
+
+import json
+import warnings
+
+import numpy as np
+import pytest
+
+from pacam_render.cli import main
+from pacam_render.errors import ParameterError
+from pacam_render.exposure.capture import render_capture
+from pacam_render.exposure.capture_camera import capture_design, mode_camera
+from pacam_render.exposure.capture_spec import CaptureSpec
+from pacam_render.scenes.description import SceneDescription
+from pacam_render.wave.edge_mtf import edge_mtf
+from pacam_render.wave.reference import airy_kernel_quadrature, circular_mtf
+from pacam_render.wave.scale import scale_for
+
+pytestmark = pytest.mark.render
+
+FULL = {"width": 1280, "height": 960}
+
+
+def _lambda_n(spec: CaptureSpec, wavelength_nm: float) -> float:
+    cam, _ = mode_camera(capture_design(spec), spec.mode)
+    return scale_for(cam, wavelength_nm).lambda_n_px(cam.R_mm)
+
+
+def _edge_scene(z_mm: float, tilt_deg: float) -> SceneDescription:
+    """A half-plane emitter of radiance 1 at depth z, its edge through the axis, tilted."""
+    c, s = np.cos(np.radians(tilt_deg)), np.sin(np.radians(tilt_deg))
+    big = 400.0
+    # local [-1, 1]^2 -> x' in [-2 big, 0], emitting side (+z) turned to -z (the camera)
+    local = np.array([[-big, 0, 0, -big], [0, big, 0, 0], [0, 0, -1.0, 0], [0, 0, 0, 1.0]])
+    turn = np.array([[c, -s, 0, 0], [s, c, 0, 0], [0, 0, 1.0, z_mm], [0, 0, 0, 1.0]])
+    plane = {
+        "type": "rectangle",
+        "to_world": turn @ local,
+        "emitter": {"type": "area", "radiance": {"type": "rgb", "value": [1.0] * 3}},
+    }
+    return SceneDescription("edge", {"type": "scene", "edge": plane}, {})
+
+
+def _fit_edge(img: np.ndarray) -> tuple[float, float]:
+    """(angle deg, offset px) of the 50 % crossing, a line fitted over the rows."""
+    half = 0.5 * (img.max() + img.min())
+    ys, xs = [], []
+    for y, row in enumerate(img):
+        bright = row > half
+        j = np.flatnonzero(bright[1:] != bright[:-1])
+        if j.size != 1:
+            continue
+        j = int(j[0])
+        xs.append(j + (half - row[j]) / (row[j + 1] - row[j]))
+        ys.append(y)
+    slope, offset = np.polyfit(ys, xs, 1)
+    return float(np.degrees(np.arctan(slope))), float(offset)
+
+
+def _capture(spec_kw: dict, desc, **kw):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return render_capture(
+            CaptureSpec(**spec_kw, **kw), progress=False, description=desc, truth=False
+        )
+
+
+def test_an_in_focus_edge_takes_the_circular_pupils_mtf():
+    """Normal mode at F9.85, the edge at the focus distance: MTF(on) / MTF(off) in green is the
+    circular pupil's diffraction-limited MTF within 0.03 from 0.05 to 0.45 cycles/px."""
+    kw = {"scene": "edge", "mode": "normal", **FULL, "crop": (592, 432, 96, 96), "spp": 2048}
+    spec = CaptureSpec(**kw)
+    desc = _edge_scene(mode_camera(capture_design(spec), "normal")[0].focus_distance_mm, 5.0)
+    off = _capture(kw, desc, diffraction="off")
+    on = _capture(kw, desc, diffraction="on")
+    angle, offset = _fit_edge(off.image[..., 1])
+    assert 4.0 < abs(angle) < 6.0  # the tilted edge, seen
+    nu = np.linspace(0.05, 0.45, 9)
+    lf = off.record.light_factor
+    ratio = edge_mtf(on.image[..., 1], angle, offset, nu, 15.0, contrast=lf) / edge_mtf(
+        off.image[..., 1], angle, offset, nu, 15.0, contrast=lf
+    )
+    want = circular_mtf(nu, _lambda_n(spec, 549.0))
+    assert np.max(np.abs(ratio - want)) < 0.03, (ratio, want)
+    assert np.max(np.abs(1.0 - want)) > 0.3  # diffraction is far from nothing here
+    block = on.record.optics_error
+    assert (
+        block["effects"]["diffraction"]["included"] and "in the rays" in block["diffraction"]["how"]
+    )
+
+
+def _point_scene(cam, n: int, diffraction: bool):
+    """An in-focus point on the axis, a window film of n x n pixels (n odd: the point images
+    at the centre of the middle pixel) at the camera's pixel scale, ``ptracer``."""
+    import mitsuba as mi
+
+    z, f = cam.focus_distance_mm, cam.focal_length_px
+    sensor = {
+        "type": "programmable_aperture",
+        "fov": 2 * np.degrees(np.arctan(0.5 * n / f)),
+        "lens_radius": cam.R_max_mm,
+        "aperture_radius": cam.R_mm,
+        "focus_distance": z,
+        "film": {"type": "hdrfilm", "width": n, "height": n, "rfilter": {"type": "box"}},
+        "sampler": {"type": "independent"},
+    }
+    if diffraction:
+        sensor.update(
+            diffraction_wavelengths="611, 549, 464",
+            pupil_distance=2 * cam.F_min * cam.R_max_mm,
+            pixel_pitch=cam.pixel_pitch_mm,
+        )
+    rs = 0.02 * z / f  # 0.02 px
+    disk = {
+        "type": "disk",
+        "to_world": mi.ScalarTransform4f(
+            np.array([[-rs, 0, 0, 0], [0, rs, 0, 0], [0, 0, -1.0, z], [0, 0, 0, 1.0]])
+        ),
+        "emitter": {"type": "area", "radiance": {"type": "rgb", "value": 1 / (np.pi * 0.02**2)}},
+    }
+    integ = {"type": "ptracer", "max_depth": 2}
+    return mi.load_dict({"type": "scene", "sensor": sensor, "disk": disk, "integrator": integ})
+
+
+@pytest.fixture(scope="module")
+def point():
+    """The point through the F9.85 disc, without and with diffraction: 128 renders of 64 spp
+    each, summed in float64 (one render of many more spp loses light to float32 splats)."""
+    import mitsuba as mi
+
+    from pacam_render.model.camera import prototype
+    from pacam_render.model.modes import capture_camera
+    from pacam_render.render.backend import select_variant
+
+    select_variant(mono=False)
+    cam = capture_camera(prototype(), "normal")
+    n = 33
+    off = np.array(mi.render(_point_scene(cam, n, False), spp=64, seed=0), dtype=float)
+    scene = _point_scene(cam, n, True)
+    on = np.array([np.array(mi.render(scene, spp=64, seed=k), float) for k in range(128)])
+    return cam, n, off, on
+
+
+def test_an_in_focus_point_is_the_pixel_integrated_airy_pattern_of_each_channel(point):
+    """Each colour channel against the Airy pattern at its own wavelength, integrated over the
+    pixels, at the Monte Carlo floor: the pooled chi^2 per pixel is at most 1.6 (it is ~1).
+    Another channel's wavelength, or no diffraction, is many sigma away."""
+    cam, n, off, on = point
+    total = off.sum(axis=(0, 1))  # all the light: the geometric point is one pixel
+    assert off[n // 2, n // 2, 1] == pytest.approx(total[1], rel=1e-6)
+    waves = (611.0, 549.0, 464.0)
+    refs = [airy_kernel_quadrature(scale_for(cam, w).lambda_n_px(cam.R_mm), n) for w in waves]
+    for c in range(3):
+        runs = on[..., c] / total[c]
+        got, var = runs.mean(axis=0), float(np.mean(runs.var(axis=0, ddof=1))) / len(runs)
+        chi2 = [float(np.mean((got - ref / 0.998) ** 2)) / var for ref in refs]  # 0.998: v_max
+        assert chi2[c] < 1.6, (waves[c], chi2)
+        assert min(chi2[k] for k in range(3) if k != c) > 20.0, (waves[c], chi2)
+        geometric = off[..., c] / total[c]
+        assert np.mean((geometric - refs[c]) ** 2) / var > 1000.0
+
+
+def test_a_uniform_emitter_stays_uniform_even_through_one_lcos_pixel(tmp_path):
+    """Stiff case: an opening of one LCoS pixel in radius (Airy first zero ~150 px) on a uniform
+    emitter: every jitter sees the same radiance, so the image is the light factor times it,
+    finite everywhere, within its Monte Carlo error."""
+    from pacam_render.model.design_file import write_design
+    from tests.exposure.test_render_error import _glowing_wall
+
+    kw = {"scene": "wall", "mode": "normal", **FULL, "crop": (600, 440, 24, 16), "spp": 64}
+    one = capture_design(CaptureSpec(**kw)).with_(R_mm=0.01362)  # the smallest opening
+    write_design(tmp_path / "one.toml", one)
+    cap = _capture(kw, _glowing_wall(False), diffraction="on", design=str(tmp_path / "one.toml"))
+    assert 120 < 1.22 * cap.record.optics_error["diffraction"]["lambda_n_px"][1] < 200
+    assert np.isfinite(cap.image).all()
+    lf = cap.record.light_factor
+    sigma = cap.mc_sigma.mean()
+    assert abs(float(cap.image.mean()) - 0.8 * lf) < 5 * sigma / np.sqrt(cap.image.size)
+
+
+def test_a_closed_disc_is_refused_with_the_parameter_named():
+    from pacam_render.render.ray_diffraction import RayDiffractionSpec
+
+    rays = RayDiffractionSpec("549", 39.0, 0.00645)
+    with pytest.raises(ParameterError, match="aperture_radius > 0"):
+        rays.lambda_n_px(0.0)
+    one = rays.lambda_n_px(0.01362)[0]
+    assert 120 < 1.22 * one < 200  # the one-LCoS-pixel opening's first zero, px
+
+
+def test_cli_render_reports_diffraction_and_the_budget(tmp_path, capsys):
+    out = tmp_path / "c"
+    code = main(
+        ["render", "train", "--mode", "coded", "--width", "48", "--height", "36", "--spp", "8",
+         "--diffraction", "on", "--sensor", "grasshopper-icx285", "--no-truth",
+         "--out", str(out), "--quiet"]
+    )  # fmt: skip
+    assert code == 0
+    text = capsys.readouterr().out
+    assert "diffraction diffraction=on; in the rays at 611/549/464 nm" in text
+    assert "optics left out: largest is" in text
+    rec = json.loads((out / "capture.json").read_text())
+    effects = rec["optics_error"]["effects"]
+    assert sorted(effects) == sorted([
+        "diffraction", "relative_illumination", "lcos_leakage", "lcos_grid",
+        "lcos_switching", "bounces",
+    ])  # fmt: skip
+    assert rec["optics_error"]["reference_noise"]["sensor"].startswith("grasshopper-icx285")
+    assert rec["spec"]["diffraction"] == "on"
+
+
+def test_auto_includes_diffraction_for_the_coded_prototype_at_the_crossovers_target():
+    """The crossover study's target (0.2 x the ICX285's noise at 10^4 photons/px/ms) on part
+    of its window: the preview measures diffraction above it, so ``auto`` includes it."""
+    from pacam_render.sensor.apply import SensorTarget
+
+    spec = CaptureSpec(
+        scene="train", mode="coded", **FULL, crop=(360, 600, 96, 64), diffraction="auto"
+    )
+    target = SensorTarget(0.2, (("grasshopper-icx285", 1e4),))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        cap = render_capture(spec, progress=False, truth=False, target=target, pilot_only=True)
+    info = cap.record.optics_error["diffraction"]
+    assert info["decision"].startswith("auto: included"), info["decision"]
+    assert cap.record.optics_error["effects"]["diffraction"]["included"]
+
+
+def test_psf_like_and_deconvolve_follow_the_captures_diffraction(tmp_path, capsys):
+    """psf --like convolves the kernel with the capture's Airy pattern (checked against the
+    pixel-integrated Airy pattern by quadrature); deconvolve refuses a kernel without it."""
+    from pacam_render.exposure.record import analytic_psf, read_record
+    from pacam_render.psf.diffraction import convolve_kernels
+
+    cap = tmp_path / "cap"
+    common = ["--width", "1280", "--height", "960", "--crop", "600,440,48,32", "--spp", "8"]
+    assert main(["render", "train", "--mode", "normal", *common, "--diffraction", "on",
+                 "--out", str(cap), "--quiet"]) == 0  # fmt: skip
+    rec = read_record(cap / "capture.exr")
+    geometric = analytic_psf(type(rec)(**{**rec.__dict__, "optics_error": None}))
+    info = rec.optics_error["diffraction"]
+    airy = airy_kernel_quadrature(info["lambda_n_px"][1], 151)
+    want = convolve_kernels(geometric, airy / airy.sum())
+    got = analytic_psf(rec)
+    n = min(got.shape[0], want.shape[0]) // 2
+    c_got, c_want = got.shape[0] // 2, want.shape[0] // 2
+    crop = np.s_[c_got - n : c_got + n + 1, c_got - n : c_got + n + 1]
+    crop_w = np.s_[c_want - n : c_want + n + 1, c_want - n : c_want + n + 1]
+    assert np.abs(got[crop] - want[crop_w]).sum() < 5e-3
+    assert main(["psf", "--like", str(cap / "capture.exr"), "--velocity", "0",
+                 "--out", str(tmp_path / "p")]) == 0  # fmt: skip
+    meta = json.loads((tmp_path / "p" / "psf.json").read_text())
+    assert meta["diffraction"] == {"wavelength_nm": 549.0, "pixel_pitch_mm": 0.00645}
+    assert main(["psf", "--like", str(cap / "capture.exr"), "--velocity", "0",
+                 "--diffraction", "off", "--out", str(tmp_path / "q")]) == 0  # fmt: skip
+    kernel = str(tmp_path / "q" / "psf_analytic.exr")
+    code = main(["deconvolve", str(cap / "capture.exr"), "--psf", kernel,
+                 "--out", str(tmp_path / "d")])  # fmt: skip
+    assert code == 2
+    assert "no diffraction (PSF) against diffraction included (capture)" in capsys.readouterr().err
