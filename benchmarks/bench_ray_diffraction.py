@@ -15,7 +15,7 @@ For each: the samples, the seconds, the RMS error to the reference over the wind
 1, the reference's own Monte Carlo variance removed), its Monte Carlo sigma, and the error per
 second 1 / (err^2 t) relative to the rays'. The reference's spp is 16x the largest tried.
 
-    python benchmarks/bench_ray_diffraction.py [--quick]
+    python benchmarks/bench_ray_diffraction.py [--quick] [--spp N ...]
 """
 
 from __future__ import annotations
@@ -48,9 +48,10 @@ def capture(crop, spp: int, diffraction: str, seed: int):
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="a smaller window, fewer samples")
+    ap.add_argument("--spp", type=int, nargs="+", help="the samples tried (default 128 512)")
     args = ap.parse_args()
     crop = (360, 600, 96, 64) if args.quick else (320, 580, 160, 96)
-    spps = (64, 256) if args.quick else (128, 512)
+    spps = tuple(args.spp) if args.spp else ((64, 256) if args.quick else (128, 512))
     spec, ref, ref_s = capture(crop, 16 * spps[-1], "on", seed=99)
     lf = ref.record.light_factor
     ref_var = float(np.mean(ref.mc_sigma**2))

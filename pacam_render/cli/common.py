@@ -48,6 +48,7 @@ FLAGS = {
     "per_pattern": "--per-pattern",
     "relative_illumination": "--relative-illumination",
     "diffraction": "--diffraction",
+    "lcos_contrast": "--lcos-contrast",
     "velocity_px_per_ms": "--velocity",
     "velocity": "--velocity",
     "spp": "--spp",

@@ -80,6 +80,13 @@ def add(sub) -> None:
         "off (default: geometric optics), on, or auto (on unless its measured effect is below "
         "the noise target, or without one the Monte Carlo sigma; the decision is recorded)",
     )
+    p.add_argument(
+        "--lcos-contrast",
+        type=float,
+        metavar="C",
+        help="the LCoS's contrast ratio (>= 1): 'off' pixels pass 1/C of the light, in the rays "
+        "(default: ideal, no datasheet value is known); 1 is the full aperture",
+    )
     add_grey(p)
     add_limit_args(p)
     add_out(p)
@@ -210,6 +217,7 @@ def _spec(args: argparse.Namespace, target):
         grey=grey_request(args.grey),  # refused with an RGB PACAM_VARIANT, before any work
         relative_illumination=args.relative_illumination,
         diffraction=args.diffraction,
+        lcos_contrast=args.lcos_contrast,
     )
     design = capture_design(spec)
     if args.sensor is None and design.sensor_preset is not None:  # the design names its sensor

@@ -39,6 +39,7 @@ from ..model import paper
 from ..render.registry import sensor_entry
 from .capture_camera import (
     capture_design,
+    contrast_params,
     illumination_map,
     illumination_params,
     illumination_record,
@@ -297,6 +298,7 @@ def _render(
         **params,
         **illumination_params(spec),
         **diffraction_params(spec, cam, diffraction[0]),
+        **contrast_params(spec, params),
     }
     note_binning(spec, cam)
     desc = description if description is not None else load_scene(spec.scene)
@@ -346,7 +348,7 @@ def _render(
     record.relative_illumination = illumination_record(spec, cam, ri_map)
     if ri_map is not None:
         layers["relative_illumination"] = ri_map
-    ctx = {"record": record, "target": target}
+    ctx = {"record": record, "target": target, "lcos_contrast": params.get("lcos_contrast")}
     ctx["diffraction_on"], ctx["diffraction_decision"] = diffraction
     optics = _optics(spec, design, cam, desc, image, prog, ctx)
     record.optics_error = optics.block

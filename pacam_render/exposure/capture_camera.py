@@ -123,6 +123,24 @@ def illumination_params(spec: CaptureSpec) -> dict:
     return {"relative_illumination": ri, "pixel_pitch": film_pixel_pitch_mm(spec)}
 
 
+LEAKY_SCHEDULES = ("static", "parabolic", "centres")
+"""The sensor schedules that show discs on the LCoS, which ``lcos_contrast`` can leak."""
+
+
+def contrast_params(spec: CaptureSpec, params: dict) -> dict:
+    """``lcos_contrast`` for the sensor, where the mode shows discs on the LCoS; a note where
+    it does not (Levin's moving camera, the fluttered shutter, the pinhole)."""
+    if spec.lcos_contrast is None:
+        return {}
+    if params.get("schedule") in LEAKY_SCHEDULES:
+        return {"lcos_contrast": float(spec.lcos_contrast)}
+    note(
+        f"lcos_contrast has no effect in {spec.mode} mode: it shows no disc on the LCoS "
+        f"(schedule {params.get('schedule', 'none')})"
+    )
+    return {}
+
+
 def film_pixel_pitch_mm(spec: CaptureSpec) -> float:
     """The pitch of the capture's pixels on the real sensor, mm: the design's pixel pitch times
     its full width over the capture's (a 320 px capture of the 1280 px sensor bins 4 x 4)."""

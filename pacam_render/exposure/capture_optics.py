@@ -68,11 +68,12 @@ def _diffraction(spec, cam, image, patterns, variance, ctx):
 
 def rays_record(spec, cam, pitch_mm: float) -> dict:
     """How the rays diffract (:mod:`pacam_render.render.ray_diffraction`)."""
-    from ..render.ray_diffraction import MAX_LOST, RayDiffractionSpec, radial_table
+    from ..render.ray_diffraction import MAX_LOST, RayDiffractionSpec, inverse_table, radial_table
 
     params = diffraction_params(spec, cam, True)
     rays = RayDiffractionSpec(params["diffraction_wavelengths"], params["pupil_distance"], pitch_mm)
-    _, _, lost, l1 = radial_table(MAX_LOST)
+    lost = radial_table(MAX_LOST)[2]
+    l1 = inverse_table(MAX_LOST)[1]
     return {
         "how": "in the rays: each film position moved by a draw from the opening's Airy "
         "pattern, per colour channel",
@@ -120,7 +121,7 @@ def finish_optics(spec, design, cam, desc, image, patterns, variance, ctx) -> Op
         "relative_illumination": oe.relative_illumination_entry(
             image, ctx["cos4_map"], ctx["ri_record"]
         ),
-        "lcos_leakage": oe.leakage_entry(image, full_over_coded(rec)),
+        "lcos_leakage": oe.leakage_entry(image, full_over_coded(rec), ctx.get("lcos_contrast")),
         "lcos_grid": oe.grid_entry(image),
         "lcos_switching": oe.switching_entry(image, cam.n_patterns, cam.exposure_ms),
         "bounces": oe.bounces_entry(image, spec.scene, getattr(desc, "integrator", None)),

@@ -76,6 +76,11 @@ class CaptureSpec:
     unless its effect is below the noise target; :mod:`~.capture_diffraction`). A post-process:
     it does not change the passes, so a stopped capture resumes whatever it is."""
 
+    lcos_contrast: float | None = None
+    """The LCoS's contrast ratio C >= 1: "off" pixels pass 1/C of the light (None: ideal, no
+    datasheet value is known for the prototype's display). Disc schedules on the LCoS only
+    (normal, coded, short); C = 1 is no coding at all: the full aperture."""
+
     def __post_init__(self) -> None:
         if not isinstance(self.grey, (bool, np.bool_)):
             raise ParameterError(f"grey must be true or false, got {self.grey!r}")
@@ -84,6 +89,12 @@ class CaptureSpec:
         object.__setattr__(self, "relative_illumination", ri.source)
         mode(self.mode)  # raises, listing the valid modes
         check_diffraction(self.diffraction)
+        if self.lcos_contrast is not None:
+            c = check_positive("lcos_contrast", self.lcos_contrast)
+            if c < 1.0:
+                raise ParameterError(
+                    f"lcos_contrast must be >= 1 (1: the full aperture, no coding), got {c!r}"
+                )
         if self.crop is not None:
             object.__setattr__(self, "crop", check_crop(self.crop, self.width, self.height))
         for k, lo in (("width", 2), ("height", 2), ("spp", 1)):
@@ -127,6 +138,8 @@ class CaptureSpec:
         """
         fields = asdict(self)
         del fields["diffraction"]  # a post-process: the passes are the same
+        if self.lcos_contrast is None:  # ideal: the key it had before this field
+            del fields["lcos_contrast"]
         if not self.grey:  # so that a colour capture keeps the key it had before `grey`
             del fields["grey"]
         if self.relative_illumination == "off":  # and the key it had before this field

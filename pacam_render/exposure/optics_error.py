@@ -16,11 +16,11 @@ rays through an ideal aperture leave out, or include only approximately, gets an
 The effects: ``diffraction`` (:mod:`.capture_diffraction`), ``relative_illumination``
 (:mod:`pacam_render.model.illumination`), the LCoS's ``lcos_leakage`` (finite contrast),
 ``lcos_grid`` (the pixel grid's diffraction orders) and ``lcos_switching`` (the time between
-patterns), and ``bounces`` past the integrator's ``max_depth``. The LCoS is ideal in every
-render (infinite contrast, fill factor 1, instant switching: no datasheet value is known for
-the prototype's display), so their entries state the sensitivity instead: the contrast, fill
-factor and switching time at which each would equal the sensor's noise, from closed forms
-on this capture's image:
+patterns), and ``bounces`` past the integrator's ``max_depth``. The LCoS is ideal by default
+(infinite contrast, fill factor 1, instant switching: no datasheet value is known for the
+prototype's display); a finite ``lcos_contrast`` puts the leakage in the rays. An ideal
+effect's entry states its sensitivity instead: the contrast, fill factor and switching time
+at which it would equal the sensor's noise, from closed forms on this capture's image:
 
 - leakage adds (full-aperture image - coded image) / contrast; the full-aperture image is
   taken as the capture scaled to the full aperture's light (its defocus differs: an estimate);
@@ -81,9 +81,18 @@ def relative_illumination_entry(image, cos4_map, ri_record: dict | None) -> dict
     )
 
 
-def leakage_entry(image, full_over_coded: float) -> dict:
-    """Ideal (infinite contrast); the size per 1 / contrast (module docstring)."""
+def leakage_entry(image, full_over_coded: float, contrast: float | None = None) -> dict:
+    """In the rays at a finite ``contrast``; else ideal (infinite contrast), with the size per
+    1 / contrast (module docstring)."""
     per = image_rms(image) * max(full_over_coded - 1.0, 0.0)
+    if contrast is not None:
+        return entry(
+            True,
+            f"in the rays: the lens outside the opening passes 1/{contrast:g} of the light",
+            contrast=contrast,
+            approximation=0.0,
+            size_rms_per_inverse_contrast=per,
+        )
     return entry(
         False,
         "ideal LCoS: infinite contrast (no datasheet value known)",

@@ -46,6 +46,9 @@ Parameters
 ``diffraction_wavelengths`` nm, one per colour channel (``"611, 549, 464"`` RGB, one value
                      mono): each ray's film position is moved by a draw from the disc
                      opening's Airy pattern (see Diffraction); absent: no diffraction
+``lcos_contrast``    the LCoS's contrast ratio C >= 1 (default inf, ideal): the lens outside the
+                     disc opening passes 1/C of the light (disc schedules: static, parabolic,
+                     centres); 1 is the full aperture
 ``pupil_distance``   D = 2 F_min R_max, mm: the pupil's distance, which with the opening's
                      radius sets the F-number D / 2R of the Airy pattern (with diffraction)
 ==================== ======================================================================
@@ -101,6 +104,15 @@ from cos^4 (+2.3 % at the 1280x960 frame's corner at F2.8): :mod:`pacam_render.m
 The image is then irradiance relative to the axis, exactly the radiance image times the map
 :func:`~pacam_render.model.illumination.relative_illumination_map` (a function of the film
 position alone). ``off`` leaves the kernels as they were: ray for ray thinlens.
+
+LCoS contrast
+-------------
+With ``lcos_contrast`` C, the display's "off" pixels leak: the transmittance is 1 in the disc
+and 1/C on the rest of the lens, so the image is (1 - 1/C) x the coded image + (1/C) x the
+full aperture's over the same exposure. Each ray's aperture sample picks, with probability p
+(the leak's share of the light, at least 5 %), a uniform point on the whole lens, weighing
+(1/C) x the full lens's weight / p outside the disc and 0 inside it; otherwise the disc's
+point, weighing 1 / (1 - p). The split of the sample keeps both branches stratified.
 
 Diffraction
 -----------
@@ -186,7 +198,7 @@ from .plan import (
     index_bias,
     pad_table,
 )
-from .ray_diffraction import RayDiffractionSpec, radial_table
+from .ray_diffraction import INVERSE_SIZE, RayDiffractionSpec, inverse_table, radial_table
 
 if mi.variant() is None:  # mi.Sensor and the array types below belong to one variant
     raise ImportError(
@@ -295,6 +307,7 @@ class ProgrammableApertureCamera(mi.Sensor):
         self._sync_traversed()
         self._set_illumination(props)
         self._set_diffraction(props)
+        self._set_contrast(props)
 
     # ---------------------------------------------------------------- projection
     def _set_projection(self, x_fov, near, far):
@@ -492,6 +505,8 @@ class ProgrammableApertureCamera(mi.Sensor):
         self._travel = (float(np.min(xs)), float(np.max(xs)))
         if getattr(self, "_diff", None) is not None:
             self._update_diffraction(plan)
+        if getattr(self, "_leak", None) is not None:
+            self._update_contrast(plan)
 
     # ---- traversal: to_world, the projection and the swept scalars
     def _sync_traversed(self):
@@ -626,12 +641,39 @@ class ProgrammableApertureCamera(mi.Sensor):
         if "bitmap" in f:
             return self._sample_mask(k, sample, active)
         d = mi.warp.square_to_uniform_disk_concentric(sample) * self._radius
+        cx, cy = self._centre(k, time, active)
+        return Point2f(d.x + cx, d.y + cy), self._inv_disc_area
+
+    def _centre(self, k, time, active):
+        """Centre (local mm) of pattern k's disc at the ray's time."""
+        f = self._features
         cx = gather(Float, self._cx, k, active) if "cx" in f else self._cx0
         cy = gather(Float, self._cy, k, active) if "cy" in f else self._cy0
         if "quad_a" in f:
             tau = time - self._t_mid
             cx = cx + self._a_quad * tau * tau
-        return Point2f(d.x + cx, d.y + cy), self._inv_disc_area
+        return cx, cy
+
+    def _leaky_aperture(self, k, time, sample, active):
+        """With a finite LCoS contrast C: an aperture point, its area density and the factor
+        on the open opening's ray weight. With probability p (``_leak_p``) a uniform point on
+        the whole lens, weighing (1/C) x the full lens's weight / p outside the opening and 0
+        inside it (the open branch counts that light); otherwise the opening's point as
+        without leakage, weighing 1 / (1 - p). ``sample.x`` is split between the branches,
+        so both keep the sampler's strata."""
+        p = self._leak_p
+        leak = sample.x < p
+        u_open = Point2f((sample.x - p) / (1.0 - p), sample.y)
+        a, pdf = self._aperture(k, time, dr.select(leak, Point2f(0.5, 0.5), u_open), active)
+        u_leak = Point2f(sample.x / dr.maximum(p, 1e-30), sample.y)
+        d = mi.warp.square_to_uniform_disk_concentric(u_leak) * self._lens_r
+        cx, cy = self._centre(k, time, active)
+        inside = dr.square(d.x - cx) + dr.square(d.y - cy) < self._radius * self._radius
+        w_leak = dr.select(inside, 0.0, self._leak_w / (p * self._weight_at(k, active)))
+        factor = dr.select(leak, w_leak, 1.0 / (1.0 - p))
+        a = Point2f(dr.select(leak, d.x, a.x), dr.select(leak, d.y, a.y))
+        pdf = dr.select(leak, p * self._inv_lens_area, (1.0 - p) * pdf)
+        return a, pdf, factor
 
     def _rec(self, j, c, active):
         """Field c of run record j: 0 x_hi, 1 y, 2 span, 3 cdf before, 4 cdf up to it."""
@@ -683,10 +725,13 @@ class ProgrammableApertureCamera(mi.Sensor):
         if self._diff is not None:  # the film position moves by a draw from the Airy pattern
             seeds = (position_sample.x, position_sample.y, aperture_sample.x, aperture_sample.y)
             off, w_diff = self._diffraction_draw(seeds, active)
-            moved = position_sample + off
-            near_p = self._sample_to_camera @ Point3f(moved.x, moved.y, 0.0)
+            near_p = near_p + self._dx * off.x + self._dy * off.y  # the near plane is affine
             weight = weight * w_diff
-        a, _ = self._aperture(k, time, aperture_sample, active)
+        if self._leak is None:
+            a, _ = self._aperture(k, time, aperture_sample, active)
+        else:  # light through the "off" pixels too
+            a, _, factor = self._leaky_aperture(k, time, aperture_sample, active)
+            weight = weight * factor
         aperture_p = Point3f(a.x, a.y, 0.0)
         origin = Point3f(a.x + self._camera_x(k, time, active), a.y, 0.0)
         return time, weight, near_p, aperture_p, origin
@@ -766,7 +811,11 @@ class ProgrammableApertureCamera(mi.Sensor):
         ref_p = self._from_world @ p
         ref_p = Point3f(ref_p.x - cam_x, ref_p.y, ref_p.z)
         active = active & (ref_p.z >= self._near) & (ref_p.z <= self._far)
-        a, pdf_area = self._aperture(k, time, Point2f(sample.x, sample.y), active)
+        factor = None
+        if self._leak is None:
+            a, pdf_area = self._aperture(k, time, Point2f(sample.x, sample.y), active)
+        else:
+            a, pdf_area, factor = self._leaky_aperture(k, time, Point2f(sample.x, sample.y), active)
         aperture_p = Point3f(a.x, a.y, 0.0)
         v = Vector3f(ref_p - aperture_p)
         z = dr.select(active, ref_p.z, 1.0)  # > 0 where active (scalar mode: no 1/0)
@@ -779,7 +828,7 @@ class ProgrammableApertureCamera(mi.Sensor):
         if self._diff is not None:  # the light lands a draw from the Airy pattern away
             seeds = (sample.x, sample.y, ref_p.x, ref_p.y)
             off, w_diff = self._diffraction_draw(seeds, active)
-            uv = uv + off
+            uv = uv + Point2f(off.x / self._resolution.x, off.y / self._resolution.y)
             landed = self._sample_to_camera @ Point3f(uv.x, uv.y, 0.0)
             focus_p = landed * (self._focus / landed.z)  # for the landing pixel's factor
         active &= (uv.x >= 0.0) & (uv.x <= 1.0) & (uv.y >= 0.0) & (uv.y <= 1.0)
@@ -791,6 +840,8 @@ class ProgrammableApertureCamera(mi.Sensor):
         # and p_omega = |focus_p - a|^2 / (cos A' F^2) = dist^2 / (cos A' z^2) on the
         # ray through a (collinear: |focus_p - a| / dist = F / z), this is w / (A' cos z^2)
         weight = self._weight_at(k, active)
+        if factor is not None:
+            weight = weight * factor
         weight = weight * self._inv_image_area * dr.rcp(cos_t * z * z)
         if self._ri.kind != "off":  # the film position's factor, as in sample_ray
             weight = weight * self._illumination(focus_p)
@@ -809,6 +860,37 @@ class ProgrammableApertureCamera(mi.Sensor):
         ds.pdf = dr.select(active, pdf_area * dist * dist / cos_t, 0.0)
         spectrum = mi.Spectrum(dr.select(active, weight, 0.0))
         return ds, spectrum if w_diff is None else spectrum * w_diff
+
+    # ---------------------------------------------------------------- LCoS contrast
+    def _set_contrast(self, props):
+        """Parse ``lcos_contrast`` (C >= 1; absent or inf: an ideal display, the kernels as
+        without it)."""
+        self._leak = None
+        c = props.get("lcos_contrast", math.inf)
+        c = check_finite("lcos_contrast", c) if c != math.inf else c
+        if not c >= 1.0:
+            raise ParameterError(f"lcos_contrast must be >= 1 (1: no coding at all), got {c!r}")
+        if c == math.inf:
+            return
+        self._leak = float(c)
+        self._update_contrast(self._plan)
+
+    def _update_contrast(self, plan):
+        """The leak branch's probability and weight for the plan's disc (its light share of
+        the capture, at least 5 %); only disc schedules on the LCoS leak."""
+        if plan.schedule not in ("static", "parabolic", "centres"):
+            raise ParameterError(
+                f"lcos_contrast: the {plan.schedule} schedule has no leaky LCoS pattern to "
+                "model (discs only: static, parabolic, centres)"
+            )
+        c = self._leak
+        open_share = (plan.radius_mm / plan.lens_radius_mm) ** 2
+        leak_share = (1.0 - open_share) / c
+        p = 0.0 if leak_share <= 0 else max(leak_share / (leak_share + open_share), 0.05)
+        self._leak_p = opaque_scalar(min(p, 0.95))
+        self._leak_w = opaque_scalar(plan.time_scale / c)
+        self._lens_r = opaque_scalar(plan.lens_radius_mm)
+        self._inv_lens_area = opaque_scalar(1.0 / (math.pi * plan.lens_radius_mm**2))
 
     # ---------------------------------------------------------------- diffraction
     def _set_diffraction(self, props):
@@ -832,6 +914,7 @@ class ProgrammableApertureCamera(mi.Sensor):
             )
         v_max, pdf, _, _ = radial_table()
         self._diff_dist = mi.ContinuousDistribution(mi.ScalarVector2f(0.0, v_max), pdf)
+        self._diff_inv = opaque_array(inverse_table()[0])
         self._diff = spec
         self._update_diffraction(self._plan)
 
@@ -852,7 +935,7 @@ class ProgrammableApertureCamera(mi.Sensor):
         return f"Airy at {waves} nm (lambda N = {ln} px)"
 
     def _diffraction_draw(self, seeds, active):
-        """An offset (film-sample units) drawn from the Airy pattern and each channel's weight
+        """An offset (film px) drawn from the Airy pattern and each channel's weight
         (:mod:`.ray_diffraction`). The draws come from a TEA hash of ``seeds`` (four Floats of
         the ray's samples): Mitsuba's RGB and mono integrators pass a wavelength sample of 0,
         and no other dimension is free."""
@@ -861,7 +944,13 @@ class ProgrammableApertureCamera(mi.Sensor):
         h2, _ = mi.sample_tea_32(h0, h1, 4)
         unit = 2.0**-32
         u_c, u_phi, u_v = Float(h0) * unit, Float(h1) * unit, Float(h2) * unit
-        v = self._diff_dist.sample(dr.minimum(u_v, 0.99999994), active)
+        x = u_v * float(INVERSE_SIZE)
+        j = UInt(dr.minimum(dr.floor(x), INVERSE_SIZE - 1))
+        lo, hi = (
+            gather(Float, self._diff_inv, j, active),
+            gather(Float, self._diff_inv, j + 1, active),
+        )
+        v = dr.lerp(lo, hi, x - Float(j))
         ln = self._diff_ln
         if len(ln) == 1:
             ln_c, weight = ln[0], Float(1.0)
@@ -876,8 +965,7 @@ class ProgrammableApertureCamera(mi.Sensor):
             weight = mi.Spectrum(q[0] * inv, q[1] * inv, q[2] * inv)
         phi = 2.0 * math.pi * u_phi
         s, c_ = dr.sincos(phi)
-        off = Point2f(r * c_ / self._resolution.x, r * s / self._resolution.y)
-        return off, weight
+        return Point2f(r * c_, r * s), weight
 
     # ---------------------------------------------------------------- relative illumination
     def _set_illumination(self, props):

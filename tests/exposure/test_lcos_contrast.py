@@ -1,0 +1,78 @@
+"""The LCoS's finite contrast in the rays (issue 36, item 3).
+
+References: the closed form, image = (1 - 1/C) coded + (1/C) full aperture over the same
+exposure, on a uniform emitter (every ray sees the same radiance) and, for C = 1, a capture of
+the same scene through a full-aperture design; the ideal display (no ``lcos_contrast``) is
+bit for bit the capture it was before.
+"""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pytest
+
+from pacam_render.errors import ParameterError
+from pacam_render.exposure.capture import render_capture
+from pacam_render.exposure.capture_camera import capture_design
+from pacam_render.exposure.capture_spec import CaptureSpec
+from pacam_render.model.design_file import write_design
+from tests.exposure.test_render_error import _glowing_wall
+
+pytestmark = pytest.mark.render
+
+
+def _capture(desc=None, **kw):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return render_capture(CaptureSpec(**kw), progress=False, description=desc, truth=False)
+
+
+@pytest.mark.parametrize("contrast", [2.0, 50.0])
+def test_a_uniform_emitter_reads_the_closed_form(contrast):
+    kw = {"scene": "wall", "mode": "coded", "width": 24, "height": 16, "spp": 64}
+    cap = _capture(_glowing_wall(False), **kw, lcos_contrast=contrast)
+    rec = cap.record
+    full = rec.exposure_ms / rec.reference_exposure_ms  # the full aperture's light factor
+    want = 0.8 * ((1 - 1 / contrast) * rec.light_factor + full / contrast)
+    err = float(np.sqrt(np.mean(cap.mc_sigma**2)))
+    assert abs(float(cap.image.mean()) - want) < 5 * err / np.sqrt(cap.image.size) + 1e-6
+    assert rec.optics_error["effects"]["lcos_leakage"]["included"]
+    assert float(cap.image.mean()) > 0.8 * rec.light_factor * 1.01  # the leak is visible
+
+
+def test_contrast_one_is_the_full_aperture(tmp_path):
+    """C = 1: no coding at all; the normal capture equals one through a full-aperture design,
+    within the two captures' Monte Carlo error (pooled over the window)."""
+    kw = {"scene": "train", "mode": "normal", "width": 64, "height": 48, "spp": 64}
+    full = capture_design(CaptureSpec(**kw))
+    write_design(tmp_path / "full.toml", full.with_(R_mm=full.R_max_mm))
+    leak = _capture(**kw, lcos_contrast=1.0)
+    wide = _capture(**{**kw, "seed": 1}, design=str(tmp_path / "full.toml"))  # independent
+    assert leak.record.exposure_ms == wide.record.exposure_ms
+    diff, var = leak.image - wide.image, leak.mc_sigma**2 + wide.mc_sigma**2
+    assert float(np.mean(diff**2) / np.mean(var)) == pytest.approx(1.0, abs=0.3)
+    ideal = _capture(**kw)  # and the coded opening alone is far from it
+    assert np.mean((ideal.image - wide.image) ** 2) / np.mean(var) > 100
+
+
+def test_an_ideal_display_is_the_capture_it_was():
+    kw = {"scene": "train", "mode": "coded", "width": 32, "height": 24, "spp": 8}
+    a, b = _capture(**kw), _capture(**kw, lcos_contrast=None)
+    assert np.array_equal(a.image, b.image)
+    assert not a.record.optics_error["effects"]["lcos_leakage"]["included"]
+
+
+def test_contrast_is_checked_and_named():
+    with pytest.raises(ParameterError, match="lcos_contrast must be >= 1"):
+        CaptureSpec(lcos_contrast=0.5)
+    with pytest.raises(ParameterError, match="lcos_contrast"):
+        CaptureSpec(lcos_contrast=float("nan"))
+    assert CaptureSpec(lcos_contrast=100.0).key() != CaptureSpec().key()
+
+
+def test_levin_has_no_lcos_to_leak():
+    kw = {"scene": "train", "mode": "levin", "width": 32, "height": 24, "spp": 8}
+    with pytest.warns(Warning, match="lcos_contrast has no effect in levin mode"):
+        render_capture(CaptureSpec(**kw, lcos_contrast=10.0), progress=False, truth=False)
