@@ -20,22 +20,16 @@ from pathlib import Path
 
 import pytest
 
+from tests.doc_blocks import NUMBER, shown_commands
+
 pytestmark = pytest.mark.render
 
 DOC = Path(__file__).resolve().parents[1] / "docs" / "howto" / "own_camera.md"
-NUMBER = re.compile(r"-?\d+(\.\d+)?(e[+-]?\d+)?")
 
 
 def commands() -> list[tuple[str, list[str]]]:
     """(command, the lines the document shows it printing), from the first ``sh`` block."""
-    block = DOC.read_text().split("```sh\n", 1)[1].split("```", 1)[0]
-    out: list[tuple[str, list[str]]] = []
-    for line in block.splitlines():
-        if line.startswith("$ "):
-            out.append((line[2:], []))
-        elif out:
-            out[-1][1].append(line)
-    return out
+    return shown_commands(DOC, "sh")
 
 
 def shape(line: str) -> str:

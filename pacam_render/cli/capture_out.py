@@ -81,6 +81,9 @@ def optics_lines(block: dict | None) -> list[str]:
     from ..exposure.optics_error import summary_line
 
     info = block["diffraction"]
+    line = summary_line(block)
+    if info.get("setting", "off") == "off":  # the budget's line says what it left out
+        return [line] if line else []
     head = f"diffraction {info['decision']}"
     waves = "/".join(f"{w:g}" for w in info.get("wavelengths_nm", []))
     if "lambda_n_px" in info:
@@ -88,5 +91,4 @@ def optics_lines(block: dict | None) -> list[str]:
         head += f"; in the rays at {waves} nm (lambda N = {ln} px)"
     elif "kernel_px" in info:
         head += f" ({info['kernel_px']} px kernels at {waves} nm)"
-    line = summary_line(block)
     return [head] + ([line] if line else [])

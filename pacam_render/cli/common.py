@@ -49,6 +49,8 @@ FLAGS = {
     "relative_illumination": "--relative-illumination",
     "diffraction": "--diffraction",
     "lcos_contrast": "--lcos-contrast",
+    "lcos_fill_factor": "--lcos-fill-factor",
+    "lcos_switching_ms": "--lcos-switching",
     "velocity_px_per_ms": "--velocity",
     "velocity": "--velocity",
     "spp": "--spp",

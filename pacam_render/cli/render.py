@@ -87,6 +87,20 @@ def add(sub) -> None:
         help="the LCoS's contrast ratio (>= 1): 'off' pixels pass 1/C of the light, in the rays "
         "(default: ideal, no datasheet value is known); 1 is the full aperture",
     )
+    p.add_argument(
+        "--lcos-fill-factor",
+        type=float,
+        metavar="F",
+        help="the LCoS pixels' linear fill factor in (0, 1]: the pixel grid's diffraction "
+        "orders (ghosts ~244 px away at 550 nm), with --diffraction on (default: 1, no grid)",
+    )
+    p.add_argument(
+        "--lcos-switching",
+        type=float,
+        metavar="MS",
+        help="the LCoS's switching time, ms: each pattern's first MS change linearly from the "
+        "previous one (coded captures; default 0, instant)",
+    )
     add_grey(p)
     add_limit_args(p)
     add_out(p)
@@ -218,6 +232,8 @@ def _spec(args: argparse.Namespace, target):
         relative_illumination=args.relative_illumination,
         diffraction=args.diffraction,
         lcos_contrast=args.lcos_contrast,
+        lcos_fill_factor=args.lcos_fill_factor,
+        lcos_switching_ms=args.lcos_switching,
     )
     design = capture_design(spec)
     if args.sensor is None and design.sensor_preset is not None:  # the design names its sensor

@@ -46,6 +46,7 @@ from .capture_camera import (
     mode_camera,
     note_binning,
     note_ignored_options,
+    switching_params,
 )
 from .capture_optics import diffraction_params
 from .capture_record import build_record, record_design_fit, render_error_summary, versions
@@ -198,7 +199,7 @@ def _diffraction_choice(spec: CaptureSpec, description, run: Run, target) -> tup
     from .estimate import rms
 
     if spec.diffraction != "auto" or mode_of(spec.mode).schedule is None:
-        return spec.diffraction == "on", f"diffraction={spec.diffraction}"
+        return spec.diffraction == "on", f"{spec.diffraction}, as asked"
     t0 = time.perf_counter()
     quick = replace(spec, diffraction="off", spp=8, passes=2, per_pattern=False)
     quiet = replace(run, progress=False, partial_dir=None, pilot_only=False)
@@ -299,6 +300,7 @@ def _render(
         **illumination_params(spec),
         **diffraction_params(spec, cam, diffraction[0]),
         **contrast_params(spec, params),
+        **switching_params(spec, params),
     }
     note_binning(spec, cam)
     desc = description if description is not None else load_scene(spec.scene)
@@ -349,6 +351,7 @@ def _render(
     if ri_map is not None:
         layers["relative_illumination"] = ri_map
     ctx = {"record": record, "target": target, "lcos_contrast": params.get("lcos_contrast")}
+    ctx["lcos_switching_ms"] = params.get("lcos_switching")
     ctx["diffraction_on"], ctx["diffraction_decision"] = diffraction
     optics = _optics(spec, design, cam, desc, image, prog, ctx)
     record.optics_error = optics.block

@@ -141,6 +141,21 @@ def contrast_params(spec: CaptureSpec, params: dict) -> dict:
     return {}
 
 
+def switching_params(spec: CaptureSpec, params: dict) -> dict:
+    """``lcos_switching`` (ms) for the sensor where the mode switches discs on the LCoS
+    (discrete parabolic or centres schedules); a note where it does not."""
+    t = spec.lcos_switching_ms
+    if not t:
+        return {}
+    if params.get("schedule") in ("parabolic", "centres") and not params.get("continuous"):
+        return {"lcos_switching": float(t)}
+    note(
+        f"lcos_switching_ms has no effect in {spec.mode} mode: it switches no disc on the "
+        f"LCoS (schedule {params.get('schedule', 'none')})"
+    )
+    return {}
+
+
 def film_pixel_pitch_mm(spec: CaptureSpec) -> float:
     """The pitch of the capture's pixels on the real sensor, mm: the design's pixel pitch times
     its full width over the capture's (a 320 px capture of the 1280 px sensor bins 4 x 4)."""

@@ -151,7 +151,7 @@ def decide(setting: str, effect: float, threshold: float, why: str) -> tuple[boo
     """Whether ``auto`` (or ``on`` / ``off``) includes diffraction, and the reason in words."""
     check_diffraction(setting)
     if setting != "auto":
-        return setting == "on", f"diffraction={setting}"
+        return setting == "on", f"{setting}, as asked"
     keep = effect >= threshold
     verb = "included" if keep else "left out"
     rel = ">=" if keep else "<"

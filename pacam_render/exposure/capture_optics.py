@@ -12,6 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..errors import ParameterError
 from ..model.modes import mode as mode_of
 from ..wave.patterns import shows_bitmaps
 from . import optics_error as oe
@@ -122,8 +123,10 @@ def finish_optics(spec, design, cam, desc, image, patterns, variance, ctx) -> Op
             image, ctx["cos4_map"], ctx["ri_record"]
         ),
         "lcos_leakage": oe.leakage_entry(image, full_over_coded(rec), ctx.get("lcos_contrast")),
-        "lcos_grid": oe.grid_entry(image),
-        "lcos_switching": oe.switching_entry(image, cam.n_patterns, cam.exposure_ms),
+        "lcos_grid": oe.grid_entry(image, spec.lcos_fill_factor if included else None),
+        "lcos_switching": oe.switching_entry(
+            image, cam.n_patterns, cam.exposure_ms, ctx.get("lcos_switching_ms")
+        ),
         "bounces": oe.bounces_entry(image, spec.scene, getattr(desc, "integrator", None)),
     }
     block = {"diffraction": info, "effects": effects}
@@ -135,16 +138,23 @@ def finish_optics(spec, design, cam, desc, image, patterns, variance, ctx) -> Op
 def diffraction_params(spec, cam, on: bool) -> dict:
     """The sensor's parameters that put diffraction in the rays: none when off, for the
     pinhole, or for a bitmap schedule's patterns (diffracted after the render)."""
+    if on and spec.lcos_fill_factor is not None and shows_bitmaps(cam, spec.mode):
+        raise ParameterError(
+            "lcos_fill_factor: the grid's orders are rendered through disc openings; a bitmap "
+            "schedule's capture is diffracted after the render, without them"
+        )
     if not on or mode_of(spec.mode).schedule is None or shows_bitmaps(cam, spec.mode):
         return {}
     from ..wave.patterns import channel_wavelengths_nm
     from .capture_camera import film_pixel_pitch_mm
 
     waves = channel_wavelengths_nm(1 if spec.grey else 3)
+    grid = {} if spec.lcos_fill_factor is None else {"lcos_fill_factor": spec.lcos_fill_factor}
     return {
         "diffraction_wavelengths": ", ".join(f"{w:g}" for w in waves),
         "pupil_distance": 2.0 * float(cam.F_min) * float(cam.R_max_mm),
         "pixel_pitch": film_pixel_pitch_mm(spec),
+        **grid,
     }
 
 

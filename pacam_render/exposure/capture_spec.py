@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import ParameterError, check_positive
+from ..errors import ParameterError, check_finite, check_positive
 from ..model.illumination import (
     CURVE_SUFFIXES,
     DEFAULT_RELATIVE_ILLUMINATION,
@@ -81,6 +81,16 @@ class CaptureSpec:
     datasheet value is known for the prototype's display). Disc schedules on the LCoS only
     (normal, coded, short); C = 1 is no coding at all: the full aperture."""
 
+    lcos_fill_factor: float | None = None
+    """The LCoS pixels' linear fill factor f in (0, 1] (None: 1, ideal): the pixel grid
+    diffracts (1 - f^2 of the passed light) into ghost orders m at m lambda D / pitch, rendered
+    with the opening's diffraction (it needs ``diffraction`` on), and the display passes f^2."""
+
+    lcos_switching_ms: float | None = None
+    """The LCoS's switching time, ms (None: 0, instant): in the first t of each pattern's
+    window the pixels turn linearly from the previous pattern (coded captures of discrete disc
+    schedules)."""
+
     def __post_init__(self) -> None:
         if not isinstance(self.grey, (bool, np.bool_)):
             raise ParameterError(f"grey must be true or false, got {self.grey!r}")
@@ -89,6 +99,19 @@ class CaptureSpec:
         object.__setattr__(self, "relative_illumination", ri.source)
         mode(self.mode)  # raises, listing the valid modes
         check_diffraction(self.diffraction)
+        if self.lcos_fill_factor is not None:
+            from ..render.ray_diffraction import grid_orders
+
+            grid_orders(self.lcos_fill_factor)  # (0, 1], named
+            if self.diffraction != "on":
+                raise ParameterError(
+                    "lcos_fill_factor: the grid's orders are diffraction, rendered with the "
+                    f"opening's; give diffraction on (got {self.diffraction!r})"
+                )
+        if self.lcos_switching_ms is not None:
+            t = check_finite("lcos_switching_ms", self.lcos_switching_ms)
+            if t < 0:
+                raise ParameterError(f"lcos_switching_ms must be >= 0 ms, got {t!r}")
         if self.lcos_contrast is not None:
             c = check_positive("lcos_contrast", self.lcos_contrast)
             if c < 1.0:
@@ -138,8 +161,9 @@ class CaptureSpec:
         """
         fields = asdict(self)
         del fields["diffraction"]  # a post-process: the passes are the same
-        if self.lcos_contrast is None:  # ideal: the key it had before this field
-            del fields["lcos_contrast"]
+        for key in ("lcos_contrast", "lcos_fill_factor", "lcos_switching_ms"):
+            if fields[key] is None:  # ideal: the key it had before this field
+                del fields[key]
         if not self.grey:  # so that a colour capture keeps the key it had before `grey`
             del fields["grey"]
         if self.relative_illumination == "off":  # and the key it had before this field

@@ -102,8 +102,21 @@ def leakage_entry(image, full_over_coded: float, contrast: float | None = None) 
     )
 
 
-def grid_entry(image) -> dict:
-    """Ideal (fill factor 1); the ghosts' size per (1 - fill factor)."""
+def grid_entry(image, fill_factor: float | None = None) -> dict:
+    """In the rays at a ``fill_factor`` < 1; else ideal (fill factor 1), with the ghosts' size
+    per (1 - fill factor)."""
+    if fill_factor is not None:
+        from ..render.ray_diffraction import MAX_ORDER, grid_orders
+
+        _, lost = grid_orders(fill_factor)
+        return entry(
+            True,
+            f"in the rays: orders |m| <= {MAX_ORDER} per axis, f sinc^2(m f) of the light "
+            f"each, at m lambda D / pitch (fill factor {fill_factor:g})",
+            approximation=lost,
+            fill_factor=fill_factor,
+            size_rms_per_unfilled_fraction=image_rms(image),
+        )
     return entry(
         False,
         "ideal LCoS: fill factor 1, no grid orders (no datasheet value known)",
@@ -113,9 +126,18 @@ def grid_entry(image) -> dict:
     )
 
 
-def switching_entry(image, n_patterns: int, exposure_ms: float) -> dict:
-    """Ideal (instant); an upper bound of the size per ms of switching time."""
+def switching_entry(image, n_patterns: int, exposure_ms: float, t_ms=None) -> dict:
+    """In the rays at a switching time ``t_ms``; else ideal (instant), with an upper bound of
+    the size per ms of switching time."""
     frac = max(n_patterns - 1, 0) / exposure_ms
+    if t_ms:
+        return entry(
+            True,
+            f"in the rays: {t_ms:g} ms of linear change from each pattern to the next",
+            approximation=0.0,
+            switching_ms=t_ms,
+            size_rms_per_ms=frac * image_rms(image),
+        )
     return entry(
         False,
         "ideal LCoS: patterns switch instantly (no datasheet value known)",

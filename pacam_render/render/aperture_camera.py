@@ -49,6 +49,11 @@ Parameters
 ``lcos_contrast``    the LCoS's contrast ratio C >= 1 (default inf, ideal): the lens outside the
                      disc opening passes 1/C of the light (disc schedules: static, parabolic,
                      centres); 1 is the full aperture
+``lcos_fill_factor`` the LCoS pixels' linear fill factor in (0, 1] (default 1): with diffraction,
+                     the pixel grid's orders m at m lambda D / ``mask_pitch`` px, f sinc^2(m f)
+                     of the light each; the display passes f^2
+``lcos_switching``   ms (default 0): the first ``lcos_switching`` of each pattern's window
+                     changes linearly from the previous pattern (discrete parabolic, centres)
 ``pupil_distance``   D = 2 F_min R_max, mm: the pupil's distance, which with the opening's
                      radius sets the F-number D / 2R of the Airy pattern (with diffraction)
 ==================== ======================================================================
@@ -113,6 +118,16 @@ full aperture's over the same exposure. Each ray's aperture sample picks, with p
 (the leak's share of the light, at least 5 %), a uniform point on the whole lens, weighing
 (1/C) x the full lens's weight / p outside the disc and 0 inside it; otherwise the disc's
 point, weighing 1 / (1 - p). The split of the sample keeps both branches stratified.
+
+LCoS grid and switching
+-----------------------
+With ``lcos_fill_factor`` f < 1 (and diffraction), each ray also draws the grid's order
+(m_x, m_y) by its inverse CDF on each axis and moves m lambda_c D / pitch px further; a ghost
+(m != 0) lands only where its channel's light goes, so it weighs 3 on the drawn channel and
+0 on the others (the zero order keeps the Airy weights); the weight carries the transmission
+f^2. With ``lcos_switching`` t, a ray in the first t of pattern k's window (tau into it) sees
+pattern k - 1 with probability 1 - tau / t, the pixels' linear change; the display shows
+pattern 0 before the exposure.
 
 Diffraction
 -----------
@@ -189,6 +204,7 @@ from ..model.illumination import (
     film_tan_max,
     parse_relative_illumination,
 )
+from ..model.optics import LCOS_PITCH_MM
 from .plan import (
     PROP_KEYS,
     AperturePlan,
@@ -198,7 +214,15 @@ from .plan import (
     index_bias,
     pad_table,
 )
-from .ray_diffraction import INVERSE_SIZE, RayDiffractionSpec, inverse_table, radial_table
+from .ray_diffraction import (
+    INVERSE_SIZE,
+    MAX_ORDER,
+    RayDiffractionSpec,
+    grid_orders,
+    inverse_table,
+    order_px,
+    radial_table,
+)
 
 if mi.variant() is None:  # mi.Sensor and the array types below belong to one variant
     raise ImportError(
@@ -308,6 +332,7 @@ class ProgrammableApertureCamera(mi.Sensor):
         self._set_illumination(props)
         self._set_diffraction(props)
         self._set_contrast(props)
+        self._set_switching(props)
 
     # ---------------------------------------------------------------- projection
     def _set_projection(self, x_fov, near, far):
@@ -507,6 +532,8 @@ class ProgrammableApertureCamera(mi.Sensor):
             self._update_diffraction(plan)
         if getattr(self, "_leak", None) is not None:
             self._update_contrast(plan)
+        if getattr(self, "_switch", None) is not None:
+            self._check_switching(plan)
 
     # ---- traversal: to_world, the projection and the swept scalars
     def _sync_traversed(self):
@@ -718,6 +745,9 @@ class ProgrammableApertureCamera(mi.Sensor):
 
     def _ray_setup(self, time, position_sample, aperture_sample, active):
         time, k = self._time_and_pattern(time, active)
+        if self._switch is not None:
+            seeds = (position_sample.x, aperture_sample.y, time)
+            k = self._switched(k, time, seeds, active)
         weight = self._weight_at(k, active)
         near_p = self._sample_to_camera @ Point3f(position_sample.x, position_sample.y, 0.0)
         if self._ri.kind != "off":  # off: the kernel is thinlens', untouched
@@ -805,6 +835,8 @@ class ProgrammableApertureCamera(mi.Sensor):
         position its ray lands on, and importance / pdf (same estimator as sample_ray)."""
         sample, active = as_type(Point2f, sample), as_type(mi.Bool, active)
         time, k = self._time_and_pattern(it.time, active)
+        if self._switch is not None:
+            k = self._switched(k, time, (sample.x, sample.y, time), active)
         shift = self.scene_shift(time - self._t_mid)
         p = it.p if shift is None else it.p + shift  # where the moving scene puts the point
         cam_x = self._camera_x(k, time, active)
@@ -861,6 +893,43 @@ class ProgrammableApertureCamera(mi.Sensor):
         spectrum = mi.Spectrum(dr.select(active, weight, 0.0))
         return ds, spectrum if w_diff is None else spectrum * w_diff
 
+    # ---------------------------------------------------------------- LCoS switching
+    def _set_switching(self, props):
+        """Parse ``lcos_switching`` (ms >= 0; absent or 0: patterns switch at once)."""
+        self._switch = None
+        t = float(props.get("lcos_switching", 0.0))
+        if not (math.isfinite(t) and t >= 0.0):
+            raise ParameterError(f"lcos_switching must be a time >= 0 ms, got {t!r}")
+        if t == 0.0:
+            return
+        self._switch = opaque_scalar(t)
+        self._switch_ms = t
+        self._check_switching(self._plan)
+
+    def _check_switching(self, plan):
+        if plan.schedule not in ("parabolic", "centres") or plan.continuous:
+            raise ParameterError(
+                f"lcos_switching: the {plan.schedule} schedule has no discs switching on the "
+                "LCoS (discrete parabolic or centres only)"
+            )
+        width = plan.duration / plan.n_patterns
+        if not self._switch_ms <= width:
+            raise ParameterError(
+                f"lcos_switching ({self._switch_ms:g} ms) must be at most a pattern's time "
+                f"({width:g} ms = the exposure / {plan.n_patterns})"
+            )
+
+    def _switched(self, k, time, seeds, active):
+        """Pattern k, or k - 1 while the display still turns to k: in the first t of k's
+        window, pixels change linearly, so k - 1 is shown with probability 1 - tau / t (tau
+        the time into the window; all discs have one area, so the weight is unchanged). The
+        display shows pattern 0 before the exposure."""
+        tau = time - gather(Float, self._edges, k, active)
+        bits = [dr.reinterpret_array(UInt, as_type(Float, x)) for x in seeds]
+        u = Float(mi.sample_tea_32(bits[0] ^ bits[1], bits[2] ^ UInt(0x27D4EB2F), 4)[0]) * 2.0**-32
+        old = (k > 0) & (tau < self._switch) & (u * self._switch >= tau)
+        return dr.select(old, k - 1, k)
+
     # ---------------------------------------------------------------- LCoS contrast
     def _set_contrast(self, props):
         """Parse ``lcos_contrast`` (C >= 1; absent or inf: an ideal display, the kernels as
@@ -900,6 +969,11 @@ class ProgrammableApertureCamera(mi.Sensor):
         self._diff = None
         value = props.get("diffraction_wavelengths", "")
         if value in ("", None):
+            if float(props.get("lcos_fill_factor", 1.0)) != 1.0:
+                raise ParameterError(
+                    "lcos_fill_factor: the grid's orders are diffraction; give "
+                    "diffraction_wavelengths (with pupil_distance and pixel_pitch) too"
+                )
             return
         for key in ("pupil_distance", "pixel_pitch"):
             if key not in props:
@@ -916,7 +990,26 @@ class ProgrammableApertureCamera(mi.Sensor):
         self._diff_dist = mi.ContinuousDistribution(mi.ScalarVector2f(0.0, v_max), pdf)
         self._diff_inv = opaque_array(inverse_table()[0])
         self._diff = spec
+        self._set_grid(props)
         self._update_diffraction(self._plan)
+
+    def _set_grid(self, props):
+        """``lcos_fill_factor`` f < 1 (with diffraction): the LCoS pixel grid's orders, at
+        ``mask_pitch`` (:func:`~.ray_diffraction.grid_orders`); 1 or absent: no grid."""
+        self._grid = None
+        f = float(props.get("lcos_fill_factor", 1.0))
+        probs, _ = grid_orders(f)  # checks f
+        if f == 1.0:
+            return
+        pitch = check_positive("mask_pitch", props.get("mask_pitch", LCOS_PITCH_MM), "mm")
+        d = self._diff
+        self._grid = f
+        self._grid_cdf = [opaque_scalar(float(x)) for x in np.cumsum(probs)[:-1]]
+        self._grid_d = [
+            opaque_scalar(order_px(w, d.pupil_distance_mm, pitch, d.pixel_pitch_mm))
+            for w in d.wavelengths_nm
+        ]
+        self._grid_t = opaque_scalar(f * f)  # the light the grid passes: its area fill
 
     def _update_diffraction(self, plan):
         """lambda N (px) per channel for the plan's disc; a bitmap schedule is refused."""
@@ -965,7 +1058,35 @@ class ProgrammableApertureCamera(mi.Sensor):
             weight = mi.Spectrum(q[0] * inv, q[1] * inv, q[2] * inv)
         phi = 2.0 * math.pi * u_phi
         s, c_ = dr.sincos(phi)
-        return Point2f(r * c_, r * s), weight
+        off = Point2f(r * c_, r * s)
+        if self._grid is not None:
+            off, weight = self._grid_draw(h1, h2, off, weight, None if len(ln) == 1 else c)
+        return off, weight
+
+    def _grid_draw(self, h1, h2, off, weight, c):
+        """The pixel grid's order (m_x, m_y), drawn by its inverse CDF on each axis, added at
+        m d_c px (d_c the first order's offset at channel c's wavelength). A ghost (m != 0)
+        lands where only channel c's light goes: weight 3 on c (1/3 its chance), 0 on the
+        others; the zero order keeps the Airy weights. All times the grid's transmission."""
+        h3, h4 = mi.sample_tea_32(h2, h1 ^ UInt(0x85EBCA6B), 4)
+        unit = 2.0**-32
+        m = []
+        for u in (Float(h3) * unit, Float(h4) * unit):
+            k = Int(-MAX_ORDER)
+            for edge in self._grid_cdf:
+                k += dr.select(u >= edge, 1, 0)
+            m.append(Float(k))
+        d = self._grid_d
+        if c is None:
+            d_c = d[0]
+        else:
+            d_c = dr.select(c == 0, d[0], dr.select(c == 1, d[1], d[2]))
+        off = Point2f(off.x + m[0] * d_c, off.y + m[1] * d_c)
+        if c is not None:
+            ghost = (m[0] != 0.0) | (m[1] != 0.0)
+            one = [dr.select(c == i, 3.0, 0.0) for i in range(3)]
+            weight = dr.select(ghost, mi.Spectrum(one[0], one[1], one[2]), weight)
+        return off, weight * self._grid_t
 
     # ---------------------------------------------------------------- relative illumination
     def _set_illumination(self, props):

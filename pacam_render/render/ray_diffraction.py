@@ -153,3 +153,39 @@ class RayDiffractionSpec:
             raise ParameterError("diffraction needs an open disc: aperture_radius > 0")
         n = self.pupil_distance_mm / (2.0 * radius_mm)
         return [w * 1e-6 * n / self.pixel_pitch_mm for w in self.wavelengths_nm]
+
+
+MAX_ORDER = 8
+"""The grid's orders drawn on each axis: |m| <= 8 (the rest renormalised away, stated)."""
+
+
+def grid_orders(fill_factor: float, max_order: int = MAX_ORDER) -> tuple[np.ndarray, float]:
+    """The LCoS pixel grid's diffraction orders on one axis: P(m) for m = -M..M and the light
+    beyond, for square pixel apertures of linear fill factor f (amplitude transmission a comb of
+    width f x pitch): order m carries f sinc^2(m f) of the transmitted light (the Fourier
+    series of the comb, Parseval: they sum to 1; returned renormalised over |m| <= M).
+    f = 1: every order but 0 is dark.
+
+    Examples
+    --------
+    >>> p, lost = grid_orders(0.8)
+    >>> round(float(p[MAX_ORDER]), 3), round(float(p[MAX_ORDER + 1] / p[MAX_ORDER]), 4)
+    (0.811, 0.0547)
+    >>> grid_orders(1.0)[0][MAX_ORDER], grid_orders(1.0)[1]
+    (1.0, 0.0)
+    """
+    f = float(fill_factor)
+    if not 0.0 < f <= 1.0:
+        raise ParameterError(f"lcos_fill_factor must be in (0, 1], got {fill_factor!r}")
+    m = np.arange(-max_order, max_order + 1)
+    p = f * np.sinc(m * f) ** 2
+    p[(np.abs(m * f - np.round(m * f)) < 1e-12) & (m != 0)] = 0.0  # sinc's zeros, exactly
+    lost = max(1.0 - float(p.sum()), 0.0)
+    return p / p.sum(), lost
+
+
+def order_px(wavelength_nm: float, pupil_distance_mm: float, lcos_pitch_mm: float,
+             pixel_pitch_mm: float) -> float:  # fmt: skip
+    """The first order's offset on the film, px: lambda D / pitch of the LCoS (the grating in
+    the pupil, D from the image), about 244 px at 550 nm for the prototype."""
+    return wavelength_nm * 1e-6 * pupil_distance_mm / lcos_pitch_mm / pixel_pitch_mm

@@ -11,7 +11,6 @@ move from run to run). The commands render small windows at 128 spp: about 25 s 
 from __future__ import annotations
 
 import os
-import re
 import shlex
 import subprocess
 import sys
@@ -19,22 +18,16 @@ from pathlib import Path
 
 import pytest
 
+from tests.doc_blocks import NUMBER, shown_commands
+
 pytestmark = pytest.mark.render
 
 ROOT = Path(__file__).resolve().parents[2]
-NUMBER = re.compile(r"-?\d+(\.\d+)?(e[+-]?\d+)?")
 
 
 def console_block(doc: Path) -> list[tuple[str, list[str]]]:
     """(command, the lines the document shows it printing), from its first console block."""
-    block = doc.read_text().split("```console\n", 1)[1].split("```", 1)[0]
-    out: list[tuple[str, list[str]]] = []
-    for line in block.splitlines():
-        if line.startswith("$ "):
-            out.append((line[2:], []))
-        elif out:
-            out[-1][1].append(line)
-    return out
+    return shown_commands(doc, "console")
 
 
 def shape(line: str) -> str:

@@ -98,7 +98,7 @@ def test_an_in_focus_edge_takes_the_circular_pupils_mtf():
     )
 
 
-def _point_scene(cam, n: int, diffraction: bool):
+def _point_scene(cam, n: int, diffraction: bool, as_dict: bool = False):
     """An in-focus point on the axis, a window film of n x n pixels (n odd: the point images
     at the centre of the middle pixel) at the camera's pixel scale, ``ptracer``."""
     import mitsuba as mi
@@ -128,7 +128,8 @@ def _point_scene(cam, n: int, diffraction: bool):
         "emitter": {"type": "area", "radiance": {"type": "rgb", "value": 1 / (np.pi * 0.02**2)}},
     }
     integ = {"type": "ptracer", "max_depth": 2}
-    return mi.load_dict({"type": "scene", "sensor": sensor, "disk": disk, "integrator": integ})
+    scene = {"type": "scene", "sensor": sensor, "disk": disk, "integrator": integ}
+    return scene if as_dict else mi.load_dict(scene)
 
 
 @pytest.fixture(scope="module")
@@ -206,7 +207,7 @@ def test_cli_render_reports_diffraction_and_the_budget(tmp_path, capsys):
     )  # fmt: skip
     assert code == 0
     text = capsys.readouterr().out
-    assert "diffraction diffraction=on; in the rays at 611/549/464 nm" in text
+    assert "diffraction on, as asked; in the rays at 611/549/464 nm" in text
     assert "optics left out: largest is" in text
     rec = json.loads((out / "capture.json").read_text())
     effects = rec["optics_error"]["effects"]
@@ -267,3 +268,55 @@ def test_psf_like_and_deconvolve_follow_the_captures_diffraction(tmp_path, capsy
                  "--out", str(tmp_path / "d")])  # fmt: skip
     assert code == 2
     assert "no diffraction (PSF) against diffraction included (capture)" in capsys.readouterr().err
+
+
+def _grid_point(fill: float | None, n: int = 601):
+    """An in-focus point through the F9.85 disc with diffraction and the LCoS grid of linear
+    fill factor ``fill``, on an n x n window film (ptracer, 8 renders of 4 spp)."""
+    import mitsuba as mi
+
+    from pacam_render.model.camera import prototype
+    from pacam_render.model.modes import capture_camera
+    from pacam_render.render.backend import select_variant
+
+    select_variant(mono=False)
+    cam = capture_camera(prototype(), "normal")
+    scene_dict = _point_scene(cam, n, True, as_dict=True)
+    if fill is not None:
+        scene_dict["sensor"]["lcos_fill_factor"] = fill
+    scene = mi.load_dict(scene_dict)
+    return cam, sum(np.array(mi.render(scene, spp=4, seed=k), float) for k in range(8)) / 8
+
+
+def test_the_lcos_grid_puts_its_orders_where_and_as_bright_as_the_grating_says():
+    """Fill factor 0.8: the first order (1, 0) of each channel lies at lambda D / pitch px
+    (271.6, 244.0, 206.3 px) within 0.3 px, and holds sinc^2(0.8) = 0.0547 of the zero
+    order's light within 4 %; fill factor 1 has no orders and is the render without a grid.
+    (The film holds orders |m| <= 1: the renders' light is (0.811 + 2 x 0.044)^2 of the
+    zero-order-only light times f^2.)"""
+    from pacam_render.render.ray_diffraction import order_px
+
+    cam, img = _grid_point(0.8)
+    c0, half = img.shape[0] // 2, 15
+    ys, xs = np.mgrid[-half : half + 1, -half : half + 1]
+    for ch, wl in enumerate((611.0, 549.0, 464.0)):
+        d = order_px(wl, 2 * cam.F_min * cam.R_max_mm, 0.01362, cam.pixel_pitch_mm)
+        zero = img[c0 - half : c0 + half + 1, c0 - half : c0 + half + 1, ch].sum()
+        k = int(round(d))
+        box = img[c0 - half : c0 + half + 1, c0 + k - half : c0 + k + half + 1, ch]
+        assert (box * xs).sum() / box.sum() + k == pytest.approx(d, abs=0.3)
+        assert box.sum() / zero == pytest.approx(np.sinc(0.8) ** 2, rel=0.04)
+    _, ideal = _grid_point(1.0)
+    _, none = _grid_point(None)
+    k = int(round(order_px(549.0, 2 * cam.F_min * cam.R_max_mm, 0.01362, cam.pixel_pitch_mm)))
+    assert ideal[c0 - half : c0 + half + 1, c0 + k - half : c0 + k + half + 1].sum() == 0.0
+    # the same draws (ptracer's float32 splats add in a thread-dependent order)
+    assert np.allclose(ideal, none, rtol=1e-4, atol=1e-9)
+
+
+def test_fill_factor_needs_diffraction_and_is_checked():
+    with pytest.raises(ParameterError, match="lcos_fill_factor: the grid's orders are diffraction"):
+        CaptureSpec(lcos_fill_factor=0.9)
+    with pytest.raises(ParameterError, match=r"lcos_fill_factor must be in \(0, 1\]"):
+        CaptureSpec(lcos_fill_factor=1.5, diffraction="on")
+    assert CaptureSpec(lcos_fill_factor=0.9, diffraction="on").key() != CaptureSpec().key()

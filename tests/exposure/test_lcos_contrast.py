@@ -76,3 +76,22 @@ def test_levin_has_no_lcos_to_leak():
     kw = {"scene": "train", "mode": "levin", "width": 32, "height": 24, "spp": 8}
     with pytest.warns(Warning, match="lcos_contrast has no effect in levin mode"):
         render_capture(CaptureSpec(**kw, lcos_contrast=10.0), progress=False, truth=False)
+
+
+def test_the_cli_renders_every_lcos_flaw_and_the_budget_says_so(tmp_path):
+    import json
+
+    from pacam_render.cli import main
+
+    out = tmp_path / "c"
+    args = ["render", "train", "--mode", "coded", "--crop", "600,440,32,24", "--spp", "8",
+            "--diffraction", "on", "--lcos-contrast", "500", "--lcos-fill-factor", "0.9",
+            "--lcos-switching", "0.5", "--no-truth", "--quiet", "--out", str(out)]  # fmt: skip
+    assert main(args) == 0
+    rec = json.loads((out / "capture.json").read_text())
+    effects = rec["optics_error"]["effects"]
+    assert effects["lcos_leakage"]["contrast"] == 500
+    assert effects["lcos_grid"]["fill_factor"] == 0.9
+    assert effects["lcos_switching"]["switching_ms"] == 0.5
+    assert all(effects[k]["included"] for k in ("diffraction", "lcos_leakage", "lcos_grid"))
+    assert rec["spec"]["lcos_switching_ms"] == 0.5

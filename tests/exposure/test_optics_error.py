@@ -83,7 +83,7 @@ def test_setting_is_checked_on_the_spec_and_kept_out_of_the_key():
 
 
 def test_decide():
-    assert decide("on", 0.0, 1.0, "x") == (True, "diffraction=on")
+    assert decide("on", 0.0, 1.0, "x") == (True, "on, as asked")
     assert decide("off", 9.0, 1.0, "x")[0] is False
     keep, text = decide("auto", 2e-3, 1e-3, "the noise target")
     assert keep and text.startswith("auto: included, its effect 0.002 >= the noise target")
