@@ -35,8 +35,15 @@ _MODULES = (
 _registered: str | None = None  # the variant the plugins were last registered for
 
 
+_DEPENDENCIES = {"aperture_camera": ("kernel_types", "aperture_optics")}
+"""Variant-bound modules a plugin module imports: re-imported first, in this order."""
+
+
 def _module(name: str, variant: str):
-    """Our plugin module, imported (or re-imported) for ``variant``."""
+    """Our plugin module, imported (or re-imported) for ``variant``, after the variant-bound
+    modules it imports (:data:`_DEPENDENCIES`)."""
+    for dep in _DEPENDENCIES.get(name, ()):
+        _module(dep, variant)
     full = f"{__package__}.{name}"
     mod = sys.modules.get(full)
     if mod is None:
