@@ -198,8 +198,10 @@ def _diffraction_choice(spec: CaptureSpec, description, run: Run, target) -> tup
     from .capture_diffraction import decide, diffract
     from .estimate import rms
 
-    if spec.diffraction != "auto" or mode_of(spec.mode).schedule is None:
-        return spec.diffraction == "on", f"{spec.diffraction}, as asked"
+    if mode_of(spec.mode).schedule is None:
+        return False, "not applicable: a pinhole"
+    if spec.diffraction != "auto":
+        return decide(spec.diffraction, 0.0, 0.0, "")  # as asked
     t0 = time.perf_counter()
     quick = replace(spec, diffraction="off", spp=8, passes=2, per_pattern=False)
     quiet = replace(run, progress=False, partial_dir=None, pilot_only=False)

@@ -75,7 +75,10 @@ def test_contrast_is_checked_and_named():
 def test_levin_has_no_lcos_to_leak():
     kw = {"scene": "train", "mode": "levin", "width": 32, "height": 24, "spp": 8}
     with pytest.warns(Warning, match="lcos_contrast has no effect in levin mode"):
-        render_capture(CaptureSpec(**kw, lcos_contrast=10.0), progress=False, truth=False)
+        cap = render_capture(CaptureSpec(**kw, lcos_contrast=10.0), progress=False, truth=False)
+    assert any("lcos_contrast has no effect" in n for n in cap.record.notes)
+    assert not cap.record.optics_error["effects"]["lcos_leakage"]["included"]
+    assert np.array_equal(cap.image, _capture(**kw).image)  # the capture without it
 
 
 def test_the_cli_renders_every_lcos_flaw_and_the_budget_says_so(tmp_path):

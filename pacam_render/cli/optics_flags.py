@@ -1,0 +1,49 @@
+"""The flags of ``pacam render`` for the optics that rays through an ideal aperture leave
+out: relative illumination, diffraction and the LCoS's flaws (issue 36)."""
+
+from __future__ import annotations
+
+import argparse
+
+
+def add_optics(p: argparse.ArgumentParser) -> None:
+    """What rays through an ideal aperture leave out: relative illumination, diffraction and
+    the LCoS's flaws (issue 36)."""
+    p.add_argument(
+        "--relative-illumination",
+        default="off",
+        metavar="{cos4,off,FILE}",
+        help="natural vignetting: off (default: radiance, as Mitsuba's thinlens), cos4 (cos^4 of "
+        "the field angle) or a .csv/.json curve against height_px, height_mm or field_deg; "
+        "the map is kept as a layer and deconvolve flat-fields with it",
+    )
+    p.add_argument(
+        "--diffraction",
+        default="off",
+        choices=("auto", "on", "off"),
+        help="the opening's Fraunhofer diffraction: off (default: geometric optics), on (in "
+        "the rays, per colour channel; bitmap schedules after the render), or auto (on unless "
+        "its effect, measured on a short preview, is below the noise target, or without one the "
+        "Monte Carlo sigma; the decision is recorded)",
+    )
+    p.add_argument(
+        "--lcos-contrast",
+        type=float,
+        metavar="C",
+        help="the LCoS's contrast ratio (>= 1): 'off' pixels pass 1/C of the light, in the rays "
+        "(default: ideal, no datasheet value is known); 1 is the full aperture",
+    )
+    p.add_argument(
+        "--lcos-fill-factor",
+        type=float,
+        metavar="F",
+        help="the LCoS pixels' linear fill factor in (0, 1]: the pixel grid's diffraction "
+        "orders (ghosts ~244 px away at 550 nm), with --diffraction on (default: 1, no grid)",
+    )
+    p.add_argument(
+        "--lcos-switching",
+        type=float,
+        metavar="MS",
+        help="the LCoS's switching time, ms: each pattern's first MS change linearly from the "
+        "previous one (coded captures; default 0, instant)",
+    )
