@@ -191,13 +191,14 @@ def _diffraction(args: argparse.Namespace, cam: CameraDesign) -> dict | None:
         return None
     if own is not None:
         return own
+    from ..exposure.capture_camera import binned_pitch_mm
     from ..model.camera import preset
     from ..model.design_file import resolve_design
 
     full = resolve_design(args.design) if args.design else preset(args.preset)
     return {  # a binned sensor's pixels are larger than the preset's
         "wavelength_nm": 550.0 if args.grey else 549.0,
-        "pixel_pitch_mm": full.pixel_pitch_mm * full.width_px / cam.width_px,
+        "pixel_pitch_mm": binned_pitch_mm(full, cam.width_px),
     }
 
 

@@ -159,8 +159,12 @@ def switching_params(spec: CaptureSpec, params: dict) -> dict:
 def film_pixel_pitch_mm(spec: CaptureSpec) -> float:
     """The pitch of the capture's pixels on the real sensor, mm: the design's pixel pitch times
     its full width over the capture's (a 320 px capture of the 1280 px sensor bins 4 x 4)."""
-    full = full_design(spec)
-    return full.pixel_pitch_mm * full.width_px / spec.width
+    return binned_pitch_mm(full_design(spec), spec.width)
+
+
+def binned_pitch_mm(full: CameraDesign, width_px: int) -> float:
+    """The pitch of a ``width_px`` wide sensor binned from ``full``'s pixels, mm."""
+    return full.pixel_pitch_mm * full.width_px / width_px
 
 
 def illumination_map(spec: CaptureSpec, cam: CameraDesign):
