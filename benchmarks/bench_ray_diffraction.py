@@ -33,10 +33,10 @@ from pacam_render.exposure.capture_diffraction import diffract
 from pacam_render.exposure.capture_spec import CaptureSpec
 
 
-def capture(crop, spp: int, diffraction: str, seed: int):
+def capture(crop, spp: int, diffraction: str, seed: int, grey: bool = False):
     spec = CaptureSpec(
         scene="train", mode="coded", width=1280, height=960, crop=crop, spp=spp,
-        seed=seed, diffraction=diffraction,
+        seed=seed, diffraction=diffraction, grey=grey,
     )  # fmt: skip
     t0 = time.perf_counter()
     with warnings.catch_warnings():
@@ -49,17 +49,19 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="a smaller window, fewer samples")
     ap.add_argument("--spp", type=int, nargs="+", help="the samples tried (default 128 512)")
+    ap.add_argument("--grey", action="store_true", help="one channel at 550 nm (llvm_ad_mono)")
     args = ap.parse_args()
     crop = (360, 600, 96, 64) if args.quick else (320, 580, 160, 96)
     spps = tuple(args.spp) if args.spp else ((64, 256) if args.quick else (128, 512))
-    spec, ref, ref_s = capture(crop, 16 * spps[-1], "on", seed=99)
+    spec, ref, ref_s = capture(crop, 16 * spps[-1], "on", seed=99, grey=args.grey)
     lf = ref.record.light_factor
     ref_var = float(np.mean(ref.mc_sigma**2))
     cam, _ = mode_camera(capture_design(spec), "coded")
     rows = []
     for spp in spps:
         for method in ("geometric", "rays", "post-process"):
-            s, cap, sec = capture(crop, spp, "on" if method == "rays" else "off", seed=spp)
+            on = "on" if method == "rays" else "off"
+            s, cap, sec = capture(crop, spp, on, seed=spp, grey=args.grey)
             img, var = cap.image, cap.mc_sigma**2
             if method == "post-process":
                 t0 = time.perf_counter()
@@ -68,7 +70,8 @@ def main() -> None:
             err2 = max(float(np.mean((img - ref.image) ** 2)) - ref_var, 0.0)
             rows.append(
                 {
-                    "window": f"{crop[2]}x{crop[3]} at ({crop[0]}, {crop[1]})",
+                    "window": f"{crop[2]}x{crop[3]} at ({crop[0]}, {crop[1]})"
+                    + (", grey" if args.grey else ""),
                     "method": method,
                     "spp": cap.record.effective_spp,
                     "seconds": sec,
@@ -85,7 +88,8 @@ def main() -> None:
     notes = (
         f"reference: rays at {ref.record.effective_spp} spp ({ref_s:.0f} s), its MC variance "
         f"removed from each error; the prototype's coded camera on the train set at full pixel "
-        f"scale (F9.85 opening, lambda N = 0.93/0.84/0.71 px in R/G/B); RMS over the window "
+        f"scale (F9.85 opening, lambda N = 0.93/0.84/0.71 px in R/G/B, grey 0.84 at 550 nm); "
+        f"RMS over the window "
         f"and the channels, white = 1 (light factor {lf:.4g}); seconds include the "
         "post-process's FFTs"
     )

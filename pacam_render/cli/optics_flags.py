@@ -5,26 +5,29 @@ from __future__ import annotations
 
 import argparse
 
+from ..exposure.capture_spec import CAMERA_OPTICS
+
 
 def add_optics(p: argparse.ArgumentParser) -> None:
     """What rays through an ideal aperture leave out: relative illumination, diffraction and
     the LCoS's flaws (issue 36)."""
     p.add_argument(
         "--relative-illumination",
-        default="off",
+        default=CAMERA_OPTICS["relative_illumination"],
         metavar="{cos4,off,FILE}",
-        help="natural vignetting: off (default: radiance, as Mitsuba's thinlens), cos4 (cos^4 of "
-        "the field angle) or a .csv/.json curve against height_px, height_mm or field_deg; "
+        help="natural vignetting: cos4 (default: cos^4 of the field angle, irradiance as a "
+        "camera measures it), off (radiance, as Mitsuba's thinlens) or a .csv/.json curve "
+        "against height_px, height_mm or field_deg; "
         "the map is kept as a layer and deconvolve flat-fields with it",
     )
     p.add_argument(
         "--diffraction",
-        default="off",
+        default=CAMERA_OPTICS["diffraction"],
         choices=("auto", "on", "off"),
-        help="the opening's Fraunhofer diffraction: off (default: geometric optics), on (in "
-        "the rays, per colour channel; bitmap schedules after the render), or auto (on unless "
-        "its effect, measured on a short preview, is below the noise target, or without one the "
-        "Monte Carlo sigma; the decision is recorded)",
+        help="the opening's Fraunhofer diffraction: auto (default: on unless its effect, "
+        "measured on a short preview, is below the noise target, or without one the Monte "
+        "Carlo sigma; the decision is recorded), on (in the rays, per colour channel; bitmap "
+        "schedules after the render) or off (geometric optics)",
     )
     p.add_argument(
         "--lcos-contrast",

@@ -45,8 +45,9 @@ from ..wave.patterns import (
 DIFFRACTION_CHOICES = ("auto", "on", "off")
 """The ``diffraction`` settings of a capture."""
 DEFAULT_DIFFRACTION = "off"
-"""Off until the analytic kernels of every command follow it (see the module docstring of
-:mod:`pacam_render.psf.diffraction`); ``auto`` is the setting a study of high light wants."""
+"""A :class:`~.capture_spec.CaptureSpec`'s default: geometric optics, what the tests' closed
+forms and the studies assume; a camera's captures take
+:data:`~.capture_spec.CAMERA_OPTICS` (``auto``)."""
 
 
 def check_diffraction(value) -> str:

@@ -25,6 +25,13 @@ from ..render.samplers import DEFAULT_SAMPLER, check_sampler
 from .capture_diffraction import DEFAULT_DIFFRACTION, check_diffraction
 from .estimate import check_passes
 
+CAMERA_OPTICS = {"relative_illumination": "cos4", "diffraction": "auto"}
+"""The optics of a camera's capture, as a sensor measures it: irradiance (the thin lens's
+natural vignetting) and the opening's diffraction wherever a preview measures it at the
+capture's noise target (issue 36). ``pacam render``'s defaults, and the regression
+images'. A :class:`CaptureSpec` left at its own defaults is geometric radiance
+(``off`` and ``off``), what closed-form checks and the studies assume."""
+
 
 @dataclass(frozen=True)
 class CaptureSpec:
@@ -68,13 +75,15 @@ class CaptureSpec:
     grey: bool = False
     """Render one channel (luminance) with a mono variant; see the class docstring."""
     relative_illumination: str = DEFAULT_RELATIVE_ILLUMINATION
-    """The sensor's relative illumination: ``off`` (radiance, as ``thinlens``), ``cos4`` or a
-    curve file (:mod:`~pacam_render.model.illumination`). Not ``off``: the capture records its
-    map as the ``relative_illumination`` layer, and readers flat-field with it."""
+    """The sensor's relative illumination: ``off`` (default: radiance, as ``thinlens``),
+    ``cos4`` (:data:`CAMERA_OPTICS`) or a curve file
+    (:mod:`~pacam_render.model.illumination`). Not ``off``: the capture records its map as the
+    ``relative_illumination`` layer, and readers flat-field with it."""
     diffraction: str = DEFAULT_DIFFRACTION
-    """The openings' diffraction, added after the render: ``on``, ``off`` or ``auto`` (on
-    unless its effect is below the noise target; :mod:`~.capture_diffraction`). A post-process:
-    it does not change the passes, so a stopped capture resumes whatever it is."""
+    """The openings' diffraction: ``off`` (default), ``on`` or ``auto`` (:data:`CAMERA_OPTICS`:
+    on unless its effect is below the noise target; :mod:`~.capture_diffraction`). Disc
+    openings diffract in the rays, a bitmap schedule's patterns after the render; it is in the
+    key, since the passes differ."""
 
     lcos_contrast: float | None = None
     """The LCoS's contrast ratio C >= 1: "off" pixels pass 1/C of the light (None: ideal, no
@@ -160,7 +169,8 @@ class CaptureSpec:
             digest of its design (a file rewritten in place is another capture).
         """
         fields = asdict(self)
-        del fields["diffraction"]  # a post-process: the passes are the same
+        if self.diffraction == "off":  # the key it had before this field; on and auto
+            del fields["diffraction"]  # can put it in the rays, so their passes differ
         for key in ("lcos_contrast", "lcos_fill_factor", "lcos_switching_ms"):
             if fields[key] is None:  # ideal: the key it had before this field
                 del fields[key]

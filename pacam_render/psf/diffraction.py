@@ -50,7 +50,10 @@ def convolve_kernels(a: np.ndarray, b: np.ndarray) -> np.ndarray:
         return out
     fa = np.fft.rfft2(a, shape)
     fb = np.fft.rfft2(b, shape)
-    return np.fft.irfft2(fa * fb, shape)
+    out = np.fft.irfft2(fa * fb, shape)
+    if a.min() >= 0.0 and b.min() >= 0.0:  # FFT round-off (~1e-19) of either sign where both
+        np.maximum(out, 0.0, out=out)  # are dark: PSFs stay non-negative, as deconvolve checks
+    return out
 
 
 def crop_centred(kernel: np.ndarray, shape: tuple[int, int]) -> np.ndarray:

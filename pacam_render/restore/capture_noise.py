@@ -40,6 +40,7 @@ NOT_IMAGES = {
     "object_id": "object numbers",
     "raw": "the sensor's Bayer mosaic in DN (deblur its demosaicked noisy layer)",
     "mc_sigma": "the render's Monte Carlo sigma",
+    "relative_illumination": "the relative-illumination map (deconvolve flat-fields with it)",
 }
 """Capture layers that are not images of the scene: deblurring them means nothing."""
 

@@ -149,6 +149,7 @@ def test_cli_deconvolve_uses_the_noise_a_sensor_capture_recorded(tmp_path, capsy
     (Sec. 3), an independent reference for the recorded value."""
     cap = tmp_path / "cap"
     args = ["render", "train", "--mode", "coded", "--width", "48", "--height", "36"]
+    args += ["--relative-illumination", "off"]  # radiance: no flat field to divide the sigma
     assert main([*args, "--spp", "4", "--sensor", "paper", "--out", str(cap), "--quiet"]) == 0
     meta = json.loads((cap / "capture.json").read_text())
     assert meta["noise_sigma"] == pytest.approx(0.01 * meta["light_factor"], rel=0.02)
@@ -263,9 +264,12 @@ def test_read_capture_divides_the_capture_layers_by_the_light_factor(tmp_path):
 
 @pytest.fixture(scope="module")
 def coded_capture(tmp_path_factory):
-    """A small coded capture of the train with its ground truth (rendered once, 3-6 s)."""
+    """A small coded capture of the train with its ground truth (rendered once, 3-6 s), in
+    radiance: these tests check units and scales (flat-fielding a relative illumination is
+    tested in tests/exposure/test_capture_illumination.py)."""
     out = tmp_path_factory.mktemp("coded") / "cap"
     args = ["render", "train", "--mode", "coded", "--width", "160", "--height", "120"]
+    args += ["--relative-illumination", "off"]
     assert main([*args, "--spp", "16", "--out", str(out), "--quiet"]) == 0
     return out / "capture.exr"
 

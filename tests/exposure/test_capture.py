@@ -135,7 +135,10 @@ def test_cli_render_with_sensor_layers(tmp_path):
     ]
     assert main(argv) == 0
     layers = read_exr(out / "capture.exr")
-    assert set(layers) == {"capture", "raw", "noisy", "sharp", "depth", "object_id", "velocity"}
+    assert set(layers) == {
+        "capture", "raw", "noisy", "sharp", "depth", "object_id", "velocity",
+        "relative_illumination",  # pacam render's default cos4 records its map
+    }  # fmt: skip
     assert layers["raw"].shape == (30, 40)  # the Bayer mosaic
     assert np.all(layers["raw"] == np.round(layers["raw"]))
     noise = layers["noisy"] - layers["capture"]

@@ -133,7 +133,7 @@ def test_cli_render_and_deconvolve_flat_field(tmp_path, capsys):
     assert meta["flat_fielded"] is True and np.isfinite(meta["psnr_db"])
     # off: nothing is flat-fielded
     plain = tmp_path / "plain"
-    assert main([*argv, "--out", str(plain)]) == 0
+    assert main([*argv, "--relative-illumination", "off", "--out", str(plain)]) == 0
     assert main(["deconvolve", str(plain / "capture.exr"), "--out", str(plain / "d")]) == 0
     assert json.loads((plain / "d" / "deconvolved.json").read_text())["flat_fielded"] is False
 

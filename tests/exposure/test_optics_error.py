@@ -74,12 +74,17 @@ def test_ray_spec_names_its_parameters():
 
 
 # --- the setting and auto's measure -----------------------------------------------------------
-def test_setting_is_checked_on_the_spec_and_kept_out_of_the_key():
+def test_setting_is_checked_on_the_spec_and_enters_the_key_unless_off():
+    """Diffraction in the rays changes the passes: a resume must never mix passes with and
+    without it, so on and auto have keys of their own; off keeps the key of a spec that
+    predates the field (the spec's default)."""
     with pytest.raises(ParameterError, match="diffraction must be one of auto, on, off"):
         CaptureSpec(diffraction="maybe")
     with pytest.raises(ParameterError, match="diffraction must be one of"):
         check_diffraction(True)
-    assert CaptureSpec(diffraction="on").key() == CaptureSpec().key()  # a post-render choice
+    keys = {d: CaptureSpec(diffraction=d).key() for d in ("off", "on", "auto")}
+    assert len(set(keys.values())) == 3
+    assert keys["off"] == CaptureSpec().key()
 
 
 def test_decide():
