@@ -11,6 +11,12 @@ from ..exposure.capture_spec import CAMERA_OPTICS
 def add_optics(p: argparse.ArgumentParser) -> None:
     """What rays through an ideal aperture leave out: relative illumination, diffraction and
     the LCoS's flaws (issue 36)."""
+    add_camera_optics(p)
+    _add_lcos(p)
+
+
+def add_camera_optics(p: argparse.ArgumentParser) -> None:
+    """``--relative-illumination`` and ``--diffraction``, a camera's by default."""
     p.add_argument(
         "--relative-illumination",
         default=CAMERA_OPTICS["relative_illumination"],
@@ -29,6 +35,9 @@ def add_optics(p: argparse.ArgumentParser) -> None:
         "Carlo sigma; the decision is recorded), on (in the rays, per colour channel; bitmap "
         "schedules after the render) or off (geometric optics)",
     )
+
+
+def _add_lcos(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--lcos-contrast",
         type=float,

@@ -8,6 +8,7 @@ from pathlib import Path
 
 from ..errors import check_positive
 from .common import add_engine_args, add_outputs, add_preset
+from .optics_flags import add_camera_optics
 
 
 def add(sub) -> None:
@@ -72,6 +73,7 @@ def _add_scene(sub) -> None:
         help=f"the model's PSF quantum (default {QUANTUM_PX} px)",
     )
     p.add_argument("--quick", action="store_true", help="a small window at 16 spp (< 1 min)")
+    add_camera_optics(p)  # the model follows: flat-fielded capture, diffracted model
     add_outputs(p)
     p.set_defaults(func=run_scene)
 
@@ -127,6 +129,8 @@ def run_scene(args: argparse.Namespace) -> int:
         speed_px_per_ms=args.speed,
         quantum_px=args.quantum,
         quick=args.quick,
+        relative_illumination=args.relative_illumination,
+        diffraction=args.diffraction,
     )
     s = vs.run(check, args.out, args.force, not args.quiet)
     print(f"validate-scene {args.scene}: {s['seconds']:.1f} s -> {Path(args.out)}/")

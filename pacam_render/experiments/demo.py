@@ -25,7 +25,7 @@ import numpy as np
 
 from ..errors import ParameterError
 from ..exposure.capture import render_capture, write_capture
-from ..exposure.capture_spec import CaptureSpec
+from ..exposure.capture_spec import CAMERA_OPTICS, CaptureSpec
 from ..exposure.record import analytic_psf
 from ..io.outputs import prepare_out_dir, write_text
 from ..model import paper
@@ -107,12 +107,15 @@ where Wiener loses 1.7 (measured on the demo's own captures)."""
 def _deconvolve(cap, rendered_psf: bool, spp_psf: int, method: str = DEMO_METHOD):
     """Estimates of a noisy coded capture: analytic PSF, and rendered if asked."""
     from ..model.camera import CameraDesign
+    from ..restore.flat_field import flat_field_for_deblur
 
-    noisy = _noisy(cap)
     if method in ("hl", "tv"):  # the sensor's own Poisson-Gaussian noise, white = 1 units
         kw = {"noise": layer_noise(cap.record).scaled(1.0 / cap.record.light_factor)}
     else:
         kw = {"noise_sigma": cap.record.noise_sigma_white_units}
+    raw = cap.extra_layers["noisy"] / cap.record.light_factor
+    said = {"sigma": None, "source": "the sensor"}  # the noise is flat-fielded with the image
+    noisy, _ = flat_field_for_deblur(raw, "noisy", cap.extra_layers, kw, said)
     k = analytic_psf(cap.record)
     out = {"analytic PSF": deconvolve(noisy, k, method, **kw)}
     if rendered_psf:
@@ -125,8 +128,13 @@ def _deconvolve(cap, rendered_psf: bool, spp_psf: int, method: str = DEMO_METHOD
 
 
 def _noisy(cap) -> np.ndarray:
-    """The sensor's noisy image, normalised so that white reads about its reflectance."""
-    return cap.extra_layers["noisy"] / cap.record.light_factor
+    """The sensor's noisy image, normalised so that white reads about its reflectance, and
+    flat-fielded by the capture's relative illumination, as a camera pipeline does."""
+    from ..model.illumination import flat_field
+    from ..restore.flat_field import RI_LAYER
+
+    raw = cap.extra_layers["noisy"] / cap.record.light_factor
+    return flat_field(raw, cap.extra_layers.get(RI_LAYER))
 
 
 def run_train(
@@ -149,14 +157,15 @@ def run_train(
     out = prepare_out_dir(out, force)
     t0 = time.perf_counter()
     size = {"width": width, "height": height, "spp": spp, "seed": seed, "crop": crop}
+    lens = {**size, **CAMERA_OPTICS}  # a camera's optics; the pinhole reference has none
     runs = {
         "reference": CaptureSpec(mode="reference", **size),
-        "normal": CaptureSpec(mode="normal", **size),
+        "normal": CaptureSpec(mode="normal", **lens),
         **{
-            f"coded_{i}": CaptureSpec(mode="coded", cover_px_per_ms=c.cover, **size)
+            f"coded_{i}": CaptureSpec(mode="coded", cover_px_per_ms=c.cover, **lens)
             for i, c in enumerate(coded)
         },
-        "short": CaptureSpec(mode="short", **size),
+        "short": CaptureSpec(mode="short", **lens),
     }
     caps = {}
     for key, spec in runs.items():

@@ -167,6 +167,19 @@ ROW_KEYS = (
 PROFILE_KEYS = ("model", "distance_px", "pixels", "ratio", "model_rms", "psnr_ceiling_db", "bias")
 
 
+def _optics_line(optics: dict | None) -> list[str]:
+    """What the comparison did with the capture's relative illumination and diffraction."""
+    if not optics:
+        return []
+    flat = f"relative illumination {optics['relative_illumination']}"
+    if optics["flat_fielded"]:
+        flat += ", flat-fielded before the comparison"
+    diff = f"diffraction {optics['diffraction']}"
+    if optics["model_diffracted"]:
+        diff += "; the model is convolved with the same Fraunhofer kernels"
+    return [f"Optics: {flat}; {diff}.", ""]
+
+
 def markdown(summary: dict, files: list[str]) -> str:
     """The report: settings, findings, the tables by model, and the quantum sweep."""
     s, cam = summary["settings"], summary["camera"]
@@ -183,6 +196,7 @@ def markdown(summary: dict, files: list[str]) -> str:
         f"cells (quantum {s['quantum_px']} px); PSFs reach {summary['reach_px']['moving']:.1f} "
         f"px (moving) and {summary['reach_px']['still']:.1f} px (still): the band widths.",
         "",
+        *_optics_line(summary.get("optics")),
         f"Rendering took {summary['render_s']:.1f} s, the model {summary['model_s']:.1f} s per "
         f"seed. Files: {', '.join(files)}.",
         "",

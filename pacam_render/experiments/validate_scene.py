@@ -9,6 +9,13 @@ the discrete-schedule PSF of its own depth and velocity.
 The error is scored in units of the Monte Carlo noise, from the two seeds' difference, in each
 region (:mod:`.scene_regions`) and against the distance to a moving edge
 (:mod:`.scene_error`, whose docstring gives the noise floor).
+
+The optics are a camera's, as ``pacam render``'s (``relative_illumination`` and
+``diffraction``, default :data:`~pacam_render.exposure.capture_spec.CAMERA_OPTICS`), and the
+comparison is like with like: a capture with a relative illumination is flat-fielded by its map
+(the model is radiance), and when the capture includes its openings' diffraction the model is
+convolved with the same Fraunhofer kernels
+(:func:`~pacam_render.exposure.capture_diffraction.diffract_model`).
 """
 
 from __future__ import annotations
@@ -19,8 +26,13 @@ from dataclasses import asdict, dataclass, replace
 import numpy as np
 
 from ..errors import ParameterError, check_range
+from ..exposure.capture_diffraction import check_diffraction, diffract_model
+from ..exposure.capture_spec import CAMERA_OPTICS
+from ..exposure.record import capture_diffraction
 from ..io.outputs import prepare_out_dir
+from ..model.illumination import flat_field, parse_relative_illumination
 from ..psf.scene import MODEL_MODES, QUANTUM_PX, beta_px_per_mm, convolution_model
+from ..restore.flat_field import RI_LAYER
 from . import scene_report
 from .scene_error import edge_profile, profile_width, region_rows
 from .scene_regions import moving_edge_distance, region_map
@@ -63,8 +75,14 @@ class SceneCheck:
     quick: bool = False
     design: str | None = None
     """A camera design file (or capture/PSF JSON) instead of ``preset``."""
+    relative_illumination: str = CAMERA_OPTICS["relative_illumination"]
+    """As ``pacam render``'s: the capture is flat-fielded before it is compared."""
+    diffraction: str = CAMERA_OPTICS["diffraction"]
+    """As ``pacam render``'s: where the capture includes it, so does the model."""
 
     def __post_init__(self) -> None:
+        parse_relative_illumination(self.relative_illumination)
+        check_diffraction(self.diffraction)
         if self.mode not in MODEL_MODES:
             raise ParameterError(f"mode must be one of {', '.join(MODEL_MODES)}, got {self.mode!r}")
         check_range("quantum_px", self.quantum_px, *QUANTUM_RANGE_PX, "px")
@@ -107,7 +125,8 @@ def plan(check: SceneCheck, description=None) -> Plan:
         scene=check.scene, mode=check.mode, width=width, height=height, spp=check.spp,
         seed=check.seed, max_step_px=check.max_step_px, preset=check.preset, design=check.design,
         cover_px_per_ms=check.cover_px_per_ms, f_number=check.f_number, r_px=check.r_px,
-        object_depth_mm=check.object_depth_mm,
+        object_depth_mm=check.object_depth_mm, diffraction=check.diffraction,
+        relative_illumination=check.relative_illumination,
     )  # fmt: skip
     cam, _ = mode_camera(capture_design(base), check.mode)
     speed = scene_speed_px_per_ms(desc, cam)
@@ -116,8 +135,9 @@ def plan(check: SceneCheck, description=None) -> Plan:
     spec = replace(base, crop=crop, spp=QUICK_SPP if check.quick else check.spp)
     padded = pad_window(crop, margin, width, height)
     truth_spec = replace(
-        spec, mode="reference", crop=padded, cover_px_per_ms=None, f_number=None, r_px=None
-    )
+        spec, mode="reference", crop=padded, cover_px_per_ms=None, f_number=None, r_px=None,
+        diffraction="off", relative_illumination="off",  # the pinhole's radiance: the truth
+    )  # fmt: skip
     check_budget(spec)
     check_budget(truth_spec, truth=True)
     offset = (crop[0] - padded[0], crop[1] - padded[1])
@@ -203,7 +223,8 @@ def render(p: Plan, progress: bool) -> Renders:
         ref = render_capture(
             replace(p.truth_spec, seed=seed), progress=progress, description=p.desc, truth=True
         )
-        caps.append(cap.image / cap.record.light_factor)  # white reads ~ its reflectance
+        ri_map = cap.extra_layers.get(RI_LAYER)  # irradiance -> radiance, as the model is
+        caps.append(flat_field(cap.image / cap.record.light_factor, ri_map))  # white ~ 1
         truths.append(ref.extra_layers)
     return Renders(caps, truths, cap.record, time.perf_counter() - t0)
 
@@ -213,13 +234,17 @@ def models(p: Plan, r: Renders, quantum_px: float) -> tuple[dict, list, float]:
     from ..model.camera import CameraDesign
 
     cam = CameraDesign.from_inputs(r.record.camera)
+    diffraction = capture_diffraction(r.record)  # the capture's: the model gets it too
     out = {name: [] for name in MODELS}
     built = []
     for truth in r.truths:
         m = convolution_model(truth["sharp"], truth, cam, p.spec.mode, quantum_px)
         built.append(m)
         for name in MODELS:
-            out[name].append(_inner(getattr(m, name), p))
+            img = getattr(m, name)
+            if diffraction is not None:
+                img = diffract_model(img, cam, p.spec.mode, diffraction["pixel_pitch_mm"])
+            out[name].append(_inner(img, p))
     return out, built, sum(m.seconds for m in built)
 
 
@@ -260,6 +285,18 @@ def settings(check: SceneCheck, p: Plan) -> dict:
         "spp": p.spec.spp,
         "seeds": [p.spec.seed + k for k in range(SEEDS)],
         "margin_px": p.margin_px,
+    }
+
+
+def optics_settings(record) -> dict:
+    """The capture's relative illumination and diffraction, as the comparison treats them."""
+    ri = record.relative_illumination
+    diff = (record.optics_error or {}).get("diffraction") or {}
+    return {
+        "relative_illumination": ri["setting"] if ri else "off",
+        "flat_fielded": ri is not None,
+        "diffraction": diff.get("decision", "off"),
+        "model_diffracted": capture_diffraction(record) is not None,
     }
 
 
@@ -331,6 +368,7 @@ def run(
     summary = {
         "settings": settings(check, p),
         "camera": r.record.optics,
+        "optics": optics_settings(r.record),
         "speed_px_per_ms": p.speed_px_per_ms,
         "cells": len(built[0].cells),
         "reach_px": {

@@ -148,6 +148,14 @@ def diffract(image, patterns: dict, variance, cam, mode: str, pitch_mm: float) -
     return Diffracted(out, new_patterns, var, rec)
 
 
+def diffract_model(image, cam, mode: str, pitch_mm: float) -> np.ndarray:
+    """A model image of a capture (geometric optics) with the diffraction a capture adds:
+    each channel convolved with its whole-exposure band kernel, as :func:`diffract` does, so
+    that a model and a diffracted capture compare like with like."""
+    img = np.asarray(image, float)
+    return _diffract(img, channel_kernels(cam, mode, _planes(img), pitch_mm, False), 0)
+
+
 def decide(setting: str, effect: float, threshold: float, why: str) -> tuple[bool, str]:
     """Whether ``auto`` (or ``on`` / ``off``) includes diffraction, and the reason in words."""
     check_diffraction(setting)

@@ -30,7 +30,9 @@ COLUMNS = (
 )
 
 
-def decompose(cap, k: np.ndarray, method: str, noisy: np.ndarray, parts, scorer) -> dict:
+def decompose(
+    cap, k: np.ndarray, method: str, noisy: np.ndarray, parts, scorer, clean=None
+) -> dict:
     """The three restorations of the module docstring, scored by ``scorer(est)`` (a dict with
     ``psnr_moving_db``); empty for a delta kernel or ``method`` none.
 
@@ -46,13 +48,18 @@ def decompose(cap, k: np.ndarray, method: str, noisy: np.ndarray, parts, scorer)
         The sensor's image, white = 1.
     parts : tuple of float
         (sensor, render, model) sigmas, white = 1.
+    clean : ndarray, optional
+        The noiseless capture as ``noisy`` is scaled (flat-fielded with it); default
+        ``cap.image / light_factor``.
     """
     from ..restore.deconvolve import deconvolve
 
     if k.size == 1 or method == "none":
         return {}
     sensor, render, model = parts
-    noise = noisy - cap.image / cap.record.light_factor  # this point's sensor noise
+    if clean is None:
+        clean = cap.image / cap.record.light_factor
+    noise = noisy - clean  # this point's sensor noise
     total = float(np.sqrt(sensor**2 + render**2 + model**2))
     runs = {
         COLUMNS[0]: (noisy, np.hypot(sensor, render)),

@@ -126,6 +126,7 @@ def capture_inputs(render: dict, p: Point):
         object_depth_mm=render["object_depth_mm"],
         grey=bool(render.get("grey", False)),
         diffraction=render.get("diffraction", "off"),
+        relative_illumination=render.get("relative_illumination", "off"),
         **parse_design(p.design),
     )
     full = full_design(spec)  # speeds are in the design's own (full sensor) pixels
@@ -152,7 +153,7 @@ def _render(task: Task):
     info.update(exposure_ms=rec.exposure_ms, light_factor=rec.light_factor)
     err = rec.render_error
     info.update(
-        render_noise_sigma=err["mc_sigma_white_units"],
+        render_noise_sigma=_flat_sigma(cap, err["mc_sigma_white_units"]),
         sharp_noise_sigma=err.get("sharp_mc_sigma"),
         render_spp=err["spp"],
     )
@@ -226,18 +227,17 @@ def _model_sigma(cap, desc) -> float:
     from ..restore.metrics import shift_search_px
     from .model_error import model_sigma
 
-    lf = cap.record.light_factor
     layers = cap.extra_layers
     sharp_var = (cap.record.render_error.get("sharp_mc_sigma") or 0.0) ** 2
     return model_sigma(
-        cap.image / lf,
+        radiance(cap, cap.image),
         layers["sharp"],
         kernel(cap),
         layers["object_id"],
         cap.record.objects,
         set(desc.moving_ids),
         shift_search_px(cap.record.spec["width"]),
-        (cap.mc_sigma / lf) ** 2,
+        radiance(cap, cap.mc_sigma) ** 2,  # the per-pixel sigma, flat-fielded alike
         sharp_var,
     )
 
@@ -251,8 +251,8 @@ def _evaluate(cap, desc, p: Point, task: Task, info: dict) -> dict:
     from .score import score
 
     add_sensor_layers(cap, SensorModel.from_preset(p.sensor), p.sensor, p.light_level, p.seed)
-    noisy = cap.extra_layers["noisy"] / cap.record.light_factor  # white reads ~ its reflectance
-    sigma = cap.record.noise_sigma_white_units
+    noisy = radiance(cap, cap.extra_layers["noisy"])  # white reads ~ its reflectance
+    sigma = _flat_sigma(cap, cap.record.noise_sigma_white_units)
     # the deconvolver is told every noise the capture has: the sensor's, the render's, and its
     # measured departure from the model
     parts = (sigma, info["render_noise_sigma"], info["model_sigma"])
@@ -268,9 +268,28 @@ def _evaluate(cap, desc, p: Point, task: Task, info: dict) -> dict:
 
     out = scorer(est)
     if task.decompose:
-        out.update(decompose(cap, kernel(cap), p.method, noisy, parts, scorer))
+        clean = radiance(cap, cap.image)
+        out.update(decompose(cap, kernel(cap), p.method, noisy, parts, scorer, clean))
     ratio = info["render_noise_sigma"] / sigma if sigma > 0 else float("inf")
     return {**out, "noise_sigma": sigma, "render_noise_ratio": ratio, "deconv_sigma": total}
+
+
+def radiance(cap, layer: np.ndarray) -> np.ndarray:
+    """A capture layer in white = 1 units, flat-fielded by the capture's relative-illumination
+    map when it has one (irradiance -> radiance, as a camera pipeline does and as the sharp
+    layer and the kernels are)."""
+    from ..model.illumination import flat_field
+    from ..restore.flat_field import RI_LAYER
+
+    return flat_field(layer / cap.record.light_factor, cap.extra_layers.get(RI_LAYER))
+
+
+def _flat_sigma(cap, sigma: float) -> float:
+    """A noise sigma of the capture, after :func:`radiance` (RMS over the window)."""
+    from ..restore.flat_field import RI_LAYER, flat_field_sigma
+
+    m = cap.extra_layers.get(RI_LAYER)
+    return sigma if m is None else flat_field_sigma(sigma, m)
 
 
 def _edge_px(cap) -> int:

@@ -76,6 +76,11 @@ channel with Mitsuba's mono variant (:attr:`~pacam_render.exposure.capture_spec.
 monochrome twins (:data:`~pacam_render.sensor.model.MONO_PRESETS`: ``grasshopper-icx285`` ->
 ``grasshopper-icx285-mono``, the same camera without its Bayer filter); a preset file with a
 ``bayer`` key is refused. It enters the study's keys only when true."""
+RELATIVE_ILLUMINATION_RENDER = "relative_illumination"
+"""The ``[render]`` key ``relative_illumination``: ``off`` (default), ``cos4`` or a curve file,
+as :attr:`~pacam_render.exposure.capture_spec.CaptureSpec.relative_illumination`. A point then
+flat-fields the sensor's image (and the noise it tells the deconvolver) before it restores and
+scores it, as a camera pipeline does. It enters the study's keys only when not ``off``."""
 DIFFRACTION_RENDER = "diffraction"
 """The ``[render]`` key ``diffraction``: ``off`` (default), ``on`` or ``auto``, as
 :attr:`~pacam_render.exposure.capture_spec.CaptureSpec.diffraction`. It enters the study's keys
@@ -294,7 +299,9 @@ def _parse(doc: dict, quick: bool, source: str, grey: bool = False) -> StudySpec
         grid = {**grid, **small} if both else small
     if grey:
         render["grey"] = True
-    _keys(render, "[render]", set(RENDER) | {"grey", DIFFRACTION_RENDER})
+    _keys(
+        render, "[render]", set(RENDER) | {"grey", DIFFRACTION_RENDER, RELATIVE_ILLUMINATION_RENDER}
+    )
     render = _check_render(render)
     pts = _expand(grid, points, render)
     return StudySpec(
@@ -362,6 +369,16 @@ def _check_render(r: dict) -> dict:
             raise ParameterError(f"[render] {exc}") from None
         if r[DIFFRACTION_RENDER] == "off":  # absent and off: the same study and keys
             del r[DIFFRACTION_RENDER]
+    if RELATIVE_ILLUMINATION_RENDER in r:
+        from ..model.illumination import parse_relative_illumination
+
+        try:
+            ri = parse_relative_illumination(r[RELATIVE_ILLUMINATION_RENDER])
+        except ParameterError as exc:
+            raise ParameterError(f"[render] {exc}") from None
+        r[RELATIVE_ILLUMINATION_RENDER] = ri.source
+        if ri.kind == "off":  # absent and off: the same study and keys
+            del r[RELATIVE_ILLUMINATION_RENDER]
     if "grey" in r:
         if not isinstance(r["grey"], bool):
             raise ParameterError(f"[render] grey must be true or false, got {r['grey']!r}")
