@@ -321,11 +321,13 @@ def _plateau_text(ok: list[dict]) -> list[str]:
         "sensor's, the render's and the measured model error), told no model error, told the "
         "old fixed floor of 0.02, and with the capture replaced by the convolution model's "
         "prediction k * sharp under the same sensor noise, restored as the study restores it "
-        "(`pacam_render/study/plateau.py`).",
+        "(`pacam_render/study/plateau.py`). Diffraction: `in` the capture, or `out` with its "
+        "measured size (RMS, white = 1), next to the model sigma it would otherwise join; "
+        "blank for rows written before the optics columns.",
         "",
         "| mode | design | speed | method | light | study | no model sigma | floor 0.02 | "
-        "exact model | model sigma |",
-        "|---|---|---|---|---|---|---|---|---|---|",
+        "exact model | model sigma | diffraction |",
+        "|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     groups = defaultdict(list)
     for r in rows:
@@ -337,9 +339,28 @@ def _plateau_text(ok: list[dict]) -> list[str]:
         lines.append(
             f"| {mode} | {design} | {speed:.3g} | {method} | {light:.4g} | "
             f"{m['psnr_moving_db']:.2f} | {m[_PLATEAU[0]]:.2f} | {m[_PLATEAU[1]]:.2f} | "
-            f"{m[_PLATEAU[2]]:.2f} | {m['model_sigma']:.4f} |"
+            f"{m[_PLATEAU[2]]:.2f} | {m['model_sigma']:.4f} | {diffraction_cell(rs)} |"
         )
     return lines + [""]
+
+
+def diffraction_cell(rows: list[dict]) -> str:
+    """``in``, ``out <size>`` (the mean measured RMS, white = 1), ``mixed`` or blank."""
+    states = {str(r.get("diffraction") or "") for r in rows}
+    if states == {"in"}:
+        return "in"
+    if states == {"out"}:
+        sizes = [_float(r.get("diffraction_sigma")) for r in rows]
+        sizes = [s for s in sizes if not math.isnan(s)]
+        return f"out {np.mean(sizes):.2g}" if sizes else "out"
+    return "" if states == {""} else "mixed"
+
+
+def _float(v) -> float:
+    try:
+        return float(v)
+    except (TypeError, ValueError):
+        return math.nan
 
 
 _PLATEAU = (

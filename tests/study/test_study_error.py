@@ -108,6 +108,10 @@ def test_every_point_meets_its_noise_target_and_states_the_error_budget(tmp_path
     assert ratios[1] > 0.1 and ratios[0] < ratios[1] / 5
     report = (tmp_path / "out" / "report.md").read_text()
     assert "## Error budget" in report and "## What sets the high-light plateau" in report
+    plateau = report.split("## What sets the high-light plateau")[1]
+    assert "| exact model | model sigma | diffraction |" in plateau
+    coded_row = next(line for line in plateau.splitlines() if line.startswith("| coded |"))
+    assert coded_row.split("|")[-2].strip().startswith("out")  # geometric: left out, sized
     assert not any((tmp_path / "out" / ".renders").glob("*/.partial"))
 
 

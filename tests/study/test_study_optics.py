@@ -11,6 +11,7 @@ import pytest
 
 from pacam_render.errors import ParameterError
 from pacam_render.study.point import Task, _flat_sigma, capture_inputs, radiance, run_task
+from pacam_render.study.report import diffraction_cell
 from pacam_render.study.spec import parse_study
 
 TINY = {
@@ -76,3 +77,11 @@ def test_a_point_with_cos4_is_flat_fielded_before_it_is_scored():
     assert cos4["noise_sigma"] > off["noise_sigma"]  # divided by m < 1 towards the corners
     assert abs(cos4["psnr_db"] - off["psnr_db"]) < 1.0
     assert np.isfinite(cos4["model_sigma"]) and cos4["model_sigma"] < 0.05
+
+
+def test_the_plateau_tables_diffraction_cell():
+    assert diffraction_cell([{"diffraction": "in"}] * 3) == "in"
+    out = [{"diffraction": "out", "diffraction_sigma": v} for v in (0.001, 0.003, "")]
+    assert diffraction_cell(out) == "out 0.002"
+    assert diffraction_cell([{"diffraction": "in"}, {"diffraction": "out"}]) == "mixed"
+    assert diffraction_cell([{"diffraction": ""}, {}]) == ""  # rows before the optics columns
