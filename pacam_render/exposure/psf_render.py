@@ -151,11 +151,19 @@ class PSFRenderer:
         self.source_radius_px = check_positive("source_radius_px", source_radius_px, "px")
         self._scenes: dict[tuple, tuple] = {}
 
-    def _scene(self, design: CameraDesign, setup: ModeSetup, film: Film, integrator: str):
+    def _scene(self, design, setup: ModeSetup, film: Film, integrator: str, diffraction=False,
+               pitch_mm=None):  # fmt: skip
         import mitsuba as mi
 
+        from .psf_diffraction import channels, sensor_params
+
         # a scene is made for one variant (mono or RGB): a switch between calls loads anew
-        key = (mi.variant(), film.key(integrator, setup.exposure_ms))
+        key = (mi.variant(), film.key(integrator, setup.exposure_ms), diffraction)
+        if diffraction:  # the pupil's size and the pitch are load-time parameters
+            extra = sensor_params(design, setup.mode, channels(mi.variant()), pitch_mm)
+            key += tuple(sorted(extra.items()))
+        else:
+            extra = {}
         if key not in self._scenes:
             Z = design.object_depth_mm
             desc = psf_scene(Z, 0.0, camera=design)
@@ -167,6 +175,7 @@ class PSFRenderer:
                 far_clip=FAR_CLIP_MM,
                 film=film.mitsuba(),
                 **setup.sensor,
+                **extra,
             )
             sensor["type"] = PSF_PLUGIN_NAME
             integ = {"type": integrator, "max_depth": 2}
@@ -228,7 +237,10 @@ class PSFRenderer:
         spec = PSFSpec() if spec is None else spec
         req = plan_render(design, spec, model)
         check_render_budget(req, spec.integrator, spec.per_window, spec.max_samples)
-        scene, params = self._scene(design, req.setup, req.film, spec.integrator)
+        pitch = spec.pixel_pitch_mm if spec.diffraction else None
+        scene, params = self._scene(
+            design, req.setup, req.film, spec.integrator, spec.diffraction, pitch
+        )
         sensor = self._place(design, req.setup, req.film, req.velocity, scene, params)
         windows, is_open = _windows(req.setup, spec.per_window)
         peak = req.model.max() * int(is_open.sum())

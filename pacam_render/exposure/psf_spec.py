@@ -36,7 +36,9 @@ class PSFSpec:
     ``origin``: what the kernel's centre pixel stands for, as in
     :func:`~pacam_render.psf.design_psf` (``t0`` or ``pinhole``). ``max_samples``: refuse a
     render of more particles (:func:`check_render_budget`). Checked by :func:`plan_render`,
-    whose errors name these fields.
+    whose errors name these fields. ``diffraction``: the opening's diffraction in the rays,
+    and the model convolved alike (:mod:`.psf_diffraction`), on pixels of ``pixel_pitch_mm``
+    (default the design's own; a binned sensor's are larger).
     """
 
     mode: str = "coded"
@@ -51,6 +53,8 @@ class PSFSpec:
     threads: int | None = 1
     origin: str = "t0"
     max_samples: int = DEFAULT_MAX_SAMPLES
+    diffraction: bool = False
+    pixel_pitch_mm: float | None = None
 
 
 def auto_spp(shape, particles: int = AUTO_PARTICLES) -> int:
@@ -146,6 +150,19 @@ def plan_render(
         model = design_psf(design, spec.mode, velocity, size, origin=spec.origin)
     elif size is not None and np.shape(model) != _shape2(size):
         raise ParameterError(f"model kernel {np.shape(model)} does not match size {size!r}")
+    if spec.diffraction:  # the geometric kernel, diffracted as the rays will be
+        import mitsuba as mi
+
+        from .psf_diffraction import channels, diffracted_model, sensor_params
+
+        n = channels(mi.variant() or "")
+        sensor_params(design, spec.mode, n, spec.pixel_pitch_mm)  # refuses pinholes, bitmaps
+        h, w = model.shape
+
+        def build(cam, f):  # the same kernel on pixels f times finer
+            return design_psf(cam, spec.mode, velocity * f, (f * h, f * w), origin=spec.origin)
+
+        model = diffracted_model(build, design, spec.mode, (h, w), n, spec.pixel_pitch_mm)
     shape = model.shape
     centre = setup.origin_px if spec.origin == "t0" else 0.0
     filmset = film_for(design, centre, shape, spec.film)

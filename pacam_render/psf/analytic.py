@@ -37,7 +37,6 @@ from ..model.modes import (
     t0_offset_px,
 )
 from .bitmap import bitmap_kernel, bitmap_lost_fraction
-from .diffraction import with_diffraction
 from .grid import (  # the limit and the warning are also read here by earlier callers
     MAX_LOST_FRACTION,  # noqa: F401
     R_DELTA_PX,
@@ -423,8 +422,8 @@ def design_psf(
         is its quadrature (:func:`~pacam_render.psf.planar.planar_kernel`).
     diffraction_nm : float, optional
         None (the default): the geometric kernel. A wavelength in nm: the kernel convolved
-        with the diffraction of the mode's openings at that wavelength
-        (:func:`~pacam_render.psf.diffraction.with_diffraction`; per colour channel
+        with the diffraction of the mode's openings at that wavelength, the pixel's box counted
+        once (:func:`~pacam_render.psf.diffraction.diffracted_kernel`; per colour channel
         :data:`~pacam_render.wave.patterns.CHANNEL_WAVELENGTHS_NM`). Without ``size`` the
         kernel grows by the diffraction kernel's size less one.
 
@@ -443,9 +442,18 @@ def design_psf(
     >>> k0.shape, round(float(k0.sum()), 12)
     ((25, 25), 1.0)
     """
-    if diffraction_nm is not None:
-        geometric = design_psf(design, mode, s, size, origin, v_px_per_ms)
-        return with_diffraction(geometric, design, mode, diffraction_nm, size=size)
+    if diffraction_nm is not None:  # the pixel's box counted once, as the rays count it
+        from .diffraction import diffracted_kernel, full_shape
+
+        shape = np.shape(design_psf(design, mode, s, size, origin, v_px_per_ms))
+        if size is None:
+            shape = full_shape(shape, design, mode, diffraction_nm)
+
+        def build(cam, f):
+            fine = (f * shape[0], f * shape[1])
+            return design_psf(cam, mode, s * f, fine, origin, v_px_per_ms * f)
+
+        return diffracted_kernel(build, design, mode, diffraction_nm, shape)
     if _shows_bitmaps(design, mode):
         return _bitmap_call(bitmap_kernel, design, s, origin, size=size, v_px_per_ms=v_px_per_ms)
     segments, r = design_trajectory(design, mode, s, origin)

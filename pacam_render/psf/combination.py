@@ -6,11 +6,12 @@ incoherent PSF of a defocused disc is |FT(P exp(i psi rho^2))|^2 with the defocu
 geometric blur radius is r (:mod:`pacam_render.wave.defocus`). :func:`combination_error`
 measures the gap as an L1 distance between normalised, pixel-integrated kernels:
 
-- ``l1_simulator``: the simulator's discrete combination, :func:`~.analytic.pillbox_psf`
-  convolved with the pixel-integrated Fraunhofer kernel (what ``design_psf(...,
-  diffraction_nm=...)`` does), against the exact PSF;
+- ``l1_simulator``: the discrete combination :func:`~.analytic.pillbox_psf` convolved with
+  the pixel-integrated Fraunhofer kernel (:func:`~.diffraction.with_diffraction`, which counts
+  the pixel's box twice; ``design_psf(..., diffraction_nm=...)`` did so before 0.3.0);
 - ``l1_continuous``: the same combination done exactly (pillbox x circular MTF in the
-  Fourier domain): the physics approximation alone;
+  Fourier domain): the physics approximation alone, and what the rays and
+  :func:`~.diffraction.diffracted_kernel` compute (the pixel's box once);
 - ``l1_geometric``: the pillbox alone (diffraction left out, today's default).
 
 The table for r = 0 to 4 px at F9.85 is in ``benchmarks/RESULTS.md`` ("Defocus +

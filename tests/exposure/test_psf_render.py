@@ -249,6 +249,47 @@ def test_in_focus_depth_is_a_clear_error(tmp_path, capsys):
         plan_render(prototype(), PSFSpec("bogus"))
 
 
+@pytest.mark.parametrize("mode", ["coded", "normal"])  # flutter: 6x its floor, open (issue 36)
+def test_a_psf_rendered_with_diffraction_matches_the_diffracted_model(renderer, mode):
+    """The prototype's PSF at its full pixel scale (F9.85: lambda N = 0.93 / 0.84 / 0.71 px in
+    R, G, B) with the opening's diffraction in the rays: at the Monte Carlo floor of two seeds
+    against the geometric kernel convolved with each channel's Airy pattern, the pixel's box
+    counted once, mixed by luminance; the geometric kernel, and the combination that counts
+    the box twice (with_diffraction), are several floors away."""
+    import mitsuba as mi
+
+    from pacam_render.exposure.psf_diffraction import LUMINANCE_RGB, diffracted_model
+    from pacam_render.psf.diffraction import with_diffraction
+
+    cam = capture_camera(prototype(), mode)
+    s = 0.4
+    a, b, mean, floor = _pair(renderer, cam, mode, s, diffraction=True)
+    geometric = design_psf(cam, mode, s)
+    h, w = geometric.shape
+
+    def build(c, f):
+        return design_psf(c, mode, s * f, (f * h, f * w))
+
+    n = 1 if "mono" in mi.variant() else 3
+    model = diffracted_model(build, cam, mode, (h, w), n)
+    assert np.allclose(a.model, model)
+    assert metrics.rel_l1(mean, model) < 1.3 * floor + 2e-3
+    assert metrics.rel_l1(mean, geometric) > 5 * floor
+    waves = (611.0, 549.0, 464.0) if n == 3 else (550.0,)
+    weights = LUMINANCE_RGB if n == 3 else (1.0,)
+    twice = sum(q * with_diffraction(geometric, cam, mode, wl, size=(h, w))
+                for q, wl in zip(weights, waves))  # fmt: skip
+    assert metrics.rel_l1(mean, twice) > 2 * floor
+    assert floor < 0.02
+
+
+def test_diffraction_in_a_psf_render_needs_an_opening():
+    from pacam_render.exposure.psf_diffraction import sensor_params
+
+    with pytest.raises(ParameterError, match="pinhole, it has no opening"):
+        sensor_params(prototype(), "reference", 3)
+
+
 @pytest.mark.parametrize("mode", MODES_WITH_PSF)
 def test_every_mode_of_the_table_renders_its_analytic_psf(renderer, mode):
     """The camera a capture of each mode uses (model.modes.capture_camera), ray-traced as a

@@ -45,15 +45,22 @@ def test_the_combination_error_does_not_grow(r):
 
 
 @pytest.mark.parametrize("mode", MODES_WITH_PSF)
-def test_the_default_kernel_is_unchanged(mode):
+def test_the_default_kernel_is_unchanged_and_diffraction_counts_the_pixel_once(mode):
+    """None keeps the geometric kernel bit for bit. With a wavelength the kernel has the full
+    convolution's shape, sums to 1 and is non-negative, and lies within a few percent (L1) of
+    the geometric kernel convolved with the pixel-integrated Airy kernel, which counts the
+    pixel's box twice (0.017 coded, 0.075 flutter at 0.3 px/ms; the rendered PSFs in
+    tests/exposure/test_psf_render.py tell the two apart)."""
     cam = capture_camera(prototype(), mode)
     geometric = design_psf(cam, mode, 0.3)
     assert np.array_equal(design_psf(cam, mode, 0.3, diffraction_nm=None), geometric)
     k = design_psf(cam, mode, 0.3, diffraction_nm=549.0)
     d = mode_diffraction_kernel(cam, mode, 549.0).kernel
     assert k.shape == tuple(np.add(geometric.shape, d.shape) - 1)
-    assert k.sum() == pytest.approx(1.0, abs=1e-12)
-    assert np.abs(k - convolve_kernels(geometric, d)).max() < 1e-15
+    assert k.sum() == pytest.approx(1.0, abs=1e-12) and k.min() >= 0.0
+    twice = convolve_kernels(geometric, d)
+    bound = 0.1 if mode == "flutter" else 0.03  # its chopped streak has the sharpest edges
+    assert np.abs(k - twice / twice.sum()).sum() < bound
 
 
 def test_in_focus_the_normal_kernel_is_the_airy_pattern():
@@ -65,8 +72,9 @@ def test_in_focus_the_normal_kernel_is_the_airy_pattern():
     )
     k = design_psf(cam, "normal", 0.0, diffraction_nm=550.0)
     airy = fraunhofer_kernel(DiscPupil(cam.R_mm), scale_for(cam, 550.0)).kernel
-    assert np.abs(crop_centred(k, airy.shape) - airy).max() < 1e-15
-    assert crop_centred(k, airy.shape).sum() == pytest.approx(1.0, abs=1e-15)  # a zero border
+    # built on pixels 3x finer and binned: the same integrals, truncated at its own size
+    assert np.abs(crop_centred(k, airy.shape) - airy).sum() < 1e-4
+    assert crop_centred(k, airy.shape).sum() == pytest.approx(1.0, abs=1e-5)
 
 
 def test_colour_channels_diffract_with_their_wavelengths():
