@@ -89,7 +89,7 @@ def rays_record(spec, cam, pitch_mm: float) -> dict:
 def _diffraction_entry(info: dict, included: bool) -> dict:
     approx = (
         "geometric defocus x Fraunhofer (L1 to the exact defocused PSF: 0 in focus, up to "
-        "0.50 at r = 1 px; benchmarks/RESULTS.md)"
+        "0.49 at r = 1 px; benchmarks/RESULTS.md)"
     )
     if "effect_rms" not in info and not included:
         return oe.entry(False, info["decision"], 0.0)
