@@ -1,5 +1,5 @@
 """Ray-traced PSFs with the opening's diffraction, and the model they are compared with (issue
-36, item 6: ``validate-psf`` and ``psf --render`` like with like).
+36, item 6: rendered and analytic PSFs like with like).
 
 The rays diffract as a capture's do (:mod:`pacam_render.render.ray_diffraction`): each
 particle lands a draw from the disc opening's Airy pattern away, per colour channel of the
@@ -41,7 +41,7 @@ def sensor_params(design: CameraDesign, mode: str, n_channels: int, pitch_mm=Non
     if shows_bitmaps(design, mode):
         raise ParameterError(
             "diffraction: a PSF render diffracts disc openings in the rays; a bitmap schedule's "
-            "kernel is diffracted after the render (pacam psf without --render)"
+            "kernel is diffracted analytically: leave out `render`"
         )
     waves = channel_wavelengths_nm(n_channels)
     return {
