@@ -65,7 +65,7 @@ def _score(lines: list[str]) -> dict:
 def test_the_fast_design_deblurs_the_fast_train_better(run):
     _, printed = run
     fast, proto = _score(printed[4][2]), _score(printed[5][2])
-    assert fast["moving"] > proto["moving"] + 1.5  # 21.70 against 18.17 dB in the document
+    assert fast["moving"] > proto["moving"] + 1.5  # 21.66 against 18.13 dB in the document
 
 
 def test_the_kernel_is_the_capture_s_camera_and_matches_ray_tracing(run):
@@ -76,4 +76,6 @@ def test_the_kernel_is_the_capture_s_camera_and_matches_ray_tracing(run):
         assert psf[key] == cap["optics"][key], key
     assert psf["n_patterns"] == 32 and psf["exposure_ms"] == 30.0
     assert psf["rendered"]["l1_vs_analytic"] < 0.02
-    assert psf["rendered"]["fitted_a_i_px_per_ms2"] == pytest.approx(-2 / 15, rel=0.01)
+    # with the capture's diffraction the window cuts each pattern's Airy rings, which pulls
+    # the centroids inward: -0.13205 in the document (0.96 % from Eq. 18)
+    assert psf["rendered"]["fitted_a_i_px_per_ms2"] == pytest.approx(-2 / 15, rel=0.02)

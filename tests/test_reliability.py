@@ -177,6 +177,7 @@ def test_sigterm_and_sigint_save_the_finished_steps_and_resume(tmp_path):
     out = tmp_path / "c"
     size = ["--width", "64", "--height", "48", "--spp", "64", "--max-step-px", "0.05"]
     cli = ["render", "train", *size, "--checkpoint-every", "0", "--quiet", "--out", str(out)]
+    cli += ["--relative-illumination", "off", "--diffraction", "off"]  # the renders counted
     driver = tmp_path / "driver.py"
     driver.write_text(DRIVER)
     state = out / ".partial" / "state.json"
