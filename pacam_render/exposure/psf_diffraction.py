@@ -26,8 +26,11 @@ stores of an RGB variant's radiance."""
 
 
 def channels(variant: str) -> int:
-    """Colour channels of a Mitsuba variant: 1 for ``*_mono*``, else 3."""
-    return 1 if "mono" in variant else 3
+    """Colour channels of a Mitsuba variant: 1 for a mono one (:func:`~..render.variant.
+    is_mono`), else 3."""
+    from ..render.variant import is_mono
+
+    return 1 if is_mono(variant) else 3
 
 
 def sensor_params(design: CameraDesign, mode: str, n_channels: int, pitch_mm=None) -> dict:

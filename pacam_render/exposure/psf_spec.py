@@ -150,6 +150,8 @@ def plan_render(
         model = design_psf(design, spec.mode, velocity, size, origin=spec.origin)
     elif size is not None and np.shape(model) != _shape2(size):
         raise ParameterError(f"model kernel {np.shape(model)} does not match size {size!r}")
+    if spec.pixel_pitch_mm is not None:
+        check_positive("pixel_pitch_mm", spec.pixel_pitch_mm, "mm")
     if spec.diffraction:  # the geometric kernel, diffracted as the rays will be
         import mitsuba as mi
 

@@ -288,6 +288,8 @@ def test_diffraction_in_a_psf_render_needs_an_opening():
 
     with pytest.raises(ParameterError, match="pinhole, it has no opening"):
         sensor_params(prototype(), "reference", 3)
+    with pytest.raises(ParameterError, match="pixel_pitch_mm must be > 0"):
+        plan_render(prototype(), PSFSpec("coded", 0.0, diffraction=True, pixel_pitch_mm=-1.0))
 
 
 @pytest.mark.parametrize("mode", MODES_WITH_PSF)
