@@ -132,16 +132,15 @@ def run(args: argparse.Namespace) -> int:
     k = geometric = _checked_psf(cam, args)
     if diffraction is not None:  # the pixel's box counted once, as in the rays
         from ..psf.analytic import design_psf
-        from ..psf.diffraction import DECONVOLUTION_MAX_LOST, diffracted_kernel, full_shape
+        from ..psf.diffraction import DECONVOLUTION_MAX_LOST, diffracted_kernel
 
         wl, pitch = diffraction["wavelength_nm"], diffraction["pixel_pitch_mm"]
-        shape = full_shape(k.shape, cam, args.mode, wl, pitch, DECONVOLUTION_MAX_LOST)
 
-        def build(c, f):
-            fine = (f * shape[0], f * shape[1])
+        def build(c, f, fine):
             return design_psf(c, args.mode, args.velocity * f, fine, origin=args.origin)
 
-        k = diffracted_kernel(build, cam, args.mode, wl, shape, pitch)
+        lost = DECONVOLUTION_MAX_LOST
+        k = diffracted_kernel(build, cam, args.mode, wl, k.shape, pitch, lost)
     r = _rendered_psf(cam, geometric, seed, args, diffraction) if args.render else None
     # nothing is written before the render ends: an interrupt leaves no half set of files
     write_exr(out / "psf_analytic.exr", {"psf": k}, force=args.force)

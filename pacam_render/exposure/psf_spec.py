@@ -159,12 +159,11 @@ def plan_render(
 
         n = channels(mi.variant() or "")
         sensor_params(design, spec.mode, n, spec.pixel_pitch_mm)  # refuses pinholes, bitmaps
-        h, w = model.shape
 
-        def build(cam, f):  # the same kernel on pixels f times finer
-            return design_psf(cam, spec.mode, velocity * f, (f * h, f * w), origin=spec.origin)
+        def build(cam, f, fine):  # the same kernel on pixels f times finer
+            return design_psf(cam, spec.mode, velocity * f, fine, origin=spec.origin)
 
-        model = diffracted_model(build, design, spec.mode, (h, w), n, spec.pixel_pitch_mm)
+        model = diffracted_model(build, design, spec.mode, model.shape, n, spec.pixel_pitch_mm)
     shape = model.shape
     centre = setup.origin_px if spec.origin == "t0" else 0.0
     filmset = film_for(design, centre, shape, spec.film)

@@ -242,19 +242,17 @@ def capture_diffraction(record: CaptureRecord) -> dict | None:
 
 def _diffracted(k, record: CaptureRecord, cam, size, build):
     """``k`` with the capture's diffraction (:func:`capture_diffraction`), when it has one:
-    ``build(cam, f)`` makes ``k``'s kernel on pixels f times finer, so that the pixel's box is
-    counted once (:func:`~pacam_render.psf.diffraction.diffracted_kernel`)."""
+    ``build(cam, f, shape)`` makes ``k``'s kernel on pixels f times finer, so that the pixel's
+    box is counted once (:func:`~pacam_render.psf.diffraction.diffracted_kernel`); without
+    ``size``, the far rings' last 1 % are left out (``DECONVOLUTION_MAX_LOST``)."""
     d = capture_diffraction(record)
     if d is None or record.mode == "reference":
         return k
-    from ..psf.diffraction import DECONVOLUTION_MAX_LOST, diffracted_kernel, full_shape
+    from ..psf.diffraction import DECONVOLUTION_MAX_LOST, diffracted_kernel
 
     wl, pitch = d["wavelength_nm"], d["pixel_pitch_mm"]
-    if size is None:  # the far rings' last 1 % left out (DECONVOLUTION_MAX_LOST)
-        shape = full_shape(k.shape, cam, record.mode, wl, pitch, DECONVOLUTION_MAX_LOST)
-    else:
-        shape = k.shape
-    return diffracted_kernel(lambda c, f: build(c, f, shape), cam, record.mode, wl, shape, pitch)
+    lost = DECONVOLUTION_MAX_LOST if size is None else None
+    return diffracted_kernel(build, cam, record.mode, wl, k.shape, pitch, lost)
 
 
 def analytic_psf(record: CaptureRecord, s: float = 0.0, size=None):
@@ -267,8 +265,8 @@ def analytic_psf(record: CaptureRecord, s: float = 0.0, size=None):
     cam = CameraDesign.from_inputs(record.camera)
     k = design_psf(cam, record.mode, s, size, origin="pinhole")
 
-    def build(c, f, shape):
-        return design_psf(c, record.mode, s * f, _times(shape, f), origin="pinhole")
+    def build(c, f, fine):
+        return design_psf(c, record.mode, s * f, fine, origin="pinhole")
 
     return _diffracted(k, record, cam, size, build)
 
@@ -284,14 +282,10 @@ def robust_psf(record: CaptureRecord, size=None):
     cam = CameraDesign.from_inputs(record.camera)
     k = speed_robust_psf(cam, record.mode, size=size, origin="pinhole")
 
-    def build(c, f, shape):
-        return speed_robust_psf(c, record.mode, size=_times(shape, f), origin="pinhole")
+    def build(c, f, fine):
+        return speed_robust_psf(c, record.mode, size=fine, origin="pinhole")
 
     return _diffracted(k, record, cam, size, build)
-
-
-def _times(shape, f: int) -> tuple[int, int]:
-    return (int(shape[0]) * f, int(shape[1]) * f)
 
 
 class CaptureFile(NamedTuple):

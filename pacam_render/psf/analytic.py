@@ -443,17 +443,15 @@ def design_psf(
     ((25, 25), 1.0)
     """
     if diffraction_nm is not None:  # the pixel's box counted once, as the rays count it
-        from .diffraction import diffracted_kernel, full_shape
+        from .diffraction import DEFAULT_MAX_LOST, diffracted_kernel
 
         shape = np.shape(design_psf(design, mode, s, size, origin, v_px_per_ms))
-        if size is None:
-            shape = full_shape(shape, design, mode, diffraction_nm)
 
-        def build(cam, f):
-            fine = (f * shape[0], f * shape[1])
+        def build(cam, f, fine):
             return design_psf(cam, mode, s * f, fine, origin, v_px_per_ms * f)
 
-        return diffracted_kernel(build, design, mode, diffraction_nm, shape)
+        lost = DEFAULT_MAX_LOST if size is None else None
+        return diffracted_kernel(build, design, mode, diffraction_nm, shape, None, lost)
     if _shows_bitmaps(design, mode):
         return _bitmap_call(bitmap_kernel, design, s, origin, size=size, v_px_per_ms=v_px_per_ms)
     segments, r = design_trajectory(design, mode, s, origin)

@@ -135,7 +135,25 @@ def grid_otf(pupil: GridPupil, scale: DiffractionScale) -> OTF:
         return out
 
     tail = tail_px(pupil.edge_mm, pupil.energy_mm2, scale)
-    return OTF(grid, w / cells_per_cycle, h / cells_per_cycle, tail)
+    cut_x, cut_y = grid_cutoffs(pupil, scale)
+    return OTF(grid, cut_x, cut_y, tail)
+
+
+def grid_cutoffs(pupil: GridPupil, scale: DiffractionScale) -> tuple[float, float]:
+    """(cutoff_x, cutoff_y), cycles/px, of a :class:`GridPupil`'s OTF: the array's width and
+    height in cells over the cells one cycle/px probes (no autocorrelation needed)."""
+    h, w = pupil.amplitude.shape
+    cells_per_cycle = scale.lag_mm_per_cycle_per_px / pupil.pitch_mm
+    return w / cells_per_cycle, h / cells_per_cycle
+
+
+def pupil_cutoff(pupil, scale: DiffractionScale) -> float:
+    """The highest image frequency (cycles/px, along either axis) a pupil passes."""
+    if isinstance(pupil, DiscPupil):
+        return scale.cutoff_cycles_per_px(pupil.radius_mm)
+    if isinstance(pupil, GridPupil):
+        return max(grid_cutoffs(pupil, scale))
+    raise TypeError(f"pupil must be a DiscPupil or a GridPupil, got {type(pupil).__name__}")
 
 
 def pupil_otf(pupil, scale: DiffractionScale) -> OTF:

@@ -29,6 +29,7 @@ import numpy as np
 from ..errors import ParameterError
 from ..model.modes import mode as mode_of
 from .fraunhofer import DEFAULT_MAX_LOST, DiffractionKernel, fraunhofer_kernel
+from .otf import pupil_cutoff
 from .pupil import DiscPupil, mask_pupil
 from .scale import scale_for
 
@@ -139,6 +140,14 @@ def mode_diffraction_kernel(
     alias = sum(w * d.alias for d, w in kernels) / total
     period = max(d.period_px for d, _ in kernels)
     return DiffractionKernel(kernel / kernel.sum(), float(lost), float(alias), period, sampling)
+
+
+def mode_cutoff(cam, mode: str, wavelength_nm: float, pixel_pitch_mm=None) -> float:
+    """The highest image frequency (cycles/px) any opening of a ``mode`` capture passes:
+    p / (lambda N) for a disc of F-number N (Goodman 6-31). Arguments as for
+    :func:`mode_diffraction_kernel`."""
+    scale = scale_for(cam, wavelength_nm, pixel_pitch_mm)
+    return max(pupil_cutoff(pupil, scale) for pupil, _ in mode_pupils(cam, mode))
 
 
 def pattern_kernels(

@@ -249,7 +249,7 @@ def test_in_focus_depth_is_a_clear_error(tmp_path, capsys):
         plan_render(prototype(), PSFSpec("bogus"))
 
 
-@pytest.mark.parametrize("mode", ["coded", "normal"])  # flutter: 6x its floor, open (issue 36)
+@pytest.mark.parametrize("mode", ["coded", "normal", "flutter"])
 def test_a_psf_rendered_with_diffraction_matches_the_diffracted_model(renderer, mode):
     """The prototype's PSF at its full pixel scale (F9.85: lambda N = 0.93 / 0.84 / 0.71 px in
     R, G, B) with the opening's diffraction in the rays: at the Monte Carlo floor of two seeds
@@ -267,8 +267,8 @@ def test_a_psf_rendered_with_diffraction_matches_the_diffracted_model(renderer, 
     geometric = design_psf(cam, mode, s)
     h, w = geometric.shape
 
-    def build(c, f):
-        return design_psf(c, mode, s * f, (f * h, f * w))
+    def build(c, f, fine):
+        return design_psf(c, mode, s * f, fine)
 
     n = 1 if "mono" in mi.variant() else 3
     model = diffracted_model(build, cam, mode, (h, w), n)
