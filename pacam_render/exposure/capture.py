@@ -208,10 +208,17 @@ def _diffraction_choice(spec: CaptureSpec, description, run: Run, target) -> tup
     quick = replace(
         spec, diffraction="off", spp=8, passes=2, per_pattern=False, sampler="independent"
     )
-    quiet = replace(run, progress=False, partial_dir=None, pilot_only=False)
+    quiet = replace(run, progress=False, partial_dir=None, pilot_only=False, stop_after_steps=None)
     with warnings.catch_warnings():  # the preview's own notes are not the capture's
         warnings.simplefilter("ignore", PacamWarning)
-        pre = _render(quick, description, quiet, False, None, False, (False, "preview"))
+        try:
+            pre = _render(quick, description, quiet, False, None, False, (False, "preview"))
+        except CaptureInterrupted as exc:  # its steps are not the capture's: none to resume
+            raise CaptureInterrupted(
+                "interrupted during the preview that diffraction 'auto' renders, before the "
+                "capture began; nothing to resume",
+                signum=exc.signum,
+            ) from None
     cam, _ = mode_camera(capture_design(spec), spec.mode)
     var = pre.mc_sigma**2
     d = diffract(pre.image, {}, var, cam, spec.mode, film_pixel_pitch_mm(spec))

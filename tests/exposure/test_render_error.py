@@ -483,3 +483,30 @@ def test_a_render_that_mitsuba_cut_short_is_never_used(tmp_path, monkeypatch):
     resumed = render_capture(spec, partial_dir=part, progress=False, truth=False)
     assert resumed.record.resumed_from_step == 4
     assert np.array_equal(resumed.image, whole.image)
+
+
+@pytest.mark.render
+def test_an_interrupt_in_auto_diffractions_preview_says_so(tmp_path, monkeypatch):
+    """diffraction 'auto' renders a preview before the capture: Ctrl-C there says so (nothing
+    of the capture exists to resume), and a deliberate stop after n steps stops the capture
+    after n of its own steps, not the preview."""
+    import mitsuba as mi
+
+    spec = CaptureSpec(scene="train", mode="coded", width=40, height=30, spp=16, seed=2,
+                       diffraction="auto")  # fmt: skip
+    real = mi.render
+
+    def cut_at_once(scene, *args, **kwargs):
+        image = real(scene, *args, **kwargs)
+        (kwargs.get("integrator") or scene.integrator()).cancel()
+        return image
+
+    monkeypatch.setattr(mi, "render", cut_at_once)
+    part = tmp_path / "c" / ".partial"
+    with pytest.raises(integ.CaptureInterrupted, match="during the preview.*nothing to resume"):
+        render_capture(spec, partial_dir=part, progress=False, truth=False)
+    assert not (part / "state.json").exists()
+    monkeypatch.setattr(mi, "render", real)
+    with pytest.raises(integ.CaptureInterrupted, match=r"stopped after 3 of \d+ steps; they are"):
+        render_capture(spec, partial_dir=part, progress=False, truth=False, stop_after_steps=3)
+    assert json.loads((part / "state.json").read_text())["state"]["steps_done"] == 3
