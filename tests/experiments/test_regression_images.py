@@ -29,3 +29,20 @@ def test_noise_alone_passes_for_other_seeds(name):
     """Statistically equal renders (other seeds) pass: the test is not a bit-exact compare."""
     for seed in (3, 4, 5):
         assert R.check(name, *R.render_case_sigma(name, seed)).ok
+
+
+@pytest.mark.render
+@pytest.mark.parametrize("name", ["train_coded", "train_normal"])
+def test_auto_leaves_diffraction_out_of_the_binned_cases_so_off_is_the_same(name):
+    """The cases name diffraction "off" (no preview render): at their 10.7x binned size,
+    "auto" decides the same (the Airy pattern is a tenth of a pixel) and renders the same bits.
+    The two F9.85 cases are the ones where diffraction is largest."""
+    from dataclasses import replace
+
+    from pacam_render.exposure.capture import render_capture
+
+    spec = replace(R.CASES[name], seed=R.FRESH_SEED)
+    auto = render_capture(replace(spec, diffraction="auto"), progress=False, truth=False)
+    off = render_capture(spec, progress=False, truth=False)
+    assert not auto.record.optics_error["effects"]["diffraction"]["included"]
+    assert np.array_equal(auto.image, off.image)
