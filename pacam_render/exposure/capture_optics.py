@@ -145,17 +145,13 @@ def diffraction_params(spec, cam, on: bool) -> dict:
         )
     if not on or mode_of(spec.mode).schedule is None or shows_bitmaps(cam, spec.mode):
         return {}
+    from ..render.ray_diffraction import sensor_properties
     from ..wave.patterns import channel_wavelengths_nm
     from .capture_camera import film_pixel_pitch_mm
 
     waves = channel_wavelengths_nm(1 if spec.grey else 3)
     grid = {} if spec.lcos_fill_factor is None else {"lcos_fill_factor": spec.lcos_fill_factor}
-    return {
-        "diffraction_wavelengths": ", ".join(f"{w:g}" for w in waves),
-        "pupil_distance": 2.0 * float(cam.F_min) * float(cam.R_max_mm),
-        "pixel_pitch": film_pixel_pitch_mm(spec),
-        **grid,
-    }
+    return {**sensor_properties(cam, waves, film_pixel_pitch_mm(spec)), **grid}
 
 
 def full_over_coded(rec) -> float:

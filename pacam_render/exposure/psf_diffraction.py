@@ -37,6 +37,7 @@ def sensor_params(design: CameraDesign, mode: str, n_channels: int, pitch_mm=Non
     """The ``programmable_aperture`` parameters that put diffraction in the rays of a PSF
     render on pixels of ``pitch_mm`` (default the design's own); refused for a pinhole mode or
     a bitmap schedule."""
+    from ..render.ray_diffraction import sensor_properties
     from ..wave.patterns import channel_wavelengths_nm, shows_bitmaps
 
     if mode_of(mode).schedule is None:
@@ -47,11 +48,7 @@ def sensor_params(design: CameraDesign, mode: str, n_channels: int, pitch_mm=Non
             "kernel is diffracted analytically: leave out `render`"
         )
     waves = channel_wavelengths_nm(n_channels)
-    return {
-        "diffraction_wavelengths": ", ".join(f"{w:g}" for w in waves),
-        "pupil_distance": 2.0 * float(design.F_min) * float(design.R_max_mm),
-        "pixel_pitch": float(pitch_mm or design.pixel_pitch_mm),
-    }
+    return sensor_properties(design, waves, pitch_mm or design.pixel_pitch_mm)
 
 
 def diffracted_model(

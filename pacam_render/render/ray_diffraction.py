@@ -129,6 +129,17 @@ def parse_wavelengths(value) -> tuple[float, ...]:
     return tuple(parts)
 
 
+def sensor_properties(design, wavelengths_nm, pixel_pitch_mm: float) -> dict:
+    """The plugin's load-time properties that put diffraction in the rays of a camera of
+    ``design`` (its pupil at D = 2 F_min R_max), one wavelength (nm) per colour channel, on
+    film pixels of ``pixel_pitch_mm``: the one recipe for captures and PSF renders."""
+    return {
+        "diffraction_wavelengths": ", ".join(f"{w:g}" for w in wavelengths_nm),
+        "pupil_distance": 2.0 * float(design.F_min) * float(design.R_max_mm),
+        "pixel_pitch": float(pixel_pitch_mm),
+    }
+
+
 class RayDiffractionSpec:
     """The host side: wavelengths, the pupil's distance and the pixel pitch (mm), checked.
 
