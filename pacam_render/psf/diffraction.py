@@ -27,6 +27,7 @@ import math
 
 import numpy as np
 
+from ..errors import ParameterError
 from ..wave.fraunhofer import DEFAULT_MAX_LOST, MAX_KERNEL_PX
 from ..wave.patterns import mode_cutoff, mode_diffraction_kernel
 from .grid import kernel_shape, normalise
@@ -228,6 +229,8 @@ def diffracted_kernel(
     if max_lost is not None:
         shape = full_shape(shape, cam, mode, wavelength_nm, pitch, max_lost)
     h, w = int(shape[0]), int(shape[1])
+    if factor is not None and (int(factor) != factor or factor < 1 or factor % 2 == 0):
+        raise ParameterError(f"factor must be an odd integer >= 1, got {factor!r}")
     f = int(factor or supersample(cam, mode, wavelength_nm, pitch))
     fine = cam.with_(
         width_px=f * cam.width_px,

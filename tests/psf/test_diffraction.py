@@ -162,3 +162,6 @@ def test_the_default_fine_grid_converges(mode):
     rough = diffracted_kernel(build, cam, mode, 549.0, shape, factor=3)
     assert np.abs(diffracted_kernel(build, cam, mode, 549.0, shape) - ref).sum() < 1e-3
     assert np.abs(rough - ref).sum() > 3e-3
+    for bad in (2, 0, 1.5):  # an even grid has no centre pixel
+        with pytest.raises(ParameterError, match="factor must be an odd integer"):
+            diffracted_kernel(build, cam, mode, 549.0, shape, factor=bad)
