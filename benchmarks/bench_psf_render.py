@@ -2,7 +2,7 @@
 
 The scene: the prototype at 500 mm (r = 2 px, a_i = -0.0398 px/ms^2), a point moving at
 0.5 px/ms, the coded (16-pattern) schedule; the 47x47 PSF is rendered per pattern window
-with :mod:`pacam_render.exposure.psf_render` on a kernel-sized film. Both integrators see the
+with :mod:`pacam_render.psf_render.render` on a kernel-sized film. Both integrators see the
 same scene: a disc source of psf_scene's default radius, 0.25 px (a camera ray must hit it, so
 the 0.02 px source of the validation would starve ``path``), ``max_depth`` 2, box filter. The
 reference is a high-spp ``ptracer`` render of that scene; errors are L1 distances of normalised
@@ -30,9 +30,9 @@ import numpy as np
 from common import median_spread, record, timeit
 from matplotlib.ticker import NullFormatter
 
-from pacam_render.exposure import psf_render as prd
-from pacam_render.exposure.psf_spec import PSFSpec
 from pacam_render.model.camera import prototype
+from pacam_render.psf_render import render as prd
+from pacam_render.psf_render.spec import PSFSpec
 from pacam_render.restore import metrics
 
 DEPTH_MM, SPEED = 500.0, 0.5

@@ -6,8 +6,10 @@ Units everywhere: scene mm, time ms, image px. Image coordinates are upright (as
 The subpackages follow the data: ``model`` (the paper's camera, Eqs. 3-18, and the table of
 capture modes) -> ``psf`` (analytic PSFs, Eqs. 1, 13, 14) -> ``render`` (Mitsuba variant, the
 aperture plan and the ``programmable_aperture`` sensor) -> ``scenes`` -> ``exposure`` (captures
-integrated over moving geometry, rendered PSFs) -> ``sensor`` (photons to DN) -> ``restore``
-(deconvolution and metrics) -> ``experiments`` (figures, demo, validation) -> ``cli``.
+integrated over moving geometry, each resolved once into a plan) and ``psf_render`` (rendered
+PSFs) -> ``sensor`` (photons to DN) -> ``restore`` (deconvolution and metrics) ->
+``experiments`` (figures, demo, validation) -> ``cli``. A capture's record (``capture``) is data
+below all of them, so that its readers import no producer.
 
 Importing the package imports neither Mitsuba nor Dr.Jit: the sensor plugin registers on the
 first :func:`select_variant`, :func:`sensor_dict` or render. The names below load their modules
@@ -23,9 +25,13 @@ from typing import Any
 
 _EXPORTS = {
     ".errors": ["ParameterError"],
-    ".exposure.capture": ["Capture", "CaptureSpec", "render_capture", "write_capture"],
+    ".capture.files": ["CaptureFile", "read_capture"],
+    ".capture.kernels": ["analytic_psf"],
+    ".capture.record": ["CaptureRecord"],
+    ".capture.result": ["Capture"],
+    ".exposure.capture": ["render_capture", "write_capture"],
+    ".exposure.capture_spec": ["CaptureSpec"],
     ".exposure.estimate": ["AbsoluteTarget"],
-    ".exposure.record": ["CaptureFile", "CaptureRecord", "analytic_psf", "read_capture"],
     ".model.camera": ["CameraDesign", "preset", "prototype"],
     ".model.design": [("solve_design", "solve")],
     ".model.design_file": ["read_design", "resolve_design", "write_design"],

@@ -12,15 +12,15 @@ from pathlib import Path
 import pytest
 
 import pacam_render
+from pacam_render.capture.record import CaptureRecord, SensorRecord
 from pacam_render.errors import ParameterError
 from pacam_render.exposure.capture_camera import mode_camera
 from pacam_render.exposure.capture_spec import CaptureSpec
-from pacam_render.exposure.psf_setup import RENDER_MODES, mode_setup
-from pacam_render.exposure.record import CaptureRecord, SensorRecord
 from pacam_render.model import paper
 from pacam_render.model.camera import prototype
 from pacam_render.model.modes import MODES, MODES_WITH_PSF, capture_camera, mode, t0_offset_px
 from pacam_render.psf.analytic import design_psf
+from pacam_render.psf_render.mode_setup import RENDER_MODES, mode_setup
 
 PACKAGE = Path(pacam_render.__file__).resolve().parent
 
@@ -290,3 +290,56 @@ def test_wave_is_a_numpy_only_leaf_below_psf():
                         assert top in ("numpy", "__future__") or top in sys.stdlib_module_names, (
                             f"{name} imports {target}"
                         )
+
+
+LAYERS = (
+    "errors",
+    "limits",
+    "io",
+    "model",
+    "wave",
+    "psf",
+    "render",
+    "scenes",
+    "capture",
+    "sensor",
+    "restore",
+    "exposure",
+    "psf_render",
+    "optimize",
+    "study",
+    "experiments",
+    "cli",
+)
+"""The subpackages (and top-level modules) from the bottom up: a file imports only from its own
+floor or below. ``capture/`` (the record) sits below its readers (``sensor/``, ``restore/``,
+``study/``, the CLI) and its producers (``exposure/``)."""
+
+
+def _floor(module: str) -> str:
+    return module.split(".")[1]
+
+
+def climbs(graph: dict[str, set[str]]) -> list[str]:
+    """Every import that runs back up :data:`LAYERS`, as ``importer -> imported``."""
+    rank = {name: i for i, name in enumerate(LAYERS)}
+    return sorted(
+        f"{m} -> {t}"
+        for m, targets in graph.items()
+        for t in targets
+        if rank[_floor(t)] > rank[_floor(m)]
+    )
+
+
+def test_every_subpackage_has_a_floor():
+    floors = {_floor(m) for m in import_graph()}
+    assert floors == set(LAYERS), f"place {sorted(floors - set(LAYERS))} in LAYERS"
+
+
+def test_no_import_climbs_back_up_the_subpackages():
+    """No file imports (at any level) from a subpackage above its own: the record is read by
+    ``restore/`` and ``sensor/`` without reaching into ``exposure/``."""
+    assert climbs({"a.restore.x": {"a.exposure.y"}, "a.exposure.y": {"a.capture.z"}}) == [
+        "a.restore.x -> a.exposure.y"
+    ]  # the check itself sees a climb
+    assert climbs(import_graph()) == []

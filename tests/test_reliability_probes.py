@@ -140,7 +140,7 @@ PSF = ["psf", "--depth", "500", "--velocity", "0.1"]
 def test_psf_render_beyond_the_sample_limit_is_refused_naming_the_flag(
     tmp_path, capsys, monkeypatch
 ):
-    import pacam_render.exposure.psf_render as psf_render
+    import pacam_render.psf_render.render as psf_render
 
     renderer = psf_render.PSFRenderer
     monkeypatch.setattr(renderer, "_render_passes", _refuse("rendered before refusing"))

@@ -75,10 +75,10 @@ def scale_line(optics: dict, coded: dict) -> str:
 
 def optics_lines(block: dict | None) -> list[str]:
     """The diffraction decision and the largest left-out optical effect of a capture
-    (:mod:`~pacam_render.exposure.optics_error`); none for an older capture."""
+    (:mod:`~pacam_render.capture.optics_error`); none for an older capture."""
     if not block:
         return []
-    from ..exposure.optics_error import summary_line
+    from ..capture.optics_error import summary_line
 
     info = block["diffraction"]
     line = summary_line(block)

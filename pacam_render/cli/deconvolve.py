@@ -11,9 +11,9 @@ from pathlib import Path
 
 import numpy as np
 
+from ..capture.files import check_layers_fit, read_record
 from ..errors import ParameterError
 from ..exposure.capture_psf import CapturePSF, load_capture_psf, psf_path
-from ..exposure.record import check_layers_fit, read_record
 from ..io.exr import pick_layer, read_exr, read_layer_shapes, write_exr
 from ..io.outputs import check_writable, prepare_out_dir, write_json
 from ..io.preview import srgb8, write_png
@@ -266,7 +266,7 @@ def _write_deconvolved_file(out: Path, est, force: bool) -> None:
 
 def _write_deconvolved(out: Path, est, record, info: dict, noise: dict) -> None:
     """deconvolved.exr (the layer's units), .png (exposed like capture.png) and .json."""
-    from ..exposure.record import layer_unit
+    from ..capture.record import layer_unit
 
     lf = None if record is None else record.light_factor
     exposure = 1.0 / lf if lf else None

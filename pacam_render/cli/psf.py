@@ -8,8 +8,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ..capture.files import read_record
 from ..errors import ParameterError, check_finite, check_positive
-from ..exposure.record import read_record
 from ..io.exr import write_exr
 from ..io.outputs import prepare_out_dir, write_json
 from ..io.preview import write_psf_preview
@@ -121,7 +121,7 @@ def run(args: argparse.Namespace) -> int:
         _odd_size(args.size)
     seed = 0 if args.seed is None else args.seed
     if args.render:  # check everything before computing or writing anything
-        from ..exposure.psf_render import check_request
+        from ..psf_render.render import check_request
 
         check_request(cam, args.spp, seed, args.film)
         check_positive("--max-samples", args.max_samples)
@@ -185,9 +185,9 @@ def run(args: argparse.Namespace) -> int:
 
 def _diffraction(args: argparse.Namespace, cam: CameraDesign) -> dict | None:
     """The diffraction the kernel gets: --diffraction, or with --like the capture's
-    (:func:`~pacam_render.exposure.record.capture_diffraction`, at the capture's pixels);
+    (:func:`~pacam_render.capture.kernels.capture_diffraction`, at the capture's pixels);
     None for none."""
-    from ..exposure.record import capture_diffraction
+    from ..capture.kernels import capture_diffraction
 
     own = capture_diffraction(read_record(Path(args.like))) if args.like is not None else None
     if args.diffraction == "off" or (args.diffraction is None and own is None):
@@ -209,7 +209,7 @@ def _rendered_psf(cam: CameraDesign, k: np.ndarray, seed: int, args, diffraction
     """The ray-traced kernel of the geometric kernel ``k``'s camera, with the opening's
     diffraction in the rays when ``diffraction`` (its model then too); refused beyond
     --max-samples before any rendering."""
-    from ..exposure.psf_render import render_psf
+    from ..psf_render.render import render_psf
 
     if args.grey:  # before the renderer activates a (colour) variant of its own
         from ..render.backend import select_variant

@@ -140,7 +140,8 @@ def run(args: argparse.Namespace) -> int:
     from ..io.lock import output_lock
 
     target = _noise_target(args)
-    spec = _spec(args, target)
+    plan = _plan(args, target)
+    spec = plan.spec
     model = _checked_sensor(args, spec)
     for flag in ("max_steps", "max_samples"):
         check_positive("--" + flag.replace("_", "-"), getattr(args, flag))
@@ -156,7 +157,7 @@ def run(args: argparse.Namespace) -> int:
         if args.force:
             _discard_partial(out / ".partial")
         cap = render_capture(
-            spec,
+            plan,
             partial_dir=out / ".partial",
             progress=not args.quiet,
             save_every_s=args.checkpoint_every,
@@ -175,11 +176,12 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def _spec(args: argparse.Namespace, target):
-    """The CaptureSpec the flags ask for; its design (a design file, a schedule) is read and
-    checked here, before any rendering, and names the sensor when --sensor does not."""
-    from ..exposure.capture_camera import capture_design
+def _plan(args: argparse.Namespace, target):
+    """The capture the flags ask for, resolved once (:func:`~..exposure.plan.plan_capture`):
+    its design (a design file, a schedule) is read and checked here, before any rendering, and
+    names the sensor when --sensor does not."""
     from ..exposure.capture_spec import CaptureSpec
+    from ..exposure.plan import plan_capture
 
     spec = CaptureSpec(
         scene=args.scene,
@@ -200,10 +202,10 @@ def _spec(args: argparse.Namespace, target):
         lcos_fill_factor=args.lcos_fill_factor,
         lcos_switching_ms=args.lcos_switching,
     )
-    design = capture_design(spec)
-    if args.sensor is None and design.sensor_preset is not None:  # the design names its sensor
-        args.sensor = design.sensor_preset
-    return spec
+    plan = plan_capture(spec)
+    if args.sensor is None and plan.design.sensor_preset is not None:  # the design names it
+        args.sensor = plan.design.sensor_preset
+    return plan
 
 
 def _checked_sensor(args: argparse.Namespace, spec):

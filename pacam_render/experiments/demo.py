@@ -23,15 +23,16 @@ from pathlib import Path
 
 import numpy as np
 
+from ..capture.kernels import analytic_psf
 from ..errors import ParameterError
 from ..exposure.capture import render_capture, write_capture
 from ..exposure.capture_spec import CAMERA_OPTICS, CaptureSpec
-from ..exposure.record import analytic_psf
 from ..io.outputs import prepare_out_dir, write_text
 from ..model import paper
+from ..restore.capture_noise import layer_noise
 from ..restore.deconvolve import deconvolve
 from ..restore.metrics import aligned_psnr, crop, psnr, shift_search_px, ssim
-from ..sensor.apply import add_sensor_layers, layer_noise
+from ..sensor.apply import add_sensor_layers
 
 SENSOR_PRESET = "grasshopper-icx285"
 LIGHT_LEVEL = 300.0
@@ -119,7 +120,7 @@ def _deconvolve(cap, rendered_psf: bool, spp_psf: int, method: str = DEMO_METHOD
     k = analytic_psf(cap.record)
     out = {"analytic PSF": deconvolve(noisy, k, method, **kw)}
     if rendered_psf:
-        from ..exposure.psf_render import render_psf
+        from ..psf_render.render import render_psf
 
         cam = CameraDesign.from_inputs(cap.record.camera)
         rk = render_psf(cam, "coded", 0.0, size=k.shape, spp=spp_psf, origin="pinhole").kernel

@@ -1,7 +1,7 @@
 """``pacam validate-psf``: ray-traced PSFs against the analytic model on a grid (issue 6).
 
 At every grid point (object depth, opening, object speed) the PSF is rendered twice with
-:mod:`pacam_render.exposure.psf_render` (``ptracer``, two seeds) and compared with the model:
+:mod:`pacam_render.psf_render.render` (``ptracer``, two seeds) and compared with the model:
 
 * **r** (Eq. 12): a static opening of radius R, centred, object still: the rendered disc is
   fitted with an exactly pixel-integrated pillbox (radius only, centre fixed by the
@@ -36,13 +36,13 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import ParameterError
-from ..exposure import psf_render as prd
-from ..exposure.psf_result import source_blur_l1
-from ..exposure.psf_setup import model_window_kernels
-from ..exposure.psf_spec import PSFSpec
 from ..io.outputs import csv_text, prepare_out_dir, save_figure, write_text
 from ..model.camera import CameraDesign, prototype
 from ..psf.analytic import design_psf
+from ..psf_render import render as prd
+from ..psf_render.mode_setup import model_window_kernels
+from ..psf_render.result import source_blur_l1
+from ..psf_render.spec import PSFSpec
 from ..restore import metrics
 
 SIZE_LADDER = (15, 31, 47, 63, 95, 127, 159, 191, 255, 319, 383, 511, 639, 767, 959)

@@ -25,10 +25,10 @@ from dataclasses import asdict, dataclass, replace
 
 import numpy as np
 
+from ..capture.kernels import capture_diffraction
 from ..errors import ParameterError, check_range
 from ..exposure.capture_diffraction import check_diffraction, diffract_model
 from ..exposure.capture_spec import CAMERA_OPTICS
-from ..exposure.record import capture_diffraction
 from ..io.outputs import prepare_out_dir
 from ..model.illumination import flat_field, parse_relative_illumination
 from ..psf.scene import MODEL_MODES, QUANTUM_PX, beta_px_per_mm, convolution_model

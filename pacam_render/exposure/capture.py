@@ -20,13 +20,16 @@ from __future__ import annotations
 
 import time
 import warnings
-from dataclasses import dataclass, field, replace
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 
+from ..capture.record import layer_unit
+from ..capture.result import Capture
 from ..errors import ParameterError
 from ..io.outputs import write_json
+from ..io.signals import deferred_signals
 from ..limits import (
     DEFAULT_MAX_SAMPLES,
     DEFAULT_MAX_STEPS,
@@ -37,49 +40,18 @@ from ..limits import (
 )
 from ..model import paper
 from ..render.registry import sensor_entry
-from .capture_camera import (
-    capture_design,
-    contrast_params,
-    illumination_map,
-    illumination_params,
-    illumination_record,
-    mode_camera,
-    note_binning,
-    note_ignored_options,
-    switching_params,
-)
-from .capture_optics import diffraction_params
+from .capture_camera import illumination_map, illumination_record
 from .capture_record import build_record, record_design_fit, render_error_summary, versions
 from .capture_spec import CaptureSpec
-from .checkpoint import deferred_signals, partial_lock
+from .checkpoint import partial_lock
 from .integrate import CaptureInterrupted, Run
-from .record import CaptureRecord, layer_unit
+from .plan import CapturePlan, plan_capture
 from .steps import plan_exposure
 from .truth import TRUTH_LAYERS, render_truth
 
 
-@dataclass
-class Capture:
-    """A finished capture: the image, optional per-pattern images, extra layers (the sensor's
-    ``raw`` and ``noisy``), and its :class:`~pacam_render.exposure.record.CaptureRecord`."""
-
-    image: np.ndarray
-    patterns: dict[int, np.ndarray]
-    record: CaptureRecord
-    extra_layers: dict[str, np.ndarray] = field(default_factory=dict)
-    mc_sigma: np.ndarray | None = None
-    """Per-pixel Monte Carlo sigma of ``image``, its units (``record.render_error`` sums it up)."""
-
-    @property
-    def meta(self) -> dict:
-        """The record as a dict, ``optics`` and ``coded_design`` both filled (a fresh dict:
-        change ``record``); the sidecar (:meth:`.CaptureRecord.to_json`) writes a repeated
-        design once."""
-        return self.record.to_json(compact=False)
-
-
 def render_capture(
-    spec: CaptureSpec,
+    spec: CaptureSpec | CapturePlan,
     partial_dir: Path | None = None,
     progress: bool = True,
     save_every_s: float = 5.0,
@@ -101,8 +73,10 @@ def render_capture(
 
     Parameters
     ----------
-    spec : CaptureSpec
-        What to capture.
+    spec : CaptureSpec or CapturePlan
+        What to capture; a :class:`~.plan.CapturePlan` already resolved
+        (:func:`~.plan.plan_capture`, as ``pacam render`` does before it opens its output) is
+        rendered as it is, a spec is resolved first. Either way the camera is resolved once.
     partial_dir : pathlib.Path, optional
         Folder for the finished steps of a moving scene
         (:class:`~pacam_render.exposure.checkpoint.Checkpoint`): the same capture resumes from
@@ -149,7 +123,7 @@ def render_capture(
         (exposure / 45 ms); its per-pixel Monte Carlo sigma (``mc_sigma``); the per-pattern
         images of a moving scene when ``spec.per_pattern`` is set; the ground-truth layers in
         ``extra_layers``, with their legend in ``record.objects``; and the
-        :class:`~pacam_render.exposure.record.CaptureRecord`, whose ``render_error`` states
+        :class:`~pacam_render.capture.record.CaptureRecord`, whose ``render_error`` states
         the error and its cost.
 
     Raises
@@ -175,53 +149,53 @@ def render_capture(
     the paper's t in [-T, T] (the exposure is 2T), and each step renders the geometry at a
     random time in it. Same-seed captures are bit-identical (:mod:`pacam_render.render.passes`).
     """
-    check_budget(spec, max_samples, truth, target is not None)
+    given = spec if isinstance(spec, CapturePlan) else None
+    check_budget(spec.spec if given else spec, max_samples, truth, target is not None)
     lock = partial_lock(partial_dir)
     with lock, warnings.catch_warnings(record=True) as caught, deferred_signals() as flag:
         warnings.simplefilter("always", PacamWarning)
+        plan = given if given is not None else plan_capture(spec)
+        plan.replay_notes()  # the camera's notes go in the record, first, as they always have
         run = Run(partial_dir, progress, save_every_s, stop_after_steps, max_steps, flag)
         run = replace(run, max_samples=max_samples, pilot_only=pilot_only and target is not None)
-        choice = _diffraction_choice(spec, description, run, target)
-        cap = _render(spec, description, run, truth, target, keep_partial, choice)
+        plan = plan.with_diffraction(*_diffraction_choice(plan, description, run, target))
+        cap = _render(plan, description, run, truth, target, keep_partial)
     cap.record.notes = _replay(caught)
     return cap
 
 
-def _diffraction_choice(spec: CaptureSpec, description, run: Run, target) -> tuple[bool, str]:
+def _diffraction_choice(plan: CapturePlan, description, run: Run, target) -> tuple[bool, str]:
     """``spec.diffraction`` resolved: (in the capture, the decision in words). ``auto`` renders
     a short geometric preview (2 passes, independent samples, no truth) and measures
     diffraction's effect on it with the post-process (:func:`~.capture_diffraction.diffract`,
     its Monte Carlo share removed): included unless below the noise target, or without one
     below the Monte Carlo sigma that ``spec.spp`` will reach (the preview's, scaled by
     sqrt(spp ratio))."""
-    from ..model.modes import mode as mode_of
-    from .capture_camera import film_pixel_pitch_mm
     from .capture_diffraction import decide, diffract
     from .estimate import rms
 
-    if mode_of(spec.mode).schedule is None:
+    spec = plan.spec
+    if not plan.lens:
         return False, "not applicable: a pinhole"
     if spec.diffraction != "auto":
         return decide(spec.diffraction, 0.0, 0.0, "")  # as asked
     t0 = time.perf_counter()
     # independent samples: 1 spp per time step where ldsampler takes 4 (a quarter the cost)
-    quick = replace(
-        spec, diffraction="off", spp=8, passes=2, per_pattern=False, sampler="independent"
-    )
+    quick = plan.with_spec(diffraction="off", spp=8, passes=2, per_pattern=False,
+                           sampler="independent").with_diffraction(False, "preview")  # fmt: skip
     quiet = replace(run, progress=False, partial_dir=None, pilot_only=False, stop_after_steps=None)
     with warnings.catch_warnings():  # the preview's own notes are not the capture's
         warnings.simplefilter("ignore", PacamWarning)
         try:
-            pre = _render(quick, description, quiet, False, None, False, (False, "preview"))
+            pre = _render(quick, description, quiet, False, None, False)
         except CaptureInterrupted as exc:  # its steps are not the capture's: none to resume
             raise CaptureInterrupted(
                 "interrupted during the preview that diffraction 'auto' renders, before the "
                 "capture began; nothing to resume",
                 signum=exc.signum,
             ) from None
-    cam, _ = mode_camera(capture_design(spec), spec.mode)
     var = pre.mc_sigma**2
-    d = diffract(pre.image, {}, var, cam, spec.mode, film_pixel_pitch_mm(spec))
+    d = diffract(pre.image, {}, var, plan.cam, spec.mode, plan.pitch_mm)
     if target is not None:
         threshold, why = float(target.sigma(pre.image, pre.record)), "the noise target"
     else:
@@ -293,31 +267,15 @@ def check_budget(
     )  # fmt: skip
 
 
-def _render(
-    spec: CaptureSpec, description, run: Run, truth: bool, target, keep: bool, diffraction
-) -> Capture:
-    """The capture; ``diffraction`` is (in the capture, why) from :func:`_diffraction_choice`."""
-    from ..render.backend import select_variant
-    from ..render.variant import is_mono
+def _render(plan: CapturePlan, description, run: Run, truth: bool, target, keep: bool) -> Capture:
+    """The capture of a plan whose diffraction is decided (:func:`_diffraction_choice`)."""
     from ..scenes import load_scene
     from ..scenes.units import check_units
     from .checkpoint import Checkpoint, resume_parts
     from .integrate import integrate
 
-    variant = select_variant(mono=spec.grey)
-    if is_mono(variant) and not spec.grey:  # PACAM_VARIANT=llvm_ad_mono: a grey capture
-        spec = replace(spec, grey=True)
-    note_ignored_options(spec)
-    design = capture_design(spec)
-    cam, params = mode_camera(design, spec.mode)
-    params = {
-        **params,
-        **illumination_params(spec),
-        **diffraction_params(spec, cam, diffraction[0]),
-        **contrast_params(spec, params),
-        **switching_params(spec, params),
-    }
-    note_binning(spec, cam)
+    spec, design, cam, variant = plan.spec, plan.design, plan.cam, plan.variant
+    params = plan.sensor_params()
     desc = description if description is not None else load_scene(spec.scene)
     t_start = time.perf_counter()
     scene = desc.load(sensor=sensor_entry(spec, cam, params, cam.exposure_ms))
@@ -325,9 +283,9 @@ def _render(
     check_units(scene, design)  # a scene in metres renders near-black with no other word
     run.check_signal()
     exp, speed = plan_exposure(scene, sensor, desc, design, cam, spec, run.max_steps)
-    record = build_record(spec, design, cam, params, sensor, variant, 0.0, {})
-    plan = {"windows": exp.windows, "target": None if target is None else target.to_json()}
-    parts = resume_parts(spec, scene, desc, plan, versions(), variant)
+    record = build_record(plan, params, sensor, 0.0, {})
+    steps_plan = {"windows": exp.windows, "target": None if target is None else target.to_json()}
+    parts = resume_parts(plan.key(), scene, desc, steps_plan, versions(), variant)
     store = Checkpoint(None if run.partial_dir is None else Path(run.partial_dir), parts)
     prog = integrate(exp, spec, run, store, target, record, f"{spec.mode} {spec.scene}")
     render_s = time.perf_counter() - t_start + prog.seconds_before  # earlier sessions' too
@@ -351,7 +309,7 @@ def _render(
         "fastest_image_speed_px_per_ms": speed if exp.moving else None,
     }
     seconds = time.perf_counter() - t_start + prog.seconds_before
-    record = build_record(spec, design, cam, params, sensor, variant, seconds, steps)
+    record = build_record(plan, params, sensor, seconds, steps)
     record.objects = objects
     record.design_fit = record_design_fit(layers, objects, cam, spec.mode)
     ids = layers.get("object_id")
@@ -361,30 +319,28 @@ def _render(
     if not run.pilot_only and not keep:
         store.clear()
     layers = {k: layers[k] for k in TRUTH_LAYERS if k in layers}
-    ri_map = illumination_map(spec, cam)  # None when off
+    ri_map = illumination_map(spec, cam, plan.pitch_mm)  # None when off
     record.relative_illumination = illumination_record(spec, cam, ri_map)
     if ri_map is not None:
         layers["relative_illumination"] = ri_map
     ctx = {"record": record, "target": target, "lcos_contrast": params.get("lcos_contrast")}
     ctx["lcos_switching_ms"] = params.get("lcos_switching")
-    ctx["diffraction_on"], ctx["diffraction_decision"] = diffraction
-    optics = _optics(spec, design, cam, desc, image, prog, ctx)
+    ctx["diffraction_on"], ctx["diffraction_decision"] = plan.diffraction
+    optics = _optics(plan, desc, image, prog, ctx)
     record.optics_error = optics.block
     return Capture(optics.image, optics.patterns, record, layers, np.sqrt(optics.variance))
 
 
-def _optics(spec: CaptureSpec, design, cam, desc, image, prog, ctx: dict):
+def _optics(plan: CapturePlan, desc, image, prog, ctx: dict):
     """Diffraction as ``spec.diffraction`` asks, and the record's ``optics_error``
     (:func:`~pacam_render.exposure.capture_optics.finish_optics`)."""
     from ..model.illumination import relative_illumination_map
-    from ..model.modes import mode as mode_of
-    from .capture_camera import film_pixel_pitch_mm
 
-    lens = mode_of(spec.mode).schedule is not None
+    spec, design, cam = plan.spec, plan.design, plan.cam
     w, h = spec.width, spec.height
-    cos4 = relative_illumination_map("cos4", w, h, cam.fov_deg, spec.crop) if lens else None
+    cos4 = relative_illumination_map("cos4", w, h, cam.fov_deg, spec.crop) if plan.lens else None
     ctx.update(
-        pitch_mm=film_pixel_pitch_mm(spec),
+        pitch_mm=plan.pitch_mm,
         ri_record=ctx["record"].relative_illumination,
         cos4_map=cos4,
     )
@@ -471,7 +427,7 @@ def write_capture(cap: Capture, out: Path, force: bool, error_layer: bool = Fals
     ``subNN`` per pattern image. The preview shows the
     ``noisy`` layer when there is one (else the image), exposed by 1 / ``light_factor``
     (auto-exposed when that is 0); capture.json is the record, with each layer's unit
-    (``units``; :func:`~pacam_render.exposure.record.read_capture` reads them on one scale).
+    (``units``; :func:`~pacam_render.capture.files.read_capture` reads them on one scale).
     Each file is written to a temporary file and renamed.
     """
     from ..io.exr import write_exr

@@ -43,7 +43,13 @@ def capture_design(spec: CaptureSpec) -> CameraDesign:
     r = |beta| R (Eq. 12), so |a_i| = 4 r (R_max / R - 1) / T^2; the exposure is 2T.
     """
     depth = {} if spec.object_depth_mm is None else {"object_depth_mm": spec.object_depth_mm}
-    base = full_design(spec, **depth)
+    return scaled_design(spec, full_design(spec, **depth))
+
+
+def scaled_design(spec: CaptureSpec, base: CameraDesign) -> CameraDesign:
+    """:func:`capture_design` from the design as read (``base``, :func:`full_design` with the
+    spec's depth): solved or scheduled as the spec asks, its LCoS rate checked, at the
+    capture's size."""
     if spec.cover_px_per_ms is not None:
         from ..model.design import solve
 
@@ -103,12 +109,12 @@ def mode_camera(design: CameraDesign, mode: str) -> tuple[CameraDesign, dict]:
     return cam, sensor_params(cam, mode)
 
 
-def illumination_params(spec: CaptureSpec) -> dict:
+def illumination_params(spec: CaptureSpec, pitch_mm: float | None = None) -> dict:
     """The sensor's relative-illumination parameters for a capture.
 
     None when ``off`` (the plugin's default: its kernels, and the record's ``sensor_params``,
     stay as they were) or for the pinhole ``reference``; a curve also gets the film's pixel
-    pitch, :func:`film_pixel_pitch_mm`.
+    pitch, ``pitch_mm`` (the plan's; None: :func:`film_pixel_pitch_mm`).
 
     Returns
     -------
@@ -120,7 +126,8 @@ def illumination_params(spec: CaptureSpec) -> dict:
         return {}
     if ri == "cos4":
         return {"relative_illumination": ri}
-    return {"relative_illumination": ri, "pixel_pitch": film_pixel_pitch_mm(spec)}
+    pitch = film_pixel_pitch_mm(spec) if pitch_mm is None else pitch_mm
+    return {"relative_illumination": ri, "pixel_pitch": pitch}
 
 
 LEAKY_SCHEDULES = ("static", "parabolic", "centres")
@@ -167,11 +174,11 @@ def binned_pitch_mm(full: CameraDesign, width_px: int) -> float:
     return full.pixel_pitch_mm * full.width_px / width_px
 
 
-def illumination_map(spec: CaptureSpec, cam: CameraDesign):
+def illumination_map(spec: CaptureSpec, cam: CameraDesign, pitch_mm: float | None = None):
     """The capture's relative-illumination map, (h, w) float32 over its window, or None when
     ``off`` or for the ``reference``
     (:func:`~pacam_render.model.illumination.relative_illumination_map`)."""
-    params = illumination_params(spec)
+    params = illumination_params(spec, pitch_mm)
     if not params:
         return None
     from ..model.illumination import relative_illumination_map
@@ -257,9 +264,10 @@ def note_ignored_options(spec: CaptureSpec) -> None:
         )
 
 
-def note_binning(spec: CaptureSpec, cam: CameraDesign) -> None:
-    """A coded capture whose blur is sub-pixel is a binned camera: say so, and what to do."""
-    full = full_design(spec)
+def note_binning(spec: CaptureSpec, cam: CameraDesign, full: CameraDesign | None = None) -> None:
+    """A coded capture whose blur is sub-pixel is a binned camera: say so, and what to do
+    (``full``: the design as read, at its full size; None reads it)."""
+    full = full_design(spec) if full is None else full
     if not mode(spec.mode).needs_parallax or cam.r_px >= 1.0:
         return
     binned = full.width_px / spec.width

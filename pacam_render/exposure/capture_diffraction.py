@@ -44,10 +44,6 @@ from ..wave.patterns import (
 
 DIFFRACTION_CHOICES = ("auto", "on", "off")
 """The ``diffraction`` settings of a capture."""
-DEFAULT_DIFFRACTION = "off"
-"""A :class:`~.capture_spec.CaptureSpec`'s default: geometric optics, what the tests' closed
-forms and the studies assume; a camera's captures take
-:data:`~.capture_spec.CAMERA_OPTICS` (``auto``)."""
 
 
 def check_diffraction(value) -> str:

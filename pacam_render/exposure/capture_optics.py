@@ -3,7 +3,7 @@
 :func:`finish_optics` runs once the render has met its error: it adds the openings'
 diffraction when the capture's ``diffraction`` setting asks for it (``auto`` decides from the
 effect's measured size, :mod:`.capture_diffraction`), and writes the record's
-``optics_error`` (:mod:`.optics_error`) with the sizes of what is left out.
+``optics_error`` (:mod:`pacam_render.capture.optics_error`) with the sizes of what is left out.
 """
 
 from __future__ import annotations
@@ -12,10 +12,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..capture import optics_error as oe
 from ..errors import ParameterError
 from ..model.modes import mode as mode_of
 from ..wave.patterns import shows_bitmaps
-from . import optics_error as oe
 from .capture_diffraction import diffract
 from .estimate import rms
 
@@ -71,7 +71,7 @@ def rays_record(spec, cam, pitch_mm: float) -> dict:
     """How the rays diffract (:mod:`pacam_render.render.ray_diffraction`)."""
     from ..render.ray_diffraction import MAX_LOST, RayDiffractionSpec, inverse_table, radial_table
 
-    params = diffraction_params(spec, cam, True)
+    params = diffraction_params(spec, cam, True, pitch_mm)
     rays = RayDiffractionSpec(params["diffraction_wavelengths"], params["pupil_distance"], pitch_mm)
     lost = radial_table(MAX_LOST)[2]
     l1 = inverse_table(MAX_LOST)[1]
@@ -135,9 +135,10 @@ def finish_optics(spec, design, cam, desc, image, patterns, variance, ctx) -> Op
     return Optics(image, patterns, variance, block)
 
 
-def diffraction_params(spec, cam, on: bool) -> dict:
+def diffraction_params(spec, cam, on: bool, pitch_mm: float | None = None) -> dict:
     """The sensor's parameters that put diffraction in the rays: none when off, for the
-    pinhole, or for a bitmap schedule's patterns (diffracted after the render)."""
+    pinhole, or for a bitmap schedule's patterns (diffracted after the render); ``pitch_mm``
+    is the capture's pixel pitch (the plan's; None: from the spec)."""
     if on and spec.lcos_fill_factor is not None and shows_bitmaps(cam, spec.mode):
         raise ParameterError(
             "lcos_fill_factor: the grid's orders are rendered through disc openings; a bitmap "
@@ -151,7 +152,8 @@ def diffraction_params(spec, cam, on: bool) -> dict:
 
     waves = channel_wavelengths_nm(1 if spec.grey else 3)
     grid = {} if spec.lcos_fill_factor is None else {"lcos_fill_factor": spec.lcos_fill_factor}
-    return {**sensor_properties(cam, waves, film_pixel_pitch_mm(spec)), **grid}
+    pitch = film_pixel_pitch_mm(spec) if pitch_mm is None else pitch_mm
+    return {**sensor_properties(cam, waves, pitch), **grid}
 
 
 def full_over_coded(rec) -> float:

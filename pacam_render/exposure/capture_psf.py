@@ -12,10 +12,11 @@ from typing import NamedTuple
 
 import numpy as np
 
+from ..capture.kernels import analytic_psf, robust_psf
+from ..capture.record import CaptureRecord
 from ..errors import ParameterError
 from ..io.exr import read_exr
 from ..limits import PacamWarning
-from .record import CaptureRecord, analytic_psf, robust_psf
 
 PSF_SOURCES = ("analytic", "robust", "rendered")
 """The kernels named rather than given by path: from the record, or ``psf_rendered.exr``."""
@@ -67,7 +68,7 @@ def psf_mismatch(meta: dict, record: CaptureRecord) -> tuple[str, ...]:
             continue
         out.append(f"{words} {fmt.format(a)} (PSF) against {fmt.format(b)} (capture)")
     if "diffraction" in meta:  # psf.json from before diffraction compares nothing here
-        from .record import capture_diffraction
+        from ..capture.kernels import capture_diffraction
 
         words = {True: "diffraction included", False: "no diffraction"}
         a, b = meta["diffraction"] is not None, capture_diffraction(record) is not None

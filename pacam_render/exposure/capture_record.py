@@ -1,6 +1,6 @@
-"""A finished capture's record: the :class:`~.record.CaptureRecord` built from its spec,
-camera, sensor and passes, with its render error (the Monte Carlo sigma and its cost) and each
-object's fit to the design.
+"""A finished capture's record: the :class:`~pacam_render.capture.record.CaptureRecord` built
+from its plan, sensor and passes, with its render error (the Monte Carlo sigma and its cost)
+and each object's fit to the design.
 """
 
 from __future__ import annotations
@@ -9,9 +9,9 @@ from dataclasses import asdict
 
 import numpy as np
 
+from ..capture.record import CaptureRecord
 from ..limits import note
 from ..model import paper
-from .record import CaptureRecord
 
 REFERENCE_EXPOSURE_MS = paper.EXPOSURE_MS
 """Pixel values are scaled to this exposure: a capture's brightness is proportional to the
@@ -33,8 +33,10 @@ def versions() -> dict:
     }
 
 
-def build_record(spec, design, cam, params, sensor, variant, seconds, steps: dict) -> CaptureRecord:
-    """The capture's record: the one place that builds it."""
+def build_record(plan, params: dict, sensor, seconds: float, steps: dict) -> CaptureRecord:
+    """The capture's record: the one place that builds it, from its
+    :class:`~.plan.CapturePlan`, the sensor's parameters and the loaded sensor."""
+    spec, design, cam, variant = plan.spec, plan.design, plan.cam, plan.variant
     weight = 1.0 if spec.mode == "reference" else float(sensor.plan.mean_weight())
     crop = None
     if spec.crop is not None:

@@ -15,15 +15,17 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import ParameterError, check_finite, check_positive
-from ..model.illumination import (
-    CURVE_SUFFIXES,
-    DEFAULT_RELATIVE_ILLUMINATION,
-    parse_relative_illumination,
-)
+from ..model.illumination import CURVE_SUFFIXES, parse_relative_illumination
 from ..model.modes import mode
 from ..render.samplers import DEFAULT_SAMPLER, check_sampler
-from .capture_diffraction import DEFAULT_DIFFRACTION, check_diffraction
+from .capture_diffraction import check_diffraction
 from .estimate import check_passes
+
+GEOMETRIC_OPTICS = {"relative_illumination": "off", "diffraction": "off"}
+"""A :class:`CaptureSpec`'s own optics defaults: geometric radiance through an ideal opening,
+what the closed-form checks and the studies' ``[render]`` tables assume (a study reads them
+from here). This module owns both sets of optics defaults; the CLI reads
+:data:`CAMERA_OPTICS`."""
 
 CAMERA_OPTICS = {"relative_illumination": "cos4", "diffraction": "auto"}
 """The optics of a camera's capture, as a sensor measures it: irradiance (the thin lens's
@@ -74,12 +76,12 @@ class CaptureSpec:
     PSF JSON, or a legacy schedule.json (:func:`~pacam_render.model.design_file.resolve_design`)."""
     grey: bool = False
     """Render one channel (luminance) with a mono variant; see the class docstring."""
-    relative_illumination: str = DEFAULT_RELATIVE_ILLUMINATION
+    relative_illumination: str = GEOMETRIC_OPTICS["relative_illumination"]
     """The sensor's relative illumination: ``off`` (default: radiance, as ``thinlens``),
     ``cos4`` (:data:`CAMERA_OPTICS`) or a curve file
     (:mod:`~pacam_render.model.illumination`). Not ``off``: the capture records its map as the
     ``relative_illumination`` layer, and readers flat-field with it."""
-    diffraction: str = DEFAULT_DIFFRACTION
+    diffraction: str = GEOMETRIC_OPTICS["diffraction"]
     """The openings' diffraction: ``off`` (default), ``on`` or ``auto`` (:data:`CAMERA_OPTICS`:
     on unless its effect is below the noise target; :mod:`~.capture_diffraction`). Disc
     openings diffract in the rays, a bitmap schedule's patterns after the render; it is in the
@@ -158,8 +160,13 @@ class CaptureSpec:
         """(width, height) of the rendered image, px: the crop's, or the whole sensor's."""
         return (self.crop[2], self.crop[3]) if self.crop else (self.width, self.height)
 
-    def key(self) -> str:
+    def key(self, design_digest: str | None = None) -> str:
         """A hash of everything that changes the image (for resuming).
+
+        Parameters
+        ----------
+        design_digest : str, optional
+            The digest of ``design`` as already read (a capture's plan has it); None reads it.
 
         Returns
         -------
@@ -183,10 +190,12 @@ class CaptureSpec:
             h.update(Path(self.relative_illumination).read_bytes())  # a curve edited in place
         if self.schedule is not None and Path(self.schedule).is_file():
             h.update(Path(self.schedule).read_bytes())
-        if self.design is not None:
+        if self.design is not None and design_digest is None:
             from ..model.design_file import resolve_design
 
-            h.update(resolve_design(self.design).digest().encode())
+            design_digest = resolve_design(self.design).digest()
+        if self.design is not None:
+            h.update(design_digest.encode())
         return h.hexdigest()[:16]
 
 

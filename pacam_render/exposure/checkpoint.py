@@ -18,10 +18,7 @@ import contextlib
 import hashlib
 import json
 import shutil
-import signal
-import threading
 import warnings
-from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
@@ -68,12 +65,13 @@ def scene_fingerprint(scene) -> str:
     return h.hexdigest()[:16]
 
 
-def resume_parts(spec, scene, desc, plan, versions: dict, variant: str) -> dict[str, str]:
+def resume_parts(spec_key: str, scene, desc, plan, versions: dict, variant: str) -> dict[str, str]:
     """The named hashes that a checkpoint must match to be resumed.
 
     Parameters
     ----------
-    spec : CaptureSpec
+    spec_key : str
+        The capture's key (:meth:`~pacam_render.exposure.plan.CapturePlan.key`).
     scene : mitsuba.Scene
         Loaded, before any motion is applied.
     desc : SceneDescription
@@ -92,7 +90,7 @@ def resume_parts(spec, scene, desc, plan, versions: dict, variant: str) -> dict[
     """
     motions = {k: desc.motions[k].to_json() for k in sorted(desc.motions)}
     return {
-        "spec": spec.key(),
+        "spec": spec_key,
         "scene": _sha(scene_fingerprint(scene), desc.digest()),
         "motion": _sha(json.dumps(motions, sort_keys=True, default=repr)),
         "integrator": _sha(str(scene.integrator())),
@@ -178,28 +176,3 @@ def partial_lock(partial_dir):
     if partial_dir is None:
         return contextlib.nullcontext()
     return output_lock(Path(partial_dir).parent)
-
-
-@contextlib.contextmanager
-def deferred_signals() -> Iterator[dict]:
-    """SIGINT and SIGTERM set ``flag["signal"]`` for the step loop to read after each step, so
-    the finished steps can be saved; a second signal interrupts at once (KeyboardInterrupt).
-    Outside the main thread, and where a signal is ignored (a background job), signals keep
-    their handlers."""
-    flag: dict = {"signal": None}
-    if threading.current_thread() is not threading.main_thread():
-        yield flag
-        return
-
-    def handler(signum, frame):
-        if flag["signal"] is not None:
-            raise KeyboardInterrupt
-        flag["signal"] = signum
-
-    watched = [s for s in (signal.SIGINT, signal.SIGTERM) if signal.getsignal(s) != signal.SIG_IGN]
-    old = {s: signal.signal(s, handler) for s in watched}  # an ignored signal stays ignored
-    try:
-        yield flag
-    finally:
-        for s, h in old.items():
-            signal.signal(s, h)

@@ -103,8 +103,9 @@ RELATIVE_ILLUMINATION_MODES = ("off", "cos4")
 """The built-in settings; any other value is a curve file's path."""
 DEFAULT_RELATIVE_ILLUMINATION = "off"
 """Radiance, exactly Mitsuba's ``thinlens``: the sensor plugin's default (a drop-in for
-``thinlens`` in any scene file) and a ``CaptureSpec``'s; a camera's captures take
-:data:`~pacam_render.exposure.capture_spec.CAMERA_OPTICS` (``cos4``)."""
+``thinlens`` in any scene file). A capture's defaults are the spec's
+(:data:`~pacam_render.exposure.capture_spec.GEOMETRIC_OPTICS` and, for a camera's captures,
+:data:`~pacam_render.exposure.capture_spec.CAMERA_OPTICS`)."""
 ABSCISSAE = {"height_px": "px", "height_mm": "mm", "field_deg": "deg"}
 """A curve's abscissa names and their units."""
 CURVE_SUFFIXES = (".csv", ".json")

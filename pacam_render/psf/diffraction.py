@@ -173,7 +173,7 @@ def supersample(cam, mode: str, wavelength_nm: float, pixel_pitch_mm=None) -> in
     and 0.4 px/ms (549 nm): L1 0.009 (fluttered shutter, in focus) and 0.004 (coded, r = 2
     px) with 3x finer pixels, 0.0008 and 0.0004 with 9x. A fixed 3 put the fluttered
     shutter's rendered PSF 6 Monte Carlo floors from its model
-    (``tests/exposure/test_psf_render.py``)."""
+    (``tests/psf_render/test_psf_render.py``)."""
     need = 7.0 * mode_cutoff(cam, mode, wavelength_nm, pixel_pitch_mm)
     f = max(SUPERSAMPLE[0], min(SUPERSAMPLE[1], math.ceil(need)))
     return f + 1 - f % 2

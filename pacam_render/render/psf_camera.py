@@ -5,7 +5,7 @@ moves shares one velocity, moving the whole scene by v (t - t_mid) is exact and 
 single render. This sensor does that through the base class's documented hook,
 :meth:`~pacam_render.render.aperture_camera.ProgrammableApertureCamera.scene_shift`: camera
 rays start at o - v tau, and particle-tracer connections see the scene point at p + v tau, tau
-being the ray's (window-mapped) paper time. Used by :mod:`pacam_render.exposure.psf_render`.
+being the ray's (window-mapped) paper time. Used by :mod:`pacam_render.psf_render.render`.
 
 Units: velocity in world mm/ms.
 """

@@ -10,8 +10,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..capture.record import CaptureRecord
 from ..errors import ParameterError
-from ..exposure.record import CaptureRecord
 from .deconvolve import SIGMA_METHODS
 from .noise import estimate_noise_sigma
 
@@ -93,8 +93,6 @@ def sparse_options(
     kw = {} if colour is None else {"colour": colour}
     own = record is not None and record.sensor is not None and layer == "noisy"
     if own and noise_sigma is None:
-        from ..sensor.apply import layer_noise
-
         kw["noise"] = layer_noise(record)
         return kw, "the sensor's Poisson-Gaussian noise"
     return kw, None
@@ -136,3 +134,23 @@ def deblur_noise(
         source = "estimated from the layer (wavelet MAD)"
     kw["noise_sigma"] = sigma
     return {"sigma": sigma, "source": source}
+
+
+def layer_noise(rec: CaptureRecord):
+    """The temporal noise of a sensor capture's ``noisy`` layer, in the layer's units.
+
+    Poisson-Gaussian (:class:`~pacam_render.restore.noise.NoiseModel`), from the recorded
+    sensor model and photons per unit; what a weighted deconvolution assumes. Divide the layer
+    by ``rec.light_factor`` and use ``.scaled(1 / rec.light_factor)`` for white = 1 units.
+    """
+    from ..sensor.apply import units_per_input
+    from ..sensor.model import SensorModel
+    from .noise import NoiseModel
+
+    s = rec.sensor
+    if s is None:
+        raise ParameterError("the capture went through no sensor model: it has no sensor noise")
+    model = SensorModel(**s.model)
+    back = units_per_input(rec, s.light_level_photons_per_px_per_ms)
+    e_per_unit = model.qe * s.photons_per_unit / back
+    return NoiseModel.from_sensor(model, e_per_unit, rec.exposure_ms)

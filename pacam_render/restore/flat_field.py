@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..exposure.record import CAPTURE_UNIT, layer_unit
+from ..capture.record import CAPTURE_UNIT, layer_unit
 from ..model.illumination import flat_field
 from .noise import NoiseModel
 

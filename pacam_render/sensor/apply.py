@@ -12,8 +12,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..capture.record import SensorRecord
 from ..errors import ParameterError, check_positive
-from ..exposure.record import SensorRecord
 from ..limits import PacamWarning
 from .model import DEFAULT_LIGHT_LEVEL, SensorModel, mono_preset, simulate_capture
 
@@ -58,7 +58,7 @@ def apply_sensor(cap, model: SensorModel, light_level: float | None, seed: int):
     return res.raw_dn, res.linear * back, res.photons_per_unit
 
 
-def _layer_unit(rec, light_level: float | None) -> float:
+def units_per_input(rec, light_level: float | None) -> float:
     """The capture's (and noisy layer's) units per unit of the sensor's input: the light factor
     without a light level (white reads 1.0); with one, the render's exposure factor."""
     if light_level is None:
@@ -71,7 +71,7 @@ def _sensor_input(cap, light_level: float | None) -> tuple[np.ndarray, float]:
     capture's units: divided by the light factor without a light level (white reads 1.0);
     with one, the render's exposure factor undone (the area factor stays in it)."""
     rec = cap.record
-    back = _layer_unit(rec, light_level)
+    back = units_per_input(rec, light_level)
     if light_level is None:
         return cap.image / back, back
     return cap.image * (rec.reference_exposure_ms / rec.exposure_ms), back
@@ -156,7 +156,7 @@ def add_sensor_layers(
     if rec.render_error is not None and rec.noise_sigma > 0:
         rec.render_error["ratio_to_sensor"] = rec.render_error["mc_sigma"] / rec.noise_sigma
     if rec.optics_error is not None:  # the budget against this sensor, not a stand-in
-        from ..exposure.optics_error import add_ratios
+        from ..capture.optics_error import add_ratios
 
         where = preset + (f" at {light_level:g} photons/px/ms" if light_level else "")
         add_ratios(rec.optics_error, rec.noise_sigma, where)
@@ -257,21 +257,3 @@ class SensorTarget:
 
     def to_json(self) -> dict:
         return {"kind": "sensor", "ratio": self.ratio, "sensors": [list(s) for s in self.sensors]}
-
-
-def layer_noise(rec):
-    """The temporal noise of a sensor capture's ``noisy`` layer, in the layer's units.
-
-    Poisson-Gaussian (:class:`~pacam_render.restore.noise.NoiseModel`), from the recorded
-    sensor model and photons per unit; what a weighted deconvolution assumes. Divide the layer
-    by ``rec.light_factor`` and use ``.scaled(1 / rec.light_factor)`` for white = 1 units.
-    """
-    from ..restore.noise import NoiseModel
-
-    s = rec.sensor
-    if s is None:
-        raise ParameterError("the capture went through no sensor model: it has no sensor noise")
-    model = SensorModel(**s.model)
-    back = _layer_unit(rec, s.light_level_photons_per_px_per_ms)
-    e_per_unit = model.qe * s.photons_per_unit / back
-    return NoiseModel.from_sensor(model, e_per_unit, rec.exposure_ms)

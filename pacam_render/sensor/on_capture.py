@@ -13,9 +13,9 @@ import os
 import re
 import warnings
 
+from ..capture.files import read_capture_layers
+from ..capture.result import Capture
 from ..errors import ParameterError
-from ..exposure.capture import Capture
-from ..exposure.record import read_capture_layers
 from ..limits import PacamWarning
 from .apply import add_sensor_layers
 from .model import SensorModel

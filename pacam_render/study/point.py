@@ -108,7 +108,7 @@ def _status(exc: Exception) -> str:
 def capture_inputs(render: dict, p: Point):
     """The CaptureSpec and scene description of a point (its speed and depth applied)."""
     from ..exposure.capture_camera import full_design
-    from ..exposure.capture_spec import CaptureSpec
+    from ..exposure.capture_spec import GEOMETRIC_OPTICS, CaptureSpec
     from ..scenes import load_scene
     from ..scenes.edit import at_depth, moving_depth_mm, scene_speed_px_per_ms, with_speed
 
@@ -125,8 +125,10 @@ def capture_inputs(render: dict, p: Point):
         preset=render["preset"],
         object_depth_mm=render["object_depth_mm"],
         grey=bool(render.get("grey", False)),
-        diffraction=render.get("diffraction", "off"),
-        relative_illumination=render.get("relative_illumination", "off"),
+        diffraction=render.get("diffraction", GEOMETRIC_OPTICS["diffraction"]),
+        relative_illumination=render.get(
+            "relative_illumination", GEOMETRIC_OPTICS["relative_illumination"]
+        ),
         **parse_design(p.design),
     )
     full = full_design(spec)  # speeds are in the design's own (full sensor) pixels
@@ -318,7 +320,7 @@ def kernel(cap) -> np.ndarray:
     unknown speed, a delta, so that the method only denoises them with the same prior, and
     every mode is restored alike.
     """
-    from ..exposure.record import analytic_psf
+    from ..capture.kernels import analytic_psf
 
     mode = cap.record.mode
     if mode in STILL_KERNEL_MODES:

@@ -10,7 +10,7 @@ import pytest
 from pacam_render.cli import build_parser, main
 from pacam_render.cli.common import FLAGS, user_words
 from pacam_render.errors import ParameterError
-from pacam_render.exposure.psf_spec import check_spp
+from pacam_render.psf_render.spec import check_spp
 
 
 def _all_flags() -> set[str]:

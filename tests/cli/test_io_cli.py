@@ -163,8 +163,8 @@ def test_cli_deconvolve_uses_the_noise_a_sensor_capture_recorded(tmp_path, capsy
     assert np.isfinite(exrio.read_exr(out)["deconvolved"]).all()
     # the default (hl) weights the data by the sensor's own noise model, which at the paper
     # preset is white with the same sigma
-    from pacam_render.exposure.record import CaptureRecord
-    from pacam_render.sensor.apply import layer_noise
+    from pacam_render.capture.record import CaptureRecord
+    from pacam_render.restore.capture_noise import layer_noise
 
     noise = layer_noise(CaptureRecord.from_json(meta))
     assert noise.shot == 0 and np.sqrt(noise.floor) == pytest.approx(meta["noise_sigma"], rel=0.02)
@@ -238,7 +238,7 @@ def test_cli_deconvolve_psf_file_beside_a_json_without_camera(tmp_path, capsys):
 def test_read_capture_divides_the_capture_layers_by_the_light_factor(tmp_path):
     """A hand-made capture: exactly its capture-unit layers are divided, and nothing else."""
     from pacam_render import read_capture
-    from pacam_render.exposure.record import LAYER_UNITS, WHITE_UNIT
+    from pacam_render.capture.record import LAYER_UNITS, WHITE_UNIT
 
     rng = np.random.default_rng(2)
     img = rng.random((4, 5, 3)).astype(np.float32)

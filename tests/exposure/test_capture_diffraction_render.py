@@ -240,7 +240,8 @@ def test_psf_like_and_deconvolve_follow_the_captures_diffraction(tmp_path, capsy
     """psf --like convolves the kernel with the capture's Airy pattern (checked against the
     pixel-integrated Airy pattern by quadrature, over the kernel's window, which holds all
     but the far rings' last 1 %); deconvolve refuses a kernel without it."""
-    from pacam_render.exposure.record import analytic_psf, read_record
+    from pacam_render.capture.files import read_record
+    from pacam_render.capture.kernels import analytic_psf
     from pacam_render.psf.diffraction import convolve_kernels
 
     cap = tmp_path / "cap"

@@ -11,9 +11,9 @@ import shutil
 import numpy as np
 import pytest
 
+from pacam_render.capture.files import read_capture
 from pacam_render.cli import main
 from pacam_render.errors import ParameterError
-from pacam_render.exposure.record import read_capture
 from pacam_render.io.exr import read_exr, write_exr
 
 pytestmark = pytest.mark.render

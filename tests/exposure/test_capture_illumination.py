@@ -16,12 +16,12 @@ from dataclasses import asdict
 import numpy as np
 import pytest
 
+from pacam_render.capture.files import read_capture
 from pacam_render.cli import main
 from pacam_render.errors import ParameterError
 from pacam_render.exposure.capture import render_capture, write_capture
 from pacam_render.exposure.capture_camera import film_pixel_pitch_mm, illumination_params
 from pacam_render.exposure.capture_spec import CaptureSpec
-from pacam_render.exposure.record import read_capture
 from pacam_render.model.illumination import relative_illumination_map
 from pacam_render.restore.flat_field import FlatFieldNoise, flat_field_sigma
 from pacam_render.restore.noise import NoiseModel

@@ -237,7 +237,7 @@ def test_optimize_cli_writes_every_output(tmp_path, capsys):
 def test_rendered_designed_psf_matches_analytic():
     """A designed (non-parabolic, with a vertical offset) schedule's rendered PSF at three
     speeds matches its analytic kernel at the Monte Carlo floor (two seeds' distance)."""
-    from pacam_render.exposure.psf_render import render_psf
+    from pacam_render.psf_render.render import render_psf
     from pacam_render.restore.metrics import rel_l1
 
     d = prototype().with_(width_px=320, height_px=240)

@@ -50,7 +50,7 @@ def test_the_default_kernel_is_unchanged_and_diffraction_counts_the_pixel_once(m
     convolution's shape, sums to 1 and is non-negative, and lies within a few percent (L1) of
     the geometric kernel convolved with the pixel-integrated Airy kernel, which counts the
     pixel's box twice (0.017 coded, 0.075 flutter at 0.3 px/ms; the rendered PSFs in
-    tests/exposure/test_psf_render.py tell the two apart)."""
+    tests/psf_render/test_psf_render.py tell the two apart)."""
     cam = capture_camera(prototype(), mode)
     geometric = design_psf(cam, mode, 0.3)
     assert np.array_equal(design_psf(cam, mode, 0.3, diffraction_nm=None), geometric)

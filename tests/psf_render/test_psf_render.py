@@ -14,13 +14,13 @@ import pytest
 
 from pacam_render.cli import main
 from pacam_render.errors import ParameterError
-from pacam_render.exposure import psf_render as prd
-from pacam_render.exposure.psf_result import source_blur_l1
-from pacam_render.exposure.psf_spec import PSFSpec, plan_render
 from pacam_render.io import exr as exrio
 from pacam_render.model.camera import prototype
 from pacam_render.model.modes import MODES_WITH_PSF, capture_camera
 from pacam_render.psf.analytic import design_psf, pillbox_psf
+from pacam_render.psf_render import render as prd
+from pacam_render.psf_render.result import source_blur_l1
+from pacam_render.psf_render.spec import PSFSpec, plan_render
 from pacam_render.render.backend import select_variant
 from pacam_render.restore import metrics
 
@@ -258,8 +258,8 @@ def test_a_psf_rendered_with_diffraction_matches_the_diffracted_model(renderer, 
     the box twice (with_diffraction), are several floors away."""
     import mitsuba as mi
 
-    from pacam_render.exposure.psf_diffraction import LUMINANCE_RGB, diffracted_model
     from pacam_render.psf.diffraction import with_diffraction
+    from pacam_render.psf_render.diffraction import LUMINANCE_RGB, diffracted_model
 
     cam = capture_camera(prototype(), mode)
     s = 0.4
@@ -284,7 +284,7 @@ def test_a_psf_rendered_with_diffraction_matches_the_diffracted_model(renderer, 
 
 
 def test_diffraction_in_a_psf_render_needs_an_opening():
-    from pacam_render.exposure.psf_diffraction import sensor_params
+    from pacam_render.psf_render.diffraction import sensor_params
 
     with pytest.raises(ParameterError, match="pinhole, it has no opening"):
         sensor_params(prototype(), "reference", 3)

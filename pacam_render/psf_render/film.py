@@ -1,5 +1,5 @@
 """The film of a rendered PSF and where its source sits, so that the kernel's centre pixel is
-where the analytic kernel puts it (see :mod:`.psf_render`, Registration)."""
+where the analytic kernel puts it (see :mod:`.render`, Registration)."""
 
 from __future__ import annotations
 

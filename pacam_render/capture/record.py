@@ -1,9 +1,11 @@
 """The capture record: what a capture is, typed, and its JSON sidecar (``capture.json``).
 
-One place builds it (:func:`pacam_render.exposure.capture.render_capture`), one place adds the
-image sensor to it (:func:`pacam_render.sensor.apply.add_sensor_layers`), and one place reads it
-back (:meth:`CaptureRecord.from_json`), so ``pacam render --sensor`` followed by ``pacam
-deconvolve`` knows the capture's noise instead of estimating it.
+A record is data, below its readers: producers of captures (:mod:`pacam_render.exposure`)
+write it, and :mod:`pacam_render.sensor` (which adds the image sensor to it,
+:func:`~pacam_render.sensor.apply.add_sensor_layers`), :mod:`pacam_render.restore`,
+:mod:`pacam_render.study` and the CLI read it (:meth:`CaptureRecord.from_json`,
+:mod:`.files`), so ``pacam render --sensor`` followed by ``pacam deconvolve`` knows the
+capture's noise instead of estimating it.
 
 The JSON keys are the ones earlier versions wrote; :meth:`CaptureRecord.from_json` also reads
 the demo's older sensor block (``light_level`` for ``light_level_photons_per_px_per_ms``).
@@ -12,13 +14,9 @@ the demo's older sensor block (``light_level`` for ``light_level_photons_per_px_
 from __future__ import annotations
 
 import math
-import os
 import re
 from dataclasses import asdict, dataclass, field, fields
-from pathlib import Path
-from typing import Any, NamedTuple
-
-import numpy as np
+from typing import Any
 
 from ..errors import ParameterError
 from ..model import paper
@@ -134,7 +132,7 @@ class CaptureRecord:
     (:func:`~pacam_render.exposure.capture_camera.illumination_record`): ``setting``, ``law``,
     the map's ``min`` and ``max``, its ``layer`` and how readers ``flat_field``."""
     optics_error: dict | None = None
-    """The physics error budget (:mod:`~pacam_render.exposure.optics_error`): ``diffraction``
+    """The physics error budget (:mod:`~pacam_render.capture.optics_error`): ``diffraction``
     (its ``setting``, ``decision`` and kernels), then per effect (diffraction, relative
     illumination, the LCoS's leakage, grid and switching, bounces past ``max_depth``) whether
     it is included, how, and its size where it is left out, against the sensor's noise."""
@@ -224,81 +222,6 @@ class CaptureRecord:
         return self.noise_sigma / self.light_factor
 
 
-def capture_diffraction(record: CaptureRecord) -> dict | None:
-    """The diffraction a capture includes, for its analytic kernels: ``wavelength_nm`` (the
-    green channel's, or grey's) and ``pixel_pitch_mm``; None when it has none (or an older
-    capture, which had none)."""
-    block = record.optics_error or {}
-    info = block.get("diffraction") or {}
-    included = (block.get("effects") or {}).get("diffraction", {}).get("included")
-    if not included or "wavelengths_nm" not in info:
-        return None
-    waves = info["wavelengths_nm"]
-    return {
-        "wavelength_nm": float(waves[1] if len(waves) == 3 else waves[0]),
-        "pixel_pitch_mm": info.get("pixel_pitch_mm"),
-    }
-
-
-def _diffracted(k, record: CaptureRecord, cam, size, build):
-    """``k`` with the capture's diffraction (:func:`capture_diffraction`), when it has one:
-    ``build(cam, f, shape)`` makes ``k``'s kernel on pixels f times finer, so that the pixel's
-    box is counted once (:func:`~pacam_render.psf.diffraction.diffracted_kernel`); without
-    ``size``, the far rings' last 1 % are left out (``DECONVOLUTION_MAX_LOST``)."""
-    d = capture_diffraction(record)
-    if d is None or record.mode == "reference":
-        return k
-    from ..psf.diffraction import DECONVOLUTION_MAX_LOST, diffracted_kernel
-
-    wl, pitch = d["wavelength_nm"], d["pixel_pitch_mm"]
-    lost = DECONVOLUTION_MAX_LOST if size is None else None
-    return diffracted_kernel(build, cam, record.mode, wl, k.shape, pitch, lost)
-
-
-def analytic_psf(record: CaptureRecord, s: float = 0.0, size=None):
-    """The analytic PSF of a recorded capture at speed s (px/ms), registered to the pinhole
-    image as the ``reference`` capture and the scene are (``origin="pinhole"``); with the
-    capture's diffraction, when it includes it (:func:`capture_diffraction`)."""
-    from ..model.camera import CameraDesign
-    from ..psf.analytic import design_psf
-
-    cam = CameraDesign.from_inputs(record.camera)
-    k = design_psf(cam, record.mode, s, size, origin="pinhole")
-
-    def build(c, f, fine):
-        return design_psf(c, record.mode, s * f, fine, origin="pinhole")
-
-    return _diffracted(k, record, cam, size, build)
-
-
-def robust_psf(record: CaptureRecord, size=None):
-    """The speed-robust analytic PSF of a recorded capture: averaged over the design's invariant
-    range (:func:`~pacam_render.psf.robust.speed_robust_psf`), registered as :func:`analytic_psf`,
-    with the capture's diffraction as there.
-    """
-    from ..model.camera import CameraDesign
-    from ..psf.robust import speed_robust_psf
-
-    cam = CameraDesign.from_inputs(record.camera)
-    k = speed_robust_psf(cam, record.mode, size=size, origin="pinhole")
-
-    def build(c, f, fine):
-        return speed_robust_psf(c, record.mode, size=fine, origin="pinhole")
-
-    return _diffracted(k, record, cam, size, build)
-
-
-class CaptureFile(NamedTuple):
-    """A capture read by :func:`read_capture`: its layers on one scale, and its record."""
-
-    layers: dict[str, np.ndarray]
-    """Every layer of ``capture.exr``; those in :data:`CAPTURE_UNIT` divided by
-    ``light_factor``, so they and ``sharp`` are all in :data:`WHITE_UNIT`."""
-    record: CaptureRecord
-    units: dict[str, str]
-    """Each returned layer to its unit (None for a layer this version does not know)."""
-
-
 _POSITIVE = ("light_factor", "exposure_ms", "reference_exposure_ms")
 """Record keys that must be finite numbers > 0 wherever they are given."""
 
@@ -330,137 +253,3 @@ def image_size(record: CaptureRecord) -> tuple[int, int] | None:
     if "width_px" in cam and "height_px" in cam:
         return int(cam["width_px"]), int(cam["height_px"])
     return None
-
-
-def check_layers_fit(layers: dict, record: CaptureRecord | None, exr, sidecar) -> None:
-    """Refuse an EXR and a JSON that disagree on the image's size (a kernel in px made from
-    the JSON would be the wrong one)."""
-    size = None if record is None else image_size(record)
-    if size is None:
-        return
-    for name, a in layers.items():
-        h, w = np.shape(a)[:2]
-        if (w, h) != size:
-            raise ParameterError(
-                f"{exr} and {sidecar} disagree: layer {name!r} is {w}x{h} px, the JSON says "
-                f"{size[0]}x{size[1]}; they are not one capture"
-            )
-
-
-def read_capture_layers(path: str | os.PathLike) -> tuple[dict[str, np.ndarray], CaptureRecord]:
-    """A capture's layers as stored (:data:`LAYER_UNITS`) and its record.
-
-    Parameters
-    ----------
-    path : path-like
-        ``capture.exr``, or the folder that holds it; its JSON must be beside it.
-
-    Raises
-    ------
-    ParameterError
-        If a file is missing or unreadable.
-    """
-    import json
-
-    from ..io.exr import read_exr
-
-    exr = Path(path)
-    exr = exr / "capture.exr" if exr.is_dir() else exr
-    sidecar = exr.with_suffix(".json")
-    if not exr.is_file():
-        raise ParameterError(f"no capture at {exr}")
-    if not sidecar.is_file():
-        raise ParameterError(f"{exr} has no {sidecar.name} beside it: its scale is not known")
-    try:
-        record = CaptureRecord.from_json(json.loads(sidecar.read_text()), where=str(sidecar))
-    except json.JSONDecodeError as exc:
-        raise ParameterError(f"{sidecar} is not valid JSON ({exc})") from None
-    layers = read_exr(exr)
-    check_layers_fit(layers, record, exr, sidecar)
-    return layers, record
-
-
-def read_record(capture: str | os.PathLike, required: bool = True) -> CaptureRecord | None:
-    """The record of ``capture.exr`` from its JSON sidecar, or None if it has none.
-
-    Parameters
-    ----------
-    capture : path-like
-        The capture's EXR file; its record is the ``.json`` of the same name beside it.
-    required : bool
-        Whether the record must be complete (a camera, ...). If False, a sidecar that is valid
-        JSON but not a complete record gives a :class:`~pacam_render.limits.PacamWarning` and
-        None: only its noise sigma would have been used.
-
-    Returns
-    -------
-    CaptureRecord or None
-
-    Raises
-    ------
-    ParameterError
-        If the sidecar is not valid JSON, or (``required``) not a complete record.
-    """
-    import json
-    import warnings
-
-    from ..limits import PacamWarning
-
-    path = Path(capture).with_suffix(".json")
-    if not path.is_file():
-        return None
-    try:
-        data = json.loads(path.read_text())
-    except json.JSONDecodeError as exc:
-        raise ParameterError(f"{path} is not valid JSON ({exc})") from exc
-    try:
-        return CaptureRecord.from_json(data, where=str(path))
-    except ParameterError as exc:
-        if required:
-            raise
-        warnings.warn(f"{exc}; its noise sigma is not used", PacamWarning, stacklevel=2)
-        return None
-
-
-def read_capture(path: str | os.PathLike) -> CaptureFile:
-    """Read a capture (``capture.exr`` and its JSON) with every image layer on the white scale.
-
-    A capture's own layers (``capture``, ``noisy``, ``subNN``, ``mc_sigma``) are radiance x
-    ``light_factor``, its ground truth ``sharp`` plain radiance; this divides the former by
-    ``light_factor``, so that e.g. a PSNR of ``noisy`` against ``sharp`` means what it says.
-    A capture with a relative illumination (its ``relative_illumination`` layer, the map m)
-    measured irradiance; its own layers are also divided by m (flat-fielded, as a camera
-    pipeline does: the noise grows by 1 / m towards the corners), so they are radiance again.
-
-    Parameters
-    ----------
-    path : path-like
-        The ``capture.exr`` file, or the folder that holds it; ``capture.json`` (the same
-        name, ``.json``) must be beside it.
-
-    Returns
-    -------
-    CaptureFile
-        ``layers`` (float32, white = 1; ``raw`` stays in DN, ``depth`` in mm, ...), ``record``
-        (the :class:`CaptureRecord`, unchanged: ``light_factor`` still says the file's scale)
-        and ``units`` (each returned layer's unit).
-
-    Raises
-    ------
-    ParameterError
-        If a file is missing or unreadable, or ``light_factor`` is not > 0.
-    """
-    from ..errors import check_positive
-
-    stored, record = read_capture_layers(path)
-    lf = check_positive("light_factor in the capture's JSON", record.light_factor)
-    from ..model.illumination import flat_field
-
-    ri_map = stored.get("relative_illumination")
-    layers, units = {}, {}
-    for name, arr in stored.items():
-        unit = layer_unit(name)
-        scaled = unit is not None and unit.startswith(CAPTURE_UNIT)
-        layers[name] = flat_field(arr / np.float32(lf), ri_map) if scaled else arr
-        units[name] = unit.replace(CAPTURE_UNIT, WHITE_UNIT) if scaled else unit
-    return CaptureFile(layers, record, units)

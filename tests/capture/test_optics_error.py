@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 from scipy.special import j1
 
+from pacam_render.capture import optics_error as oe
 from pacam_render.errors import ParameterError
-from pacam_render.exposure import optics_error as oe
 from pacam_render.exposure.capture_diffraction import check_diffraction, decide, effect_rms
 from pacam_render.exposure.capture_spec import CaptureSpec
 from pacam_render.model.camera import prototype

@@ -11,8 +11,8 @@ import numpy as np
 from ..errors import ParameterError, check_finite, check_positive
 from ..limits import DEFAULT_MAX_SAMPLES, check_count
 from ..model.camera import MIN_FOCUS_MM, CameraDesign
-from .psf_film import FILM_MODES, Film, film_for
-from .psf_setup import ModeSetup, mode_setup
+from .film import FILM_MODES, Film, film_for
+from .mode_setup import ModeSetup, mode_setup
 
 AUTO_PARTICLES = 1 << 18
 """``spp=None``: enough samples per pixel for about this many particles per window."""
@@ -37,7 +37,7 @@ class PSFSpec:
     :func:`~pacam_render.psf.design_psf` (``t0`` or ``pinhole``). ``max_samples``: refuse a
     render of more particles (:func:`check_render_budget`). Checked by :func:`plan_render`,
     whose errors name these fields. ``diffraction``: the opening's diffraction in the rays,
-    and the model convolved alike (:mod:`.psf_diffraction`), on pixels of ``pixel_pitch_mm``
+    and the model convolved alike (:mod:`.diffraction`), on pixels of ``pixel_pitch_mm``
     (default the design's own; a binned sensor's are larger).
     """
 
@@ -155,7 +155,7 @@ def plan_render(
     if spec.diffraction:  # the geometric kernel, diffracted as the rays will be
         import mitsuba as mi
 
-        from .psf_diffraction import channels, diffracted_model, sensor_params
+        from .diffraction import channels, diffracted_model, sensor_params
 
         n = channels(mi.variant() or "")
         sensor_params(design, spec.mode, n, spec.pixel_pitch_mm)  # refuses pinholes, bitmaps

@@ -68,8 +68,8 @@ bit-identical kernel, and on this 2-core machine it was no slower (ptracer's ato
 
 Units: mm, ms, px; velocities px/ms in the image (+ to the right), accelerations px/ms^2.
 
-The parts: what to render and its checks (:mod:`.psf_spec`), each mode's windows and model
-(:mod:`.psf_setup`), the film (:mod:`.psf_film`), the result (:mod:`.psf_result`); this module
+The parts: what to render and its checks (:mod:`.spec`), each mode's windows and model
+(:mod:`.mode_setup`), the film (:mod:`.film`), the result (:mod:`.result`); this module
 renders.
 """
 
@@ -82,15 +82,15 @@ from contextlib import contextmanager
 import numpy as np
 
 from ..errors import ParameterError, check_positive
+from ..io.signals import deferred_signals
 from ..model.camera import CameraDesign
 from ..render.registry import PSF_PLUGIN_NAME, ensure_registered, sensor_dict
 from ..restore.metrics import kernel_centroid
 from ..scenes import image_to_scene_velocity, psf_scene
-from .checkpoint import deferred_signals
-from .psf_film import Film
-from .psf_result import RenderedPSF
-from .psf_setup import ModeSetup, model_window_centroids
-from .psf_spec import PSFSpec, check_render_budget, check_request, plan_render  # noqa: F401 - cli
+from .film import Film
+from .mode_setup import ModeSetup, model_window_centroids
+from .result import RenderedPSF
+from .spec import PSFSpec, check_render_budget, check_request, plan_render  # noqa: F401 - cli
 
 DEFAULT_SOURCE_RADIUS_PX = 0.02
 """Radius of the emitter's image, px: small enough that it does not show (see source_blur_l1)."""
@@ -155,7 +155,7 @@ class PSFRenderer:
                pitch_mm=None):  # fmt: skip
         import mitsuba as mi
 
-        from .psf_diffraction import channels, sensor_params
+        from .diffraction import channels, sensor_params
 
         # a scene is made for one variant (mono or RGB): a switch between calls loads anew
         key = (mi.variant(), film.key(integrator, setup.exposure_ms), diffraction)

@@ -1,5 +1,5 @@
 """How each PSF mode is rendered: the sensor's schedule and windows, where the kernel's origin
-lies, and the analytic model's per-window centroids and kernels (:mod:`.psf_render`)."""
+lies, and the analytic model's per-window centroids and kernels (:mod:`.render`)."""
 
 from __future__ import annotations
 
