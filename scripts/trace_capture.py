@@ -19,7 +19,7 @@ import tempfile
 import warnings
 
 LAYERS = ("errors", "limits", "io", "model", "wave", "psf", "render", "scenes", "capture",
-          "sensor", "restore", "exposure", "psf_render", "optimize", "study", "experiments",
+          "sensor", "restore", "exposure", "psf_render", "lightfield", "optimize", "study", "experiments",
           "cli")  # fmt: skip
 TRACKED = ("CaptureSpec", "CapturePlan")
 """What a counted call takes; ``--with-designs`` adds the cameras resolved from it."""

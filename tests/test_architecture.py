@@ -306,6 +306,7 @@ LAYERS = (
     "restore",
     "exposure",
     "psf_render",
+    "lightfield",
     "optimize",
     "study",
     "experiments",

@@ -15,7 +15,19 @@ from collections.abc import Sequence
 
 from ..errors import FileKeyError, ParameterError
 from ..exposure.integrate import CaptureInterrupted
-from . import deconvolve, demo, design, optimize, psf, render, reproduce, sensor, study, validate
+from . import (
+    deconvolve,
+    demo,
+    design,
+    lightfield,
+    optimize,
+    psf,
+    render,
+    reproduce,
+    sensor,
+    study,
+    validate,
+)
 from .common import (
     check_common,
     interrupt_status,
@@ -24,7 +36,19 @@ from .common import (
     user_words,
 )
 
-COMMANDS = (design, psf, deconvolve, reproduce, render, sensor, optimize, validate, study, demo)
+COMMANDS = (
+    design,
+    psf,
+    deconvolve,
+    reproduce,
+    render,
+    lightfield,
+    sensor,
+    optimize,
+    validate,
+    study,
+    demo,
+)
 """The command modules, in the order ``pacam --help`` lists them."""
 
 

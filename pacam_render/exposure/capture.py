@@ -283,7 +283,8 @@ def _render(plan: CapturePlan, description, run: Run, truth: bool, target, keep:
     check_units(scene, design)  # a scene in metres renders near-black with no other word
     run.check_signal()
     exp, speed = plan_exposure(scene, sensor, desc, design, cam, spec, run.max_steps)
-    record = build_record(plan, params, sensor, 0.0, {})
+    aperture = None if spec.mode == "reference" else sensor.plan
+    record = build_record(plan, params, aperture, 0.0, {})
     steps_plan = {"windows": exp.windows, "target": None if target is None else target.to_json()}
     parts = resume_parts(plan.key(), scene, desc, steps_plan, versions(), variant)
     store = Checkpoint(None if run.partial_dir is None else Path(run.partial_dir), parts)
@@ -309,7 +310,7 @@ def _render(plan: CapturePlan, description, run: Run, truth: bool, target, keep:
         "fastest_image_speed_px_per_ms": speed if exp.moving else None,
     }
     seconds = time.perf_counter() - t_start + prog.seconds_before
-    record = build_record(plan, params, sensor, seconds, steps)
+    record = build_record(plan, params, aperture, seconds, steps)
     record.objects = objects
     record.design_fit = record_design_fit(layers, objects, cam, spec.mode)
     ids = layers.get("object_id")

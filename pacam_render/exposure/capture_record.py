@@ -33,11 +33,13 @@ def versions() -> dict:
     }
 
 
-def build_record(plan, params: dict, sensor, seconds: float, steps: dict) -> CaptureRecord:
+def build_record(plan, params: dict, aperture, seconds: float, steps: dict) -> CaptureRecord:
     """The capture's record: the one place that builds it, from its
-    :class:`~.plan.CapturePlan`, the sensor's parameters and the loaded sensor."""
+    :class:`~.plan.CapturePlan`, the sensor's parameters and the sensor's
+    :class:`~pacam_render.render.plan.AperturePlan` (None for the pinhole reference), whatever
+    produced the capture (a render, or a light-field store)."""
     spec, design, cam, variant = plan.spec, plan.design, plan.cam, plan.variant
-    weight = 1.0 if spec.mode == "reference" else float(sensor.plan.mean_weight())
+    weight = 1.0 if spec.mode == "reference" else float(aperture.mean_weight())
     crop = None
     if spec.crop is not None:
         x, y, w, h = spec.crop

@@ -1,0 +1,128 @@
+"""``pacam lightfield``: render a scene's window once through the whole lens, into a store that
+``pacam render --from`` synthesises any design's capture from."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from ..errors import ParameterError, check_positive
+from ..limits import gib
+from .common import add_design_flags, add_grey, add_quiet, design_spec_fields
+
+
+def add(sub) -> None:
+    p = sub.add_parser(
+        "lightfield",
+        help="render a light-field store: one render that serves every design's capture",
+    )
+    p.add_argument("scene", help="train, soccer, walker, or a path to a Mitsuba .xml scene")
+    p.add_argument("--width", type=int, default=1280, metavar="W", help="sensor px (default 1280)")
+    p.add_argument("--height", type=int, default=960, metavar="H", help="sensor px (default 960)")
+    p.add_argument("--crop", metavar="X,Y,W,H", help="the window of the sensor to store")
+    add_design_flags(p)
+    p.add_argument("--depth", type=float, metavar="MM", help="the design's object depth")
+    p.add_argument(
+        "--spp",
+        type=int,
+        default=64,
+        metavar="N",
+        help="samples per pixel and pass, shared among a moving scene's time steps (default 64)",
+    )
+    p.add_argument(
+        "--passes",
+        type=int,
+        default=4,
+        metavar="P",
+        help="independent passes: their spread is every synthesised capture's Monte "
+        "Carlo error (default 4)",
+    )
+    p.add_argument("--seed", type=int, default=0, metavar="S")
+    p.add_argument(
+        "--max-step-px",
+        type=float,
+        default=0.5,
+        metavar="PX",
+        help="largest image motion between time steps (default 0.5 px)",
+    )
+    p.add_argument(
+        "--designs",
+        nargs="*",
+        default=[],
+        metavar="FILE",
+        help="design files the store's lens samples focus on (default: this design "
+        "in its coded and normal modes); others are served too, less efficiently",
+    )
+    p.add_argument(
+        "--margin-px",
+        type=int,
+        metavar="PX",
+        help="extra film on every side, for designs focused elsewhere (default: what "
+        "the designs need)",
+    )
+    p.add_argument(
+        "--max-disk-gib",
+        type=float,
+        default=20.0,
+        metavar="GIB",
+        help="refuse a store larger than this on disk (default 20)",
+    )
+    p.add_argument("--no-truth", action="store_true", help="leave out the ground-truth layers")
+    add_grey(p, "the store")
+    p.add_argument("--out", required=True, metavar="STORE", help="the store's folder")
+    add_quiet(p)
+    p.set_defaults(func=run)
+
+
+def _spec(args: argparse.Namespace):
+    from ..exposure.capture_spec import CaptureSpec, parse_crop
+    from ..lightfield import StoreSpec
+
+    crop = parse_crop(args.crop) if args.crop else None
+    base = dict(
+        scene=args.scene,
+        width=args.width,
+        height=args.height,
+        crop=crop,
+        grey=bool(args.grey),
+        object_depth_mm=args.depth,
+    )
+    capture = CaptureSpec(
+        **base,
+        **design_spec_fields(args),
+        spp=args.spp,
+        passes=args.passes,
+        seed=args.seed,
+        max_step_px=args.max_step_px,
+    )
+    designs = tuple(CaptureSpec(**base, design=d) for d in args.designs)
+    return StoreSpec(capture, margin_px=args.margin_px, designs=designs)
+
+
+def run(args: argparse.Namespace) -> int:
+    from ..lightfield import render_lightfield
+
+    check_positive("--max-disk-gib", args.max_disk_gib, "GiB")
+    if args.passes < 2:
+        raise ParameterError(
+            f"--passes must be >= 2 (their spread is the error), got {args.passes}"
+        )
+    spec = _spec(args)
+    store = render_lightfield(
+        spec,
+        Path(args.out),
+        progress=not args.quiet,
+        max_disk=int(args.max_disk_gib * 2**30),
+        truth=not args.no_truth,
+    )
+    m = store.manifest
+    size = sum(f.stat().st_size for f in Path(args.out).glob("*.npz"))
+    steps = len(m["steps"][0])
+    cam = m["camera"]
+    print(
+        f"light-field store of {m['scene']}: window {cam['window']} (+{cam['margin_px']} px "
+        f"margin), {m['passes']} passes of {steps} step(s), {m['seconds']:.1f} s, "
+        f"{gib(size)} -> {args.out} (digest {store.digest})"
+    )
+    print(f"synthesise a design's capture with: pacam render {m['scene']} --from {args.out} ...")
+    return 0

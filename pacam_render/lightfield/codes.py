@@ -1,0 +1,90 @@
+"""Aperture codes as transmissions: A(u, v, t) of a design, the weight of a store's sample.
+
+A capture is the light field weighed by the design's transmission and integrated over the lens
+and the exposure; with samples uniform over the whole lens and the store's exposure, a design's
+pixel is the mean over its samples of L x A (the plugin's pixel scale, radiance x open area /
+full aperture x exposure / 45 ms, falls out of the uniform density). A is read from the design's
+own :class:`~pacam_render.render.plan.AperturePlan`, the plan the plugin renders from, so the
+pattern at each time, the openings' centres (held or continuous), bitmaps, closed chops and the
+LCoS's contrast mean what they mean in a direct render.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..errors import ParameterError
+from ..render.plan import PROP_KEYS, AperturePlan, build_plan
+from .geometry import focal_px
+
+SERVED = ("static", "parabolic", "centres", "bitmap", "flutter")
+"""The schedules a store serves: every one whose camera does not move."""
+
+
+def check_served(plan: AperturePlan, params: dict) -> None:
+    """Refuse a design that no reweighting of the store's rays can give, naming why."""
+    if plan.schedule not in SERVED:
+        raise ParameterError(
+            f"a light-field store cannot serve schedule {plan.schedule!r}: Levin's camera moves "
+            "its body, so its rays are not the store's; render it directly"
+        )
+    if params.get("lcos_switching"):
+        raise ParameterError(
+            "lcos_switching_ms: a switching LCoS is not in the store's weights yet; render it "
+            "directly"
+        )
+
+
+def transmission(
+    plan: AperturePlan, u, v, t, masks: np.ndarray | None = None, contrast: float | None = None
+) -> np.ndarray:
+    """A(u, v, t) of ``plan`` at lens points (u, v) (mm, the plugin's local frame) and times
+    t (ms on the design's shutter clock), float32.
+
+    0 outside the exposure and in closed patterns; inside an open pattern, 1 in the opening
+    (a disc about the pattern's centre at t, or a bitmap's value at its LCoS pixel) and
+    1 / ``contrast`` elsewhere on the lens (a finite-contrast LCoS's leakage, disc schedules).
+    """
+    t = np.asarray(t, np.float64)
+    inside = (t >= plan.t_open) & (t < plan.t_close)
+    k = plan.pattern_at(np.clip(t, plan.t_open, plan.t_close))
+    shown = inside & plan.is_open[k]
+    if plan.kind == "bitmap":
+        a = _bitmap(plan, masks, u, v, k)
+    else:
+        c = plan.aperture_centre_at(np.clip(t, plan.t_open, plan.t_close))
+        r2 = (u - c[..., 0]) ** 2 + (v - c[..., 1]) ** 2
+        a = (r2 < plan.radius_mm**2).astype(np.float32)
+        if contrast is not None:
+            a = np.maximum(a, np.float32(1.0 / contrast))
+    return np.where(shown, a, 0.0).astype(np.float32)
+
+
+def _bitmap(plan: AperturePlan, masks: np.ndarray, u, v, k) -> np.ndarray:
+    """The bitmap's transmittance at each lens point: local x falls with the column, y with
+    the row (:func:`~pacam_render.model.masks.pixel_centres_mm`)."""
+    if masks is None:
+        raise ParameterError("a bitmap schedule's transmission needs its masks")
+    n, h, w = masks.shape
+    pitch = plan.tables.pitch_mm
+    col = np.floor(w / 2.0 - u / pitch).astype(np.int64)
+    row = np.floor(h / 2.0 - v / pitch).astype(np.int64)
+    ok = (col >= 0) & (col < w) & (row >= 0) & (row < h)
+    out = np.zeros(np.shape(u), np.float32)
+    out[ok] = masks[k[ok], row[ok], col[ok]]
+    return out
+
+
+def design_aperture(plan, params: dict) -> AperturePlan:
+    """A capture plan's :class:`~pacam_render.render.plan.AperturePlan`, as the plugin builds
+    it from the same parameters (``params``: the plan's sensor parameters)."""
+    from ..model import paper
+
+    if plan.spec.mode == "reference":
+        raise ParameterError("mode reference is a pinhole: render it directly (it has no lens)")
+    cfg = {k: params[k] for k in PROP_KEYS if k in params}
+    cfg["reference_exposure"] = paper.EXPOSURE_MS
+    f_px = focal_px(plan.spec.width, plan.cam.fov_deg)
+    dp = build_plan(cfg, 0.0, plan.cam.exposure_ms, focal_px=f_px,
+                    focus_mm=params["focus_distance"])  # fmt: skip
+    return dp

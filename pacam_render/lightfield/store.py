@@ -1,0 +1,198 @@
+"""A light-field store on disk: the samples of one render through the whole lens.
+
+A store is a folder: ``store.json`` (what was rendered, its steps and its digest), one
+``.npz`` shard per pass and time step (each sample's film point, lens point, time and
+radiance, :mod:`.trace`), and ``truth.npz`` (the capture's ground-truth layers, rendered once).
+Every file is written under a temporary name and renamed, so a shard on disk is a finished one:
+an interrupted store resumes by skipping them, and gives the same bits as an uninterrupted one.
+
+Per-sample records rather than bins: a design's reweighting needs the lens point and the time
+of each sample exactly (a bitmap's LCoS pixels are 13.6 um, an opening's edge is sharp, and a
+refocused design moves each sample by its lens point), so any binning of (u, v, t) would put a
+discretisation error on every design. Records cost 32 bytes a sample (RGB), which the budget
+below counts before any work.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import shutil
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import ParameterError, check_positive
+from ..io.outputs import atomic_save, write_json
+from ..limits import available_bytes, gib
+
+FORMAT = "pacam-lightfield/1"
+RECORD_FIELDS = ("x", "y", "u", "v", "p")
+"""Per-sample float32 fields beside the radiance: film point (px), lens point (mm) and the
+proposal's density there (1/mm^2)."""
+DISK_BYTES = 20 * 2**30
+"""The most disk a store may take unless ``max_disk_gib`` raises it (the issue's 20 GB)."""
+
+
+@dataclass(frozen=True)
+class StoreSpec:
+    """What a store renders: a capture's window, its samples and the designs it must serve.
+
+    ``capture`` (a :class:`~pacam_render.exposure.capture_spec.CaptureSpec`) gives the scene,
+    the sensor size, the window (``crop``), the design whose field of view and focus the store
+    camera takes (``preset`` or ``design``, ``object_depth_mm``), ``spp`` per pass, ``passes``,
+    ``seed``, ``max_step_px`` and ``grey``. ``margin_px`` widens the film on every side, so
+    that designs focused elsewhere (a normal capture focuses on the object) find every ray that
+    reaches their window (:mod:`.geometry`); None: what the proposal's designs need.
+    ``focus_mm`` is the store camera's focus (None: the design's coded focus).
+    """
+
+    capture: object
+    margin_px: int | None = None
+    focus_mm: float | None = None
+    designs: tuple = ()
+    """CaptureSpecs of the designs the proposal focuses on (:mod:`.proposal`); empty: the
+    capture's own design in its coded and normal modes."""
+    alpha: float = 0.2
+    """The proposal's uniform share (:data:`~.proposal.DEFENSIVE`)."""
+
+    def __post_init__(self) -> None:
+        m = self.margin_px
+        if m is not None and (not isinstance(m, (int, np.integer)) or m < 0):
+            raise ParameterError(f"margin_px must be an integer >= 0, got {self.margin_px!r}")
+        if self.focus_mm is not None:
+            check_positive("focus_mm", self.focus_mm, "mm")
+
+    def to_json(self) -> dict:
+        return {"capture": asdict(self.capture), "margin_px": self.margin_px,
+                "focus_mm": self.focus_mm, "designs": [asdict(d) for d in self.designs],
+                "alpha": self.alpha}  # fmt: skip
+
+    def key(self) -> str:
+        """A hash of everything that changes the samples (for resuming)."""
+        h = hashlib.sha256(self.capture.key().encode())
+        h.update(json.dumps([self.margin_px, self.focus_mm, self.alpha]).encode())
+        for d in self.designs:
+            h.update(d.key().encode())
+        return h.hexdigest()[:16]
+
+
+def shard_name(pass_index: int, step: int) -> str:
+    return f"p{pass_index:02d}_s{step:04d}.npz"
+
+
+def bytes_per_sample(channels: int, per_sample_time: bool) -> int:
+    """A record's size on disk: four float32 fields, the time where it varies, the radiance."""
+    return 4 * (len(RECORD_FIELDS) + int(per_sample_time) + channels)
+
+
+def check_budget(samples: int, per_shard: int, nbytes: int, out: Path, max_disk: int) -> None:
+    """Refuse a store whose disk or one shard's memory would not fit, with the numbers."""
+    if nbytes > max_disk:
+        raise ParameterError(
+            f"the store needs {gib(nbytes)} on disk ({samples:.4g} samples), above the limit of "
+            f"{gib(max_disk)}; lower `spp`, `passes` or the window (`crop`), or raise max_disk"
+        )
+    probe = out if out.exists() else out.parent
+    free = shutil.disk_usage(probe).free
+    if nbytes > free:
+        raise ParameterError(
+            f"the store needs {gib(nbytes)} on disk and {gib(free)} is free at {probe}; lower "
+            "`spp`, `passes` or the window (`crop`)"
+        )
+    peak = per_shard * 120  # the wavefront's Dr.Jit state and the host copies, measured
+    if peak > available_bytes():
+        raise ParameterError(
+            f"one step of the store needs about {gib(peak)} of memory and "
+            f"{gib(available_bytes())} is available; lower `spp` or the window (`crop`)"
+        )
+
+
+def shard_digest(records: dict, meta: dict) -> str:
+    """The SHA-256 (16 hex digits) of a shard's arrays and meta: the store's digest's part."""
+    h = hashlib.sha256()
+    for k in sorted(records):
+        h.update(k.encode() + np.ascontiguousarray(records[k]).tobytes())
+    h.update(json.dumps(meta, sort_keys=True).encode())
+    return h.hexdigest()[:16]
+
+
+def save_shard(folder: Path, name: str, records: dict, meta: dict) -> str:
+    """Write one shard atomically; return its :func:`shard_digest`."""
+
+    def save(tmp: str) -> None:
+        with open(tmp, "wb") as f:
+            np.savez(f, **records, meta=np.frombuffer(json.dumps(meta).encode(), np.uint8))
+
+    atomic_save(folder / name, save, force=True)
+    return shard_digest(records, meta)
+
+
+def load_shard(path: Path) -> tuple[dict, dict]:
+    """A shard's records and its meta (the step's times and samples)."""
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            meta = json.loads(bytes(z["meta"]).decode())
+            return {k: z[k] for k in z.files if k != "meta"}, meta
+    except (OSError, ValueError, KeyError) as exc:
+        raise ParameterError(f"{path}: not a readable light-field shard ({exc})") from None
+
+
+@dataclass
+class Store:
+    """A store read back: its folder and manifest (``store.json``)."""
+
+    folder: Path
+    manifest: dict
+
+    @classmethod
+    def open(cls, folder) -> Store:
+        path = Path(folder) / "store.json"
+        if not path.is_file():
+            raise ParameterError(f"no light-field store at {folder} (its store.json is missing)")
+        try:
+            manifest = json.loads(path.read_text())
+        except json.JSONDecodeError as exc:
+            raise ParameterError(f"{path} is not valid JSON ({exc})") from None
+        if not isinstance(manifest, dict) or manifest.get("format") != FORMAT:
+            raise ParameterError(f"{path} is not a {FORMAT} store")
+        if not manifest.get("complete"):
+            raise ParameterError(
+                f"the store at {folder} is not finished: run `pacam lightfield` again to resume"
+            )
+        return cls(Path(folder), manifest)
+
+    @property
+    def digest(self) -> str:
+        return self.manifest["digest"]
+
+    def shards(self, pass_index: int):
+        """(records, meta) of each of a pass's shards, in step order, one at a time."""
+        for step in range(len(self.manifest["steps"][pass_index])):
+            yield load_shard(self.folder / shard_name(pass_index, step))
+
+    def truth(self) -> tuple[dict, dict | None]:
+        """The ground-truth layers and the ``object_id`` legend (empty without truth)."""
+        path = self.folder / "truth.npz"
+        if not path.is_file():
+            return {}, None
+        records, meta = load_shard(path)
+        return records, meta.get("objects")
+
+
+def write_manifest(folder: Path, manifest: dict) -> None:
+    write_json(folder / "store.json", manifest, force=True)
+
+
+def store_digest(key: str, shard_digests: list[list[str]]) -> str:
+    h = hashlib.sha256(key.encode())
+    for row in shard_digests:
+        h.update(",".join(row).encode())
+    return h.hexdigest()[:16]
+
+
+def planned_samples(steps: list[list[tuple]], pixels: int) -> tuple[int, int]:
+    """Total samples of a store's steps, and those of its largest shard."""
+    per = [s[2] * pixels for row in steps for s in row]
+    return sum(per), max(per)

@@ -1,0 +1,263 @@
+"""A capture synthesised from a light-field store: any design, no ray tracing.
+
+The design is resolved as a direct capture's (:func:`~pacam_render.exposure.plan.plan_capture`),
+so the same plan gives the same camera, sensor parameters and record. Each of the store's
+samples is moved to where the design's camera sees its ray (its focus, :mod:`.geometry`),
+weighed by the design's transmission at its lens point and time (:mod:`.codes`) and by its
+step's share of the exposure, and added into its pixel; each store pass gives one pass of the
+capture, so the capture's Monte Carlo error is measured as a render's is, from the samples the
+design actually uses. The result is a :class:`~pacam_render.capture.result.Capture` with the
+store's truth layers and a record that names the store and its digest.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import replace
+
+import numpy as np
+
+from ..errors import ParameterError
+from ..exposure.estimate import PassGroup, PassStats
+from . import geometry as geo
+from .codes import check_served, design_aperture, transmission
+from .store import Store
+
+APPROXIMATION = "exact: the store's rays reweighted (same estimator as a direct render)"
+
+
+def check_fits(store: Store, spec) -> None:
+    """Refuse a capture the store cannot give, naming the field that differs."""
+    s = store.manifest["spec"]["capture"]
+    for key in ("scene", "width", "height", "grey"):
+        if s[key] != getattr(spec, key):
+            raise ParameterError(
+                f"`{key}` {getattr(spec, key)!r} differs from the store's {s[key]!r}: a store "
+                "serves captures of its own scene, sensor size and channels"
+            )
+    crop = list(spec.crop) if spec.crop else None
+    if (list(s["crop"]) if s["crop"] else None) != crop:
+        raise ParameterError(f"`crop` {crop} differs from the store's window {s['crop']}")
+    if spec.diffraction == "on" or spec.lcos_fill_factor is not None:
+        raise ParameterError(
+            "diffraction on: a synthesised capture is geometric (diffraction is not linear in "
+            "the aperture); give diffraction off or auto (its effect is then measured and "
+            "stated in the capture's optics_error)"
+        )
+
+
+def synthesize(store: Store, spec, progress: bool = True, description=None):
+    """The capture ``spec`` asks for, from ``store`` (module docstring).
+
+    Parameters
+    ----------
+    store : Store
+        A finished light-field store.
+    spec : CaptureSpec
+        The capture: its scene, size, window and channels must be the store's; its design,
+        mode and optics are free, within :func:`check_fits` and
+        :func:`~.codes.check_served`. ``seed``, ``spp`` and ``passes`` are the store's.
+    progress : bool, optional
+        A progress bar over the store's shards.
+    description : SceneDescription, optional
+        The scene the store was rendered from, when it is not ``spec.scene`` by name (checked
+        against the store's digest).
+
+    Returns
+    -------
+    Capture
+        The image (radiance x light factor, as a render's), its per-pixel Monte Carlo sigma,
+        the store's truth layers, and a record with ``lightfield`` (the store, its digest and
+        the samples used).
+
+    Raises
+    ------
+    ParameterError
+        If the store cannot serve the design (another window, Levin's moving camera, a
+        refocus beyond the store's margin, diffraction on, a switching LCoS).
+    """
+    t_start = time.perf_counter()
+    desc = _scene(store, spec, description)
+    plan, params, design_plan = _resolve(store, spec, desc)
+    images, used = pass_images(store, plan, params, design_plan, progress)
+    stats = PassStats([PassGroup(sum(s[2] for s in store.manifest["steps"][0]))])
+    for img in images:
+        stats.add(0, img)
+    seconds = time.perf_counter() - t_start
+    return _capture(store, plan, params, design_plan, stats, used, seconds, desc)
+
+
+def _resolve(store: Store, spec, description):
+    """The capture's plan (the store's seed, samples and passes), its sensor parameters and
+    aperture plan, each checked against what the store can serve."""
+    from ..exposure.plan import plan_capture
+
+    check_fits(store, spec)
+    _scene(store, spec, description)
+    s = store.manifest["spec"]["capture"]
+    spec = replace(spec, seed=s["seed"], spp=s["spp"], passes=s["passes"], sampler="independent",
+                   max_step_px=s["max_step_px"])  # fmt: skip
+    plan = plan_capture(spec)
+    decision = "off: a synthesised capture is geometric" if spec.diffraction == "off" else (
+        "left out: a capture synthesised from a light-field store is geometric; its effect is "
+        "measured below"
+    )  # fmt: skip
+    plan = plan.with_diffraction(False, decision)
+    params = plan.sensor_params()
+    design_plan = design_aperture(plan, params)
+    check_served(design_plan, params)
+    _shear(store, plan)
+    return plan, params, design_plan
+
+
+def paired_difference(store: Store, a, b, description=None) -> tuple[np.ndarray, np.ndarray]:
+    """Capture ``a`` minus capture ``b`` from one store, and the per-pixel Monte Carlo sigma
+    of that difference, from the spread of the passes' differences: the two designs share the
+    store's rays, so most of their noise cancels.
+
+    Parameters
+    ----------
+    store : Store
+    a, b : CaptureSpec
+        Two captures the store serves (:func:`synthesize`).
+    description : SceneDescription, optional
+        As :func:`synthesize`'s.
+
+    Returns
+    -------
+    (numpy.ndarray, numpy.ndarray)
+        The difference (capture units) and its sigma.
+    """
+    per = []
+    for spec in (a, b):
+        plan, params, design_plan = _resolve(store, spec, description)
+        per.append(pass_images(store, plan, params, design_plan, False)[0])
+    stats = PassStats([PassGroup(1)])
+    for ia, ib in zip(*per):
+        stats.add(0, ia - ib)
+    return stats.mean(), stats.sigma_px()
+
+
+def _shear(store: Store, plan) -> float:
+    """k (px/mm) of the design's focus against the store's, checked against its margin."""
+    info = store.manifest["camera"]
+    if abs(plan.cam.fov_deg - info["fov_deg"]) > 1e-9 or plan.cam.R_max_mm > info[
+        "lens_radius_mm"
+    ] * (1 + 1e-9):
+        raise ParameterError(
+            f"the design's lens (fov {plan.cam.fov_deg:g} deg, R_max {plan.cam.R_max_mm:g} mm) "
+            f"is not the store's ({info['fov_deg']:g} deg, {info['lens_radius_mm']:g} mm)"
+        )
+    focus = plan.sensor_params()["focus_distance"]
+    k = geo.shear_px_per_mm(info["f_px"], info["focus_mm"], focus)
+    need = geo.margin_px(k, plan.cam.R_max_mm)
+    if need > info["margin_px"]:
+        raise ParameterError(
+            f"the design focuses at {focus:g} mm, {need} px of refocus from the store's "
+            f"{info['focus_mm']:g} mm, beyond its margin of {info['margin_px']} px: render the "
+            f"store with margin_px >= {need}"
+        )
+    return k
+
+
+def pass_images(store: Store, plan, params, design_plan, progress: bool = False):
+    """Each store pass binned into one pass of the capture (a list of images), and the number
+    of samples with weight > 0."""
+    from tqdm import tqdm
+
+    info = store.manifest["camera"]
+    k = _shear(store, plan)
+    x0, y0, w, h = info["window"]
+    steps = store.manifest["steps"]
+    images = []
+    masks = params.get("masks")
+    masks = None if masks is None else np.asarray(masks, np.float32)
+    contrast = params.get("lcos_contrast")
+    cos4 = params.get("relative_illumination") == "cos4"
+    offset = design_plan.t_mid - store.manifest["mid_ms"]  # the paper's t = 0 is shared
+    used, c = 0, store.manifest["channels"]
+    lens_area = np.pi * info["lens_radius_mm"] ** 2
+    bar = tqdm(total=sum(len(r) for r in steps), desc="synthesis", disable=not progress)
+    for p in range(store.manifest["passes"]):
+        image = np.zeros((h * w, c))
+        for rec, meta in store.shards(p):
+            t = rec["t"] if "t" in rec else np.full(len(rec["x"]), meta["time"], np.float32)
+            a = transmission(design_plan, rec["u"], rec["v"], t + offset, masks, contrast)
+            x = geo.shifted(rec["x"], rec["u"], k) - x0
+            y = geo.shifted(rec["y"], rec["v"], k) - y0
+            ok = (a > 0) & (x >= 0) & (x < w) & (y >= 0) & (y < h)
+            share = (meta["t1"] - meta["t0"]) / info["exposure_ms"] / meta["spp"]
+            weight = a[ok] * (share / (rec["p"][ok] * lens_area))  # A / (p pi R_max^2)
+            if cos4:
+                weight = weight * _cos4(x[ok] + x0, y[ok] + y0, info)
+            pix = np.floor(y[ok]).astype(np.int64) * w + np.floor(x[ok]).astype(np.int64)
+            for ch in range(c):
+                image[:, ch] += np.bincount(pix, rec["L"][ok, ch] * weight, minlength=h * w)
+            used += int(ok.sum())
+            bar.update()
+        img = image.reshape(h, w, c)
+        images.append(img[..., 0] if c == 1 else img)
+    bar.close()
+    return images, used
+
+
+def _cos4(x, y, info: dict) -> np.ndarray:
+    """cos^4 of the chief ray at film points (px of the sensor), as the plugin's ``cos4``."""
+    W, H = info["sensor_px"]
+    r2 = ((x - 0.5 * W) ** 2 + (y - 0.5 * H) ** 2) / info["f_px"] ** 2
+    return (1.0 / (1.0 + r2) ** 2).astype(np.float32)
+
+
+def _scene(store: Store, spec, description):
+    """The store's scene description, checked against the digest it was rendered with."""
+    from ..scenes import load_scene
+
+    desc = description if description is not None else load_scene(spec.scene)
+    if desc.digest() != store.manifest.get("scene_digest"):
+        raise ParameterError(
+            f"the scene {spec.scene!r} is not the one the store at {store.folder} was rendered "
+            "from (its digest differs: edited since, or another description)"
+        )
+    return desc
+
+
+def _capture(store: Store, plan, params, design_plan, stats, used: int, seconds: float, desc):
+    """The synthesised capture and its record, as a direct render's."""
+    from ..capture.result import Capture
+    from ..exposure.capture_camera import illumination_map, illumination_record
+    from ..exposure.capture_optics import finish_optics
+    from ..exposure.capture_record import build_record, record_design_fit
+    from ..exposure.estimate import error_summary
+    from ..model.illumination import relative_illumination_map
+
+    spec, cam = plan.spec, plan.cam
+    layers, objects = store.truth()
+    steps = {"n_steps": len(store.manifest["steps"][0]), "effective_spp": stats.spp}
+    record = build_record(plan, params, design_plan, seconds, steps)
+    record.objects = objects
+    record.design_fit = record_design_fit(layers, objects, cam, spec.mode)
+    err = error_summary(stats, objects, layers.get("object_id"))
+    lf = record.light_factor
+    err.update(time_steps_per_pass=steps["n_steps"] if desc.is_static is False else 0)
+    err.update(mc_sigma_white_units=err["mc_sigma"] / lf if lf > 0 else None,
+               sampler="independent", seconds=round(seconds, 3), time_step_bias=0.0,
+               time_sampling="the store's: one random time per step and pass, or uniform "
+               "times for a still scene; unbiased, their noise is in mc_sigma")  # fmt: skip
+    record.render_error = err
+    record.extra["lightfield"] = {
+        "store": str(store.folder), "digest": store.digest, "samples_used": used,
+        "approximation": APPROXIMATION, "store_seconds": store.manifest.get("seconds"),
+    }  # fmt: skip
+    ri_map = illumination_map(spec, cam, plan.pitch_mm)
+    record.relative_illumination = illumination_record(spec, cam, ri_map)
+    if ri_map is not None:
+        layers = {**layers, "relative_illumination": ri_map}
+    w, h = spec.image_size
+    cos4 = relative_illumination_map("cos4", w, h, cam.fov_deg, spec.crop)
+    ctx = {"record": record, "target": None, "lcos_contrast": params.get("lcos_contrast"),
+           "lcos_switching_ms": None, "diffraction_on": False,
+           "diffraction_decision": plan.diffraction[1], "pitch_mm": plan.pitch_mm,
+           "ri_record": record.relative_illumination, "cos4_map": cos4}  # fmt: skip
+    optics = finish_optics(spec, plan.design, cam, desc, stats.mean(), {}, stats.variance(), ctx)
+    record.optics_error = optics.block
+    return Capture(optics.image, optics.patterns, record, dict(layers), np.sqrt(optics.variance))

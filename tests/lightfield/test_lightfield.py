@@ -1,0 +1,239 @@
+"""Light-field stores (issue 44): the refocus map against the plugin ray for ray, the proposal's
+density, designs' transmissions against the plugin's own openings, synthesised captures against
+direct renders of another seed (pooled chi^2), a full-aperture synthesis against Mitsuba's
+``thinlens``, refusals, and an interrupted store resumed bit for bit."""
+
+import dataclasses
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from pacam_render.errors import ParameterError
+from pacam_render.exposure.capture import render_capture
+from pacam_render.exposure.capture_spec import CaptureSpec
+from pacam_render.exposure.plan import plan_capture
+from pacam_render.lightfield import StoreInterrupted, StoreSpec, render_lightfield, synthesize
+from pacam_render.lightfield import geometry as geo
+from pacam_render.lightfield.codes import design_aperture, transmission
+from pacam_render.lightfield.proposal import Proposal
+from pacam_render.lightfield.synthesis import paired_difference
+from pacam_render.model.camera import preset
+from pacam_render.model.design_file import write_design
+from pacam_render.model.masks import MaskStack, disc_masks
+from pacam_render.scenes import load_scene
+
+FULL = {"scene": "train", "width": 1280, "height": 960}
+WINDOW = {**FULL, "crop": (456, 410, 48, 32)}  # the far train's front and the track
+
+
+def _pooled(a, b) -> float:
+    """sum (a - b)^2 / sum (sigma_a^2 + sigma_b^2): 1 for two unbiased estimates."""
+    var = a.mc_sigma**2 + b.mc_sigma**2
+    return float(((a.image - b.image) ** 2).sum() / var.sum())
+
+
+def _bitmaps(path) -> str:
+    """8 LCoS bitmap discs along the prototype's parabola (every other pattern)."""
+    proto = preset("prototype")
+    stack = MaskStack(disc_masks(-proto.pattern_centres_xy_mm()[::2], proto.R_mm))
+    cam = proto.with_(
+        pattern_masks=stack, n_patterns=8, R_mm=stack.equivalent_radius_mm(), name="bitmaps"
+    )
+    write_design(path, cam)
+    return str(path)
+
+
+@pytest.mark.render
+def test_the_refocus_map_is_the_plugins_ray_for_ray():
+    """A sample's film point moved by -f_px a (1/d2 - 1/d1) gives the same ray in the camera
+    focused at d2 (the plugin's own sample_ray, with a crop): the map is exact."""
+    import mitsuba as mi
+
+    from pacam_render.render.registry import sensor_entry
+
+    spec = CaptureSpec(mode="normal", **WINDOW)
+    plan = plan_capture(spec)
+    cam = plan.cam
+    d1, d2 = plan.design.focus_distance_mm, cam.object_depth_mm
+
+    def sensor(d):
+        p = {"lens_radius": cam.R_max_mm, "aperture_radius": cam.R_max_mm, "focus_distance": d}
+        return mi.load_dict(sensor_entry(spec, cam, {**p, "schedule": "static"}, 45.0))
+
+    rng = np.random.default_rng(0)
+    x0, y0, w, h = spec.crop
+    x, y, ap = x0 + rng.random(500) * w, y0 + rng.random(500) * h, rng.random((2, 500))
+    a = np.array(mi.warp.square_to_uniform_disk_concentric(mi.Point2f(*ap))) * cam.R_max_mm
+    k = geo.shear_px_per_mm(geo.focal_px(1280, cam.fov_deg), d1, d2)
+    x2, y2 = x - k * a[0], y - k * a[1]
+
+    def rays(s, xx, yy):
+        pos = mi.Point2f((xx - x0) / w, (yy - y0) / h)
+        return np.array(s.sample_ray(mi.Float(1.0), mi.Float(0.5), pos, mi.Point2f(*ap))[0].d)
+
+    assert np.abs(rays(sensor(d1), x, y) - rays(sensor(d2), x2, y2)).max() < 1e-5
+    assert np.abs(rays(sensor(d1), x, y) - rays(sensor(d2), x, y)).max() > 1e-3  # it moves
+    assert geo.margin_px(k, cam.R_max_mm) == 8  # 1.009 px/mm x 6.97 mm
+
+
+def test_the_proposal_is_a_density_that_its_samples_follow():
+    spec = CaptureSpec(mode="coded", width=320, height=240)
+    plans = []
+    for s in (spec, dataclasses.replace(spec, cover_px_per_ms=1.4)):
+        plan = plan_capture(s)
+        ap = design_aperture(plan, plan.sensor_params())
+        plans.append((ap, ap.t_mid - 22.5))
+    prop = Proposal(plans[0][0].lens_radius_mm, 0.2, plans)
+    rng = np.random.default_rng(3)
+    R = prop.lens_radius_mm
+    for t in (3.0, 22.4, 40.0):
+        g = np.linspace(-R, R, 801)
+        u, v = np.meshgrid(g, g)
+        p = prop.density(u, v, np.full(u.shape, t)) * (u * u + v * v < R * R)
+        assert p.sum() * (g[1] - g[0]) ** 2 == pytest.approx(1.0, abs=0.01)  # integrates to 1
+        su, sv = prop.sample(np.full(200_000, t), rng)
+        assert (su * su + sv * sv <= R * R * (1 + 1e-9)).all()
+        # the share of samples in a design's opening matches the density's integral there
+        c = plans[0][0].aperture_centre_at(np.array([t + plans[0][1]]))[0]
+        r = plans[0][0].radius_mm
+        inside = (u - c[0]) ** 2 + (v - c[1]) ** 2 < r * r
+        expected = (p * inside).sum() * (g[1] - g[0]) ** 2
+        got = np.mean((su - c[0]) ** 2 + (sv - c[1]) ** 2 < r * r)
+        assert got == pytest.approx(expected, abs=0.01)
+        assert expected > 0.8  # most samples go where the designs are open
+
+
+@pytest.mark.render
+@pytest.mark.parametrize("extra", [{}, {"cover_px_per_ms": 1.4}, {"design": "bitmaps"}])
+def test_transmission_is_one_where_the_plugin_samples_its_opening(extra, tmp_path):
+    """The plugin's own aperture points (sample_aperture) all have A = 1, and A integrates
+    over the lens to each pattern's open area (the plugin's area_mm2)."""
+    import mitsuba as mi
+
+    from pacam_render.render.registry import sensor_entry
+
+    if extra.get("design"):
+        extra = {"design": _bitmaps(tmp_path / "b.toml")}
+    plan = plan_capture(CaptureSpec(mode="coded", width=320, height=240, **extra))
+    params = plan.sensor_params()
+    sensor = mi.load_dict(sensor_entry(plan.spec, plan.cam, params, 45.0))
+    ap = design_aperture(plan, params)
+    masks = params.get("masks")
+    rng = np.random.default_rng(1)
+    t = rng.random(20000) * 45.0
+    x, y, _ = sensor.sample_aperture(t, rng.random(20000), rng.random(20000))
+    inner = transmission(ap, x, y, t, masks)
+    assert inner.mean() > 0.995  # a bitmap's points sit in open LCoS pixels
+    R = ap.lens_radius_mm
+    g = np.linspace(-R, R, 1201)
+    u, v = np.meshgrid(g, g)
+    for k in (0, ap.n_patterns // 2, ap.n_patterns - 1):
+        tk = np.full(u.shape, 0.5 * (ap.pattern_edges[k] + ap.pattern_edges[k + 1]))
+        area = transmission(ap, u, v, tk, masks).sum() * (g[1] - g[0]) ** 2
+        assert area == pytest.approx(ap.area_mm2[k], rel=0.01)
+
+
+@pytest.fixture(scope="module")
+def store(tmp_path_factory):
+    root = tmp_path_factory.mktemp("lf")
+    bitmaps = _bitmaps(root / "bitmaps.toml")
+    spec = StoreSpec(CaptureSpec(**WINDOW, spp=16, passes=4, seed=1))
+    return render_lightfield(spec, root / "store", progress=False), bitmaps
+
+
+@pytest.mark.render
+@pytest.mark.parametrize(
+    "mode,extra",
+    [("coded", {}), ("coded", {"cover_px_per_ms": 1.4}), ("coded", "bitmaps"), ("normal", {})],
+)
+def test_a_synthesised_capture_is_a_direct_render(store, mode, extra):
+    """On the moving train at its real pixel scale (occlusion, two speeds), each synthesised
+    capture equals a direct render of another seed within their Monte Carlo sigmas."""
+    lf, bitmaps = store
+    extra = {"design": bitmaps} if extra == "bitmaps" else extra
+    spec = CaptureSpec(**WINDOW, mode=mode, spp=16, passes=4, seed=7, **extra)
+    syn = synthesize(lf, spec, progress=False)
+    direct = render_capture(spec, progress=False, truth=False)
+    assert 0.8 <= _pooled(syn, direct) <= 1.25
+    assert syn.record.light_factor == pytest.approx(direct.record.light_factor, rel=1e-6)
+    assert syn.record.extra["lightfield"]["digest"] == lf.digest
+    assert set(syn.extra_layers) >= {"sharp", "depth", "object_id", "velocity"}
+
+
+@pytest.mark.render
+def test_designs_from_one_store_share_their_noise(store):
+    """The difference of two designs from one store (the prototype, and the same lens focus
+    with a 10 % larger opening) is far less noisy than the same two captures' difference
+    would be with independent samples (their own sigmas added)."""
+    lf, bitmaps = store
+    wider = Path(bitmaps).with_name("wider.toml")
+    proto = preset("prototype")
+    write_design(wider, proto.with_(R_mm=1.1 * proto.R_mm, name="wider"))
+    a, b = (CaptureSpec(**WINDOW, mode="coded", **x) for x in ({}, {"design": str(wider)}))
+    diff, sigma = paired_difference(lf, a, b)
+    sa, sb = (synthesize(lf, s, progress=False) for s in (a, b))
+    assert np.allclose(diff, sa.image - sb.image, atol=1e-12)
+    independent = np.sqrt(np.mean(sa.mc_sigma**2 + sb.mc_sigma**2))
+    assert np.sqrt(np.mean(sigma**2)) < 0.5 * independent
+
+
+@pytest.mark.render
+def test_a_full_aperture_synthesis_of_a_still_scene_is_thinlens(tmp_path):
+    """Independent reference: Mitsuba's own ``thinlens`` with the whole lens open, focused on
+    the object, renders what a store (focused elsewhere) gives for a full-aperture design."""
+    import mitsuba as mi
+
+    desc = dataclasses.replace(load_scene("train"), motions={})
+    full = preset("prototype")
+    full = full.with_(R_mm=full.R_max_mm)
+    write_design(tmp_path / "full.toml", full)
+    kw = {**FULL, "crop": (440, 400, 32, 24), "spp": 64, "passes": 4}
+    lf = render_lightfield(StoreSpec(CaptureSpec(**kw, seed=2)), tmp_path / "s", progress=False,
+                           description=desc, truth=False)  # fmt: skip
+    spec = CaptureSpec(**kw, mode="normal", design=str(tmp_path / "full.toml"))
+    syn = synthesize(lf, spec, progress=False, description=desc)
+    x, y, w, h = kw["crop"]
+    film = {"type": "hdrfilm", "width": 1280, "height": 960, "crop_offset_x": x,
+            "crop_offset_y": y, "crop_width": w, "crop_height": h,
+            "rfilter": {"type": "box"}}  # fmt: skip
+    thin = {"type": "thinlens", "fov": full.fov_deg, "aperture_radius": full.R_max_mm,
+            "focus_distance": full.object_depth_mm, "film": film}  # fmt: skip
+    scene = desc.load(sensor=thin)
+    ref = np.mean([np.array(mi.render(scene, spp=256, seed=s)) for s in range(4)], axis=0)
+    refs = [np.array(mi.render(scene, spp=64, seed=10 + s)) for s in range(2)]
+    ref_var = np.var(refs, axis=0, ddof=1) / 16  # 4 x 256 spp from the spread of 64 spp renders
+    z2 = ((syn.image - ref) ** 2).sum() / (syn.mc_sigma**2 + ref_var).sum()
+    assert 0.7 <= z2 <= 1.4
+    assert syn.record.light_factor == pytest.approx(1.0)
+
+
+def test_what_a_store_cannot_serve_is_refused_naming_why(store):
+    lf, _ = store
+    with pytest.raises(ParameterError, match="Levin"):
+        synthesize(lf, CaptureSpec(**WINDOW, mode="levin"), progress=False)
+    with pytest.raises(ParameterError, match="crop"):
+        synthesize(lf, CaptureSpec(**FULL, crop=(0, 0, 48, 32)), progress=False)
+    with pytest.raises(ParameterError, match="diffraction on"):
+        synthesize(lf, CaptureSpec(**WINDOW, diffraction="on"), progress=False)
+    with pytest.raises(ParameterError, match="margin"):  # a refocus beyond the store's margin
+        synthesize(lf, CaptureSpec(**WINDOW, mode="normal", object_depth_mm=300.0),
+                   progress=False)  # fmt: skip
+    with pytest.raises(ParameterError, match="black"):  # a closed opening
+        stack = MaskStack(np.zeros((2, 64, 64), np.float32))
+        plan = plan_capture(CaptureSpec(**WINDOW))
+        design_aperture(plan, {**plan.sensor_params(), "schedule": "bitmap",
+                               "masks": stack.array})  # fmt: skip
+
+
+@pytest.mark.render
+def test_an_interrupted_store_resumes_bit_for_bit(tmp_path):
+    spec = StoreSpec(CaptureSpec(**{**WINDOW, "crop": (456, 410, 16, 12)}, spp=4, passes=2))
+    whole = render_lightfield(spec, tmp_path / "a", progress=False, truth=False)
+    with pytest.raises(StoreInterrupted, match="resume"):
+        render_lightfield(spec, tmp_path / "b", progress=False, truth=False, stop_after=3)
+    resumed = render_lightfield(spec, tmp_path / "b", progress=False, truth=False)
+    assert resumed.digest == whole.digest
+    other = dataclasses.replace(spec, alpha=0.5)
+    with pytest.raises(ParameterError, match="another spec"):
+        render_lightfield(other, tmp_path / "b", progress=False, truth=False)
