@@ -33,7 +33,8 @@ from pacam_render.restore import deconvolve as D
 from pacam_render.restore.metrics import psnr
 from pacam_render.restore.noise import NoiseModel
 from pacam_render.restore.sparse import sparse_deconvolve
-from pacam_render.sensor.model import SensorModel, aperture_area_mm2, simulate_capture
+from pacam_render.sensor.model import SensorModel, simulate_capture
+from pacam_render.sensor.radiometry import aperture_area_mm2
 
 SIGMA = 0.01
 PHOTOS = (

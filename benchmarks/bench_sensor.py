@@ -24,12 +24,11 @@ import os
 import numpy as np
 from common import median_spread, record, timeit
 
-from pacam_render.sensor.model import (
+from pacam_render.sensor.model import SensorModel, simulate_capture
+from pacam_render.sensor.radiometry import (
     DEFAULT_LIGHT_LEVEL,
-    SensorModel,
     aperture_area_mm2,
     photons_from_render,
-    simulate_capture,
 )
 
 H, W = 960, 1280

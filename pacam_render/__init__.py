@@ -56,15 +56,13 @@ _EXPORTS = {
     ".scenes": ["load_scene", "psf_scene"],
     ".sensor.apply": ["SensorTarget", "add_sensor_layers"],
     ".sensor.on_capture": ["load_capture", "sensor_on_capture"],
-    ".sensor.model": [
+    ".sensor.model": ["SensorCapture", "SensorModel", "simulate_capture"],
+    ".sensor.presets": ["available_presets"],
+    ".sensor.radiometry": [
         "DEFAULT_LIGHT_LEVEL",
-        "SensorCapture",
-        "SensorModel",
         "aperture_area_mm2",
-        "available_presets",
         "photons_from_render",
         "photons_per_unit",
-        "simulate_capture",
     ],
 }
 _WHERE = {

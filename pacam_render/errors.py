@@ -46,6 +46,18 @@ def check_range(name: str, value: float, lo: float, hi: float, unit: str = "") -
     return v
 
 
+def check_integer(name: str, value: object, lo: int, hi: int | None) -> int:
+    """Return ``value`` as int, or raise unless it is an integer (not a bool) in lo..hi
+    (``hi`` None: no upper bound)."""
+    import numpy as np
+
+    ok = isinstance(value, (int, np.integer)) and not isinstance(value, (bool, np.bool_))
+    rng = f"{lo}..{hi}" if hi is not None else f">= {lo}"
+    if not ok or value < lo or (hi is not None and value > hi):
+        raise ParameterError(f"{name} must be an integer {rng}, got {value!r}")
+    return int(value)
+
+
 def did_you_mean(word: object, valid, cutoff: float = 0.6) -> str:
     """`` (did you mean 'x'?)`` for the entry of ``valid`` nearest ``word``, or ``""``."""
     import difflib

@@ -15,7 +15,7 @@ MODULES = (
     "pacam_render.psf.analytic",
     "pacam_render.psf.bitmap",
     "pacam_render.restore.metrics",
-    "pacam_render.sensor.model",
+    "pacam_render.sensor.presets",
     "pacam_render.study.spec",
     "pacam_render.psf.combination",
     "pacam_render.psf.diffraction",

@@ -7,7 +7,7 @@ import argparse
 from pathlib import Path
 
 from ..errors import ParameterError, check_positive
-from ..sensor.model import DEFAULT_LIGHT_LEVEL
+from ..sensor.radiometry import DEFAULT_LIGHT_LEVEL
 from .capture_out import write_or_rescue
 from .common import add_force, add_out, new_folder
 

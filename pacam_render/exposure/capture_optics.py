@@ -36,7 +36,9 @@ def reference_noise(spec, design, record, image, target) -> tuple[float | None, 
     a noise target's (its lowest), else the design's preset or the ICX285 at the default light
     level (``pacam render --sensor`` replaces it with the capture's own)."""
     from ..sensor.apply import sensor_sigma
-    from ..sensor.model import DEFAULT_LIGHT_LEVEL, SensorModel, mono_preset
+    from ..sensor.model import SensorModel
+    from ..sensor.presets import mono_preset
+    from ..sensor.radiometry import DEFAULT_LIGHT_LEVEL
 
     if target is not None and hasattr(target, "sensor_sigmas"):
         return min(target.sensor_sigmas(image, record)), "the noise target's sensor"

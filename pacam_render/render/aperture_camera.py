@@ -173,6 +173,13 @@ hit Dr.Jit's kernel cache. Changing Mitsuba's own shutter (``shutter_open``/``_t
 ``mi.traverse``) re-times the schedule, but recompiles the integrators, which bake it in; use
 ``time_window`` to render part of an exposure.
 
+The kernels' named pieces have modules of their own, whose methods the class binds (a nanobind
+type takes one base): the schedule look-up, a ray's time to its pattern and that pattern's
+weight, centre and camera offset (:mod:`.schedule_lookup`); the aperture sampling, a point of the
+disc or bitmap opening (:mod:`.aperture_sampling`); the relative illumination
+(:mod:`.relative_illumination`); the LCoS's flaws and the opening's diffraction
+(:mod:`.aperture_optics`); and the Dr.Jit types and helpers they share (:mod:`.kernel_types`).
+
 Mitsuba's sensor contract
 -------------------------
 The sensor behaves as ``thinlens`` wherever Mitsuba's own sensor tests use one: the methods take
@@ -198,62 +205,52 @@ import mitsuba as mi
 import numpy as np
 
 from ..errors import ParameterError, check_finite, check_positive
-from ..model.illumination import (
-    DEFAULT_RELATIVE_ILLUMINATION,
-    TABLE_SIZE,
-    film_tan_max,
-    parse_relative_illumination,
-)
 from .aperture_optics import LCoSOptics
+from .aperture_sampling import ApertureSampling
 from .kernel_types import (
     JIT,
     VARIANT,  # noqa: F401 - the registry reads it here
     Float,
-    Int,
     Point2f,
     Point3f,
-    UInt,
     Vector3f,
     as_type,
     first,
     gather,
     held,
     make_opaque,
-    opaque_array,
     opaque_scalar,
     traversable,
 )
-from .plan import (
-    PROP_KEYS,
-    AperturePlan,
-    build_plan,
-    config_from_props,
-    f32_up,
-    index_bias,
-)
+from .plan import PROP_KEYS, AperturePlan, build_plan, config_from_props
+from .relative_illumination import RelativeIllumination
+from .schedule_lookup import ScheduleLookup
 
 PROJECTION_KEYS = ("x_fov", "near_clip", "far_clip")
 """Traversed parameters of the projection (as Mitsuba's projective cameras expose them)."""
 
 
-def lookup(t, edges, n, scale, t0, bias, active):
-    """Index k of the window [edges[k], edges[k+1]) containing t (the last one closed).
-
-    (t - t0) * scale is the index up to float32 rounding; lowered by ``bias`` (more than
-    that rounding, see :func:`index_bias`) its floor is k or k - 1, and one comparison
-    with the next edge (float32, rounded up) settles it, exactly as in float64.
-    """
-    k = dr.clip(Int(dr.floor((t - t0) * scale - bias)), 0, n - 1)
-    hi = gather(Float, edges, UInt(k + 1), active)
-    k = dr.select((t >= hi) & (k < n - 1), k + 1, k)
-    return UInt(k)
-
-
 class ProgrammableApertureCamera(mi.Sensor):
     """Thin-lens camera with a programmable aperture (see the module docstring)."""
 
-    # The LCoS's flaws and the opening's diffraction (:mod:`.aperture_optics`): nanobind types
-    # take a single base, so its methods are bound here rather than inherited.
+    # The kernels' named pieces live in their own modules; nanobind types take a single base,
+    # so their methods are bound here rather than inherited.
+    # The schedule look-up (:mod:`.schedule_lookup`): time -> pattern, weight, centre, camera.
+    _set_schedule = ScheduleLookup._set_schedule
+    _time_and_pattern = ScheduleLookup._time_and_pattern
+    _pattern = ScheduleLookup._pattern
+    _weight_at = ScheduleLookup._weight_at
+    _camera_x = ScheduleLookup._camera_x
+    _centre = ScheduleLookup._centre
+    # The aperture sampling (:mod:`.aperture_sampling`): a point of the disc or bitmap opening.
+    _set_openings = ApertureSampling._set_openings
+    _aperture = ApertureSampling._aperture
+    _rec = ApertureSampling._rec
+    _sample_mask = ApertureSampling._sample_mask
+    # The relative illumination (:mod:`.relative_illumination`): the film position's factor.
+    _set_illumination = RelativeIllumination._set_illumination
+    _illumination = RelativeIllumination._illumination
+    # The LCoS's flaws and the opening's diffraction (:mod:`.aperture_optics`).
     _leaky_aperture = LCoSOptics._leaky_aperture
     _set_switching = LCoSOptics._set_switching
     _check_switching = LCoSOptics._check_switching
@@ -437,56 +434,11 @@ class ProgrammableApertureCamera(mi.Sensor):
 
     def _set_plan(self, plan: AperturePlan):
         self._plan = plan
-        dur = plan.duration
-        n = plan.n_patterns
-        open_idx = np.flatnonzero(plan.is_open).astype(np.uint32)
         self._features = plan.kernel_features
-        self._t_open = opaque_scalar(plan.t_open)
-        self._t_mid = opaque_scalar(plan.t_mid)
-        self._n = opaque_scalar(n, Int)
-        self._scale = opaque_scalar(n / dur if dur > 0 else 0.0)
-        self._bias = opaque_scalar(index_bias(plan.t_open, plan.t_close, n))
-        self._width = opaque_scalar(dur / n)
-        # window edges rounded up to float32: t >= edge exactly when t >= the float64 edge
-        self._edges = opaque_array(f32_up(plan.pattern_edges), Float)
-        self._n_open = opaque_scalar(len(open_idx), Int)
-        self._open_idx = opaque_array(open_idx, UInt)
-        self._time_scale = opaque_scalar(plan.time_scale)
-        start, length = plan.ray_times
-        self._win_open = opaque_scalar(start)
-        self._win_len = opaque_scalar(length)
-        self._inv_dur = opaque_scalar(1.0 / dur if dur > 0 else 0.0)
-        # per-pattern tables, and their first entries for the schedules that need no table
-        ratio = plan.area_ratio.astype(np.float32)
-        self._weight = opaque_array(ratio)
-        self._cx = opaque_array(plan.centres_mm[:, 0].astype(np.float32))
-        self._cy = opaque_array(plan.centres_mm[:, 1].astype(np.float32))
-        self._cam = opaque_array(plan.camera_x_mm.astype(np.float32))
-        open_ratio = ratio[plan.is_open] if plan.is_open.any() else ratio
-        self._weight0 = opaque_scalar(float(open_ratio[0]) * plan.time_scale)
-        self._cx0 = opaque_scalar(float(plan.centres_mm[0, 0]))
-        self._cy0 = opaque_scalar(float(plan.centres_mm[0, 1]))
-        self._cam0 = opaque_scalar(float(plan.camera_x_mm[0]))
-        self._a_quad = opaque_scalar(plan.aperture_quad)
-        self._c_quad = opaque_scalar(plan.camera_quad)
-        self._radius = opaque_scalar(plan.radius_mm)
-        self._inv_disc_area = opaque_scalar(1.0 / (math.pi * plan.radius_mm**2))
-        if plan.tables is not None:
-            tb = plan.tables
-            # one record per run: x_hi, y, span, cdf before it, cdf up to it
-            c_hi = tb.cdf.astype(np.float32)
-            c_lo = np.concatenate([[0.0], c_hi[:-1]]).astype(np.float32)
-            c_lo[tb.start[tb.count > 0]] = 0.0
-            rec = np.stack([tb.x_hi_mm, tb.y_mm, tb.span_mm, c_lo, c_hi], axis=1)
-            rec = rec.astype(np.float32)
-            self._m_rec = rec if not JIT else opaque_array(rec.reshape(-1))
-            self._m_start = opaque_array(tb.start, UInt)
-            self._m_count = opaque_array(tb.count, UInt)
-            self._m_guide = opaque_array(tb.guide, UInt)
-            self._m_gstart = opaque_array(tb.guide_start, UInt)
-            self._m_pitch = opaque_scalar(tb.pitch_mm)
+        self._set_schedule(plan)  # the look-up's tables (:mod:`.schedule_lookup`)
+        self._set_openings(plan)  # the disc's radius, a bitmap's runs (:mod:`.aperture_sampling`)
         # camera travel, for bbox()
-        ts = np.linspace(plan.t_open, plan.t_close, 4 * n + 1)
+        ts = np.linspace(plan.t_open, plan.t_close, 4 * plan.n_patterns + 1)
         xs = plan.camera_offset_at(ts)
         self._travel = (float(np.min(xs)), float(np.max(xs)))
         if getattr(self, "_diff", None) is not None:
@@ -585,104 +537,6 @@ class ProgrammableApertureCamera(mi.Sensor):
             raise
 
     # ---------------------------------------------------------------- kernels
-    def _time_and_pattern(self, time, active):
-        """The ray's time and pattern from the integrator's time (uniform over the
-        exposure). Measure-preserving maps: into the time window, or into the open
-        patterns only (closed flutter chops, black masks), the open fraction going into the
-        weight. Returns (time, pattern index)."""
-        f = self._features
-        if "gate" in f:
-            u = (time - self._t_open) * self._inv_dur * Float(self._n_open)
-            j = dr.clip(Int(dr.floor(u)), 0, self._n_open - 1)
-            frac = dr.clip(u - Float(j), 0.0, 1.0)
-            k = gather(UInt, self._open_idx, UInt(j), active)
-            return self._t_open + (Float(k) + frac) * self._width, k
-        if "window" in f:
-            u = (time - self._t_open) * self._inv_dur
-            time = self._win_open + u * self._win_len
-        if "lookup" in f:
-            return time, self._pattern(time, active)
-        return time, UInt(0)
-
-    def _pattern(self, time, active):
-        return lookup(time, self._edges, self._n, self._scale, self._t_open, self._bias, active)
-
-    def _weight_at(self, k, active):
-        """Ray weight of pattern k: open-area ratio (0 if shut) x time factor."""
-        f = self._features
-        # gated flutter samples open chops only, which all have the same area
-        if "weights" in f and ("bitmap" in f or "gate" not in f):
-            return gather(Float, self._weight, k, active) * self._time_scale
-        return self._weight0
-
-    def _camera_x(self, k, time, active):
-        f = self._features
-        x = gather(Float, self._cam, k, active) if "cam" in f else self._cam0
-        if "quad_c" in f:
-            tau = time - self._t_mid
-            x = x + self._c_quad * tau * tau
-        return x
-
-    def _aperture(self, k, time, sample, active):
-        """Aperture point (local mm) for pattern k, and its area density (1/mm^2)."""
-        f = self._features
-        if "bitmap" in f:
-            return self._sample_mask(k, sample, active)
-        d = mi.warp.square_to_uniform_disk_concentric(sample) * self._radius
-        cx, cy = self._centre(k, time, active)
-        return Point2f(d.x + cx, d.y + cy), self._inv_disc_area
-
-    def _centre(self, k, time, active):
-        """Centre (local mm) of pattern k's disc at the ray's time."""
-        f = self._features
-        cx = gather(Float, self._cx, k, active) if "cx" in f else self._cx0
-        cy = gather(Float, self._cy, k, active) if "cy" in f else self._cy0
-        if "quad_a" in f:
-            tau = time - self._t_mid
-            cx = cx + self._a_quad * tau * tau
-        return cx, cy
-
-    def _rec(self, j, c, active):
-        """Field c of run record j: 0 x_hi, 1 y, 2 span, 3 cdf before, 4 cdf up to it."""
-        if JIT:  # separate gathers: a Vector gather traces a packet or single gathers
-            # depending on Dr.Jit's state, i.e. two kernels (needless recompiles)
-            return gather(Float, self._m_rec, j * 5 + c, active)
-        return float(self._m_rec[int(j), c]) if active else 0.0
-
-    def _sample_mask(self, k, sample, active):
-        """Pick a run of mask k with probability tau x length / sum (CDF inversion: guide
-        table, then a binary search over the few runs it leaves), then a uniform point in
-        the run. Returns the point (mm) and its area density tau / (sum(tau) pitch^2)."""
-        start = gather(UInt, self._m_start, k, active)
-        count = gather(UInt, self._m_count, k, active)
-        gstart = gather(UInt, self._m_gstart, k, active)
-        active = active & (count > 0)
-        u = sample.x
-        i = UInt(dr.clip(Int(dr.floor(u * Float(count))), 0, Int(count) - 1))
-        lo = gather(UInt, self._m_guide, gstart + i, active)
-        hi = gather(UInt, self._m_guide, gstart + i + 1, active)
-
-        def cond(lo, hi):
-            return lo < hi
-
-        def body(lo, hi):
-            mid = (lo + hi) >> 1
-            big = self._rec(start + mid, 4, active) > u
-            return dr.select(big, lo, mid + 1), dr.select(big, mid, hi)
-
-        lo, hi = dr.while_loop(
-            (lo, hi), cond, body, labels=("lo", "hi"), label="aperture mask search"
-        )
-        j = start + lo
-        c_lo, c_hi = self._rec(j, 3, active), self._rec(j, 4, active)
-        step = c_hi - c_lo
-        r = dr.clip((u - c_lo) / dr.maximum(step, 1e-30), 0.0, 1.0)
-        span = self._rec(j, 2, active)
-        x = self._rec(j, 0, active) - r * span
-        y = self._rec(j, 1, active) + (sample.y - 0.5) * self._m_pitch
-        pdf = dr.select(active, step / dr.maximum(span * self._m_pitch, 1e-30), 0.0)
-        return Point2f(x, y), pdf
-
     def _ray_setup(self, time, position_sample, aperture_sample, active):
         time, k = self._time_and_pattern(time, active)
         if self._switch is not None:
@@ -832,52 +686,6 @@ class ProgrammableApertureCamera(mi.Sensor):
         ds.pdf = dr.select(active, pdf_area * dist * dist / cos_t, 0.0)
         spectrum = mi.Spectrum(dr.select(active, weight, 0.0))
         return ds, spectrum if w_diff is None else spectrum * w_diff
-
-    # ---------------------------------------------------------------- relative illumination
-    def _set_illumination(self, props):
-        """Parse ``relative_illumination`` (and ``pixel_pitch`` for a ``height_mm`` curve)
-        and upload a curve's table (:mod:`pacam_render.model.illumination`).
-
-        A curve's abscissae become chief-ray tangents with the film's load-time f_px, and the
-        curve must reach the film's farthest corner; past its last point it holds its last
-        value. The table has a fixed size, so a new curve never recompiles.
-        """
-        value = props.get("relative_illumination", DEFAULT_RELATIVE_ILLUMINATION)
-        pitch = props.get("pixel_pitch", None)
-        self._ri = ri = parse_relative_illumination(value)
-        self._ri_pitch = None if pitch is None else check_positive("pixel_pitch", pitch, "mm")
-        if ri.kind != "curve":
-            return
-        film = self.film()
-        size, crop, off = film.size(), film.crop_size(), film.crop_offset()
-        window = (int(off.x), int(off.y), int(crop.x), int(crop.y))
-        tan_max = film_tan_max(int(size.x), int(size.y), self._x_fov, window)
-        ri.check_covers(tan_max, self._focal_px, self._ri_pitch)
-        t_last = float(ri.knots_tan(self._focal_px, self._ri_pitch)[-1])
-        self._ri_table = opaque_array(
-            ri.table(self._focal_px, self._ri_pitch).astype(np.float32), Float
-        )
-        self._ri_scale = opaque_scalar((TABLE_SIZE - 1) / t_last)
-
-    def _illumination(self, p):
-        """Relative illumination of the film position whose chief ray (through the lens
-        centre) passes through the camera-space point ``p`` (p.z > 0).
-
-        ``cos4``: cos^4 theta_c = (z^2 / (x^2 + y^2 + z^2))^2, which stays finite (-> 0)
-        towards 90 deg. A curve: linear interpolation in its table, uniform in
-        tan theta_c = sqrt(x^2 + y^2) / z.
-        """
-        r2 = p.x * p.x + p.y * p.y
-        z2 = p.z * p.z
-        if self._ri.kind == "cos4":
-            c2 = z2 / (z2 + r2)
-            return c2 * c2
-        u = dr.sqrt(r2 / z2) * self._ri_scale
-        i = dr.clip(Int(dr.floor(u)), 0, TABLE_SIZE - 2)
-        f = dr.clip(u - Float(i), 0.0, 1.0)
-        lo = gather(Float, self._ri_table, UInt(i))
-        hi = gather(Float, self._ri_table, UInt(i + 1))
-        return lo + f * (hi - lo)
 
     # ---------------------------------------------------------------- extension hook
     def scene_shift(self, tau):

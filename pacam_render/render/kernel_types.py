@@ -1,8 +1,10 @@
 """The Dr.Jit types and helpers of the ``programmable_aperture`` kernels, for one Mitsuba variant.
 
-Imported for the active variant (it must be set first); :mod:`.registry` re-imports this module,
-:mod:`.aperture_optics` and :mod:`.aperture_camera`, in that order, after a variant switch. In
-scalar variants the helpers work on plain Python numbers and numpy tables.
+Imported for the active variant (it must be set first); :mod:`.registry` re-imports this module
+first, then the modules of the camera's kernels (:mod:`.schedule_lookup`,
+:mod:`.aperture_sampling`, :mod:`.relative_illumination`, :mod:`.aperture_optics`) and last
+:mod:`.aperture_camera`, after a variant switch. In scalar variants the helpers work on plain
+Python numbers and numpy tables.
 """
 
 from __future__ import annotations

@@ -35,7 +35,15 @@ _MODULES = (
 _registered: str | None = None  # the variant the plugins were last registered for
 
 
-_DEPENDENCIES = {"aperture_camera": ("kernel_types", "aperture_optics")}
+_DEPENDENCIES = {
+    "aperture_camera": (
+        "kernel_types",
+        "schedule_lookup",
+        "aperture_sampling",
+        "relative_illumination",
+        "aperture_optics",
+    )
+}
 """Variant-bound modules a plugin module imports: re-imported first, in this order."""
 
 

@@ -15,7 +15,9 @@ import numpy as np
 from ..capture.record import SensorRecord
 from ..errors import ParameterError, check_positive
 from ..limits import PacamWarning
-from .model import DEFAULT_LIGHT_LEVEL, SensorModel, mono_preset, simulate_capture
+from .model import SensorModel, simulate_capture
+from .presets import mono_preset
+from .radiometry import DEFAULT_LIGHT_LEVEL
 
 SATURATION_NOTE = 1e-3
 """A capture with more than this fraction of saturated values gets a note."""
@@ -120,7 +122,7 @@ def add_sensor_layers(
     """Add the ``raw`` (DN) and ``noisy`` (linear) layers and record the sensor in ``cap``.
 
     The noiseless capture stays. A physical sensor (one with shot noise) needs photons: with
-    ``light_level=None`` it gets :data:`~pacam_render.sensor.model.DEFAULT_LIGHT_LEVEL`. The
+    ``light_level=None`` it gets :data:`~pacam_render.sensor.radiometry.DEFAULT_LIGHT_LEVEL`. The
     noise sigma is taken at the noisy image's mean level.
 
     Raises
@@ -197,7 +199,7 @@ def check_grey_sensor(grey: bool, model: SensorModel, preset: str) -> None:
     ParameterError
         If ``grey`` and ``model.bayer`` is set: the sensor would take the grey image
         for a raw mosaic and demosaic it into false colour. The message names the monochrome
-        preset to use (:func:`~pacam_render.sensor.model.mono_preset`).
+        preset to use (:func:`~pacam_render.sensor.presets.mono_preset`).
     """
     if model.bayer is None or not grey:
         return
@@ -215,7 +217,7 @@ def check_grey_sensor(grey: bool, model: SensorModel, preset: str) -> None:
 
 def _light_level(model: SensorModel, light_level: float | None) -> float | None:
     """A physical sensor (one with shot noise) needs photons: without a light level it gets
-    :data:`~pacam_render.sensor.model.DEFAULT_LIGHT_LEVEL`; the ``paper`` preset needs none."""
+    :data:`~pacam_render.sensor.radiometry.DEFAULT_LIGHT_LEVEL`; the ``paper`` preset needs none."""
     if light_level is None and model.shot_noise:
         return DEFAULT_LIGHT_LEVEL
     return light_level

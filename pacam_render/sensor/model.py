@@ -19,11 +19,11 @@ Saturation therefore comes from the full well or from the ADC, whichever is reac
 :attr:`SensorModel.saturation_e`. The output is ``uint16`` for ``bit_depth <= 16`` and ``uint32``
 above. Subtracting the black offset from it needs a signed or float type first.
 
-Randomness. The fixed pattern (PRNU, DSNU) belongs to the instance: it is drawn from the
-model's ``seed``, once per sensor shape, and reused for every frame, as on a real sensor.
-Per-frame noise comes from ``capture(..., seed=...)``. The frame is processed in fixed blocks of
-65536 pixels with one child ``SeedSequence`` per block, on a thread pool: the same two seeds give
-a bit-identical frame on any number of cores.
+Randomness (:mod:`.noise_sources`). The fixed pattern (PRNU, DSNU) belongs to the instance: it
+is drawn from the model's ``seed``, once per sensor shape, and reused for every frame, as on a
+real sensor. Per-frame noise comes from ``capture(..., seed=...)``. The frame is processed in
+fixed blocks of 65536 pixels with one child ``SeedSequence`` per block, on a thread pool: the
+same two seeds give a bit-identical frame on any number of cores.
 
 Colour. With ``bayer=None``, every element of the input is one pixel: an (H, W, 3) image is
 three independent sensor planes and the output has the input's shape. With ``bayer="RGGB"``
@@ -31,167 +31,42 @@ three independent sensor planes and the output has the input's shape. With ``bay
 output is the (H, W) raw mosaic; an (H, W) input is taken as already mosaicked.
 :meth:`SensorModel.demosaic` (bilinear) turns a mosaic back into (H, W, 3).
 
-Presets (:data:`PRESETS`, :func:`available_presets`, :meth:`SensorModel.from_preset`):
+Presets (:mod:`.presets`: ``paper``, the paper's additive Gaussian noise; the prototype's
+``grasshopper-icx285`` and its monochrome twin; JSON or TOML files of one's own) are read by
+:meth:`SensorModel.from_preset`.
 
-- ``paper``: the paper's simulation noise, additive Gaussian sigma on a [0, 1] image (Sec. 3,
-  sigma = 0.01 by default). Decision: it is the same chain with no shot noise, no dark current and
-  no fixed pattern, with 1.0 of the image = the full well = 65536 e- (qe = 1, K = 1 DN/e-), and
-  ``read_noise_e = sigma * full_well_e``. A 20-bit ADC with a black offset of 2**19 DN leaves
-  room for noise of +-8 full scales, so the noise is not clipped; the signal itself saturates at
-  1.0 before the noise is added. So ``model.unit_from_dn(model.capture(
-  model.photons_from_unit(x), seed=s))`` is ``x + N(0, sigma**2)`` quantised to 2**-16, and the
-  output stays integer DN like every other preset. Set sigma with
-  ``SensorModel.from_preset("paper", sigma=0.02)``.
-- ``grasshopper-icx285``: the prototype's camera, Point Grey Grasshopper GRAS-14S5C (paper
-  Sec. 4 and Table 1: Sony ICX285 CCD, 6.45 um pixels; the "C" model is the colour one, with a
-  Bayer filter). Each value's source, or "estimate", is given beside it in :data:`PRESETS`.
-- ``grasshopper-icx285-mono``: its monochrome twin (GRAS-14S5M, Sony ICX285AL): the same
-  noise, full well and ADC, no Bayer filter, and the higher QE of a filterless pixel (0.62, an
-  estimate). Grey captures (``--grey``) use it; a Bayer preset on a grey capture is refused
-  (:func:`~pacam_render.sensor.apply.add_sensor_layers`), since a grey image is not a mosaic.
-- User presets: JSON or TOML files with the constructor's parameter names as top-level keys,
-  optionally ``base`` (a built-in preset to start from), ``sigma`` (read noise as a fraction of
-  the full well) and ``description``. (TOML on Python 3.10 reads through ``tomli``.)
-
-Light levels (:func:`photons_from_render`, :func:`simulate_capture`). A render is linear and
-radiance-like: 1.0 is a white diffuse surface. ``light_level`` is the number of photons per pixel
-per ms that such a surface delivers with an aperture of area ``reference_area_mm2`` open (the
-lens's full clear aperture, F2.8 on the prototype). Photons then scale with the exposure time
-and with the open aperture area, so a darker or brighter scene is one number, ``light_level``.
-With ``light_level=None`` the paper's convention applies instead: 1.0 fills the full well.
+Light levels (:func:`simulate_capture`): a linear render, 1.0 a white diffuse surface, becomes
+photons as :mod:`.radiometry` scales it, ``light_level`` photons/px/ms at a reference aperture
+area times the exposure and the open area; with ``light_level=None`` the paper's convention
+applies instead: 1.0 fills the full well.
 """
 
 from __future__ import annotations
 
 import dataclasses
-import json
-import math
 import os
-from collections.abc import Callable, Mapping
-from concurrent.futures import ThreadPoolExecutor
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from ..errors import ParameterError, check_finite, check_positive
-from ..io.toml_file import parse_toml, read_text
+from ..errors import ParameterError, check_finite, check_integer, check_positive
 from . import bayer as _bayer
+from .noise_sources import BLOCK_PIXELS, draw_fixed_pattern, frame_seed, poisson_cap, run_blocks
+from .presets import (
+    FILE_EXTRA_KEYS,
+    PRESETS,
+    available_presets,
+    read_preset_file,
+)
+from .radiometry import (
+    check_image,
+    photons_per_unit,
+)
 
-BLOCK_PIXELS = 1 << 16
-"""Pixels per noise block; each block has its own child SeedSequence (see module docstring)."""
-
-DEFAULT_LIGHT_LEVEL = 7000.0
-"""Photons/px/ms from a white diffuse surface at the full clear aperture (F2.8 on the prototype).
-
-An estimate for a brightly lit table-top scene, chosen so that with the ``grasshopper-icx285``
-preset a white surface at F9.85 over 45 ms (the coded capture) collects about 70 % of the full
-well: 7000 * 45 * (2.8 / 9.85)**2 * 0.5 ~ 12700 e- of 18000 e-.
-"""
-
-_FPN_KEY = 0x46504E  # spawn-key tag of the fixed-pattern streams ("FPN")
 _FPN_CACHE_SHAPES = 8
-
-PRESETS: dict[str, dict[str, Any]] = {
-    "paper": {
-        "name": "paper",
-        "qe": 1.0,
-        "shot_noise": False,  # the paper adds Gaussian noise only (Sec. 3)
-        "dark_current_e_per_s": 0.0,
-        "full_well_e": 65536.0,  # 1.0 of the [0, 1] image
-        "read_noise_e": 0.01 * 65536.0,  # sigma = 0.01 of full scale, the paper's standard
-        "K": 1.0,
-        "black_offset_dn": float(1 << 19),  # headroom for negative noise
-        "bit_depth": 20,
-        "prnu": 0.0,
-        "dsnu_e": 0.0,
-        "bayer": None,
-    },
-    "grasshopper-icx285": {
-        "name": "grasshopper-icx285",
-        # Estimate: peak QE of the mono ICX285AL is usually quoted near 0.6-0.65 (500-550 nm);
-        # the colour ICX285AQ loses some of it in its filters.
-        "qe": 0.5,
-        "shot_noise": True,
-        # Estimate for an uncooled interline CCD near 40 C; 0.45 e- over a 45 ms exposure.
-        "dark_current_e_per_s": 10.0,
-        # Estimate: ICX285 cameras quote full wells of 16000-18000 e-.
-        "full_well_e": 18000.0,
-        # Estimate: ICX285 cameras quote 6-10 e- depending on the pixel clock.
-        "read_noise_e": 8.0,
-        # Estimate: at 0 dB the gain is set so that the 14-bit ADC clips just below the full
-        # well, (16383 - 64) / 0.92 = 17738 e-, as cameras usually do: saturated pixels then
-        # read a constant 16383 DN.
-        "K": 0.92,
-        # Estimate: a small positive black level, so read noise below zero is kept.
-        "black_offset_dn": 64.0,
-        # Source: Point Grey Grasshopper Technical Reference v1.5 (2010), sec. 4.5.9,
-        # "a 14-bit A/D converter" (Raw16 output carries 14 useful bits).
-        "bit_depth": 14,
-        "prnu": 0.01,  # Estimate: typical of CCDs (0.5-1 %).
-        "dsnu_e": 1.0,  # Estimate.
-        # GRAS-14S5C is the colour model (Bayer filter); the tile order is assumed RGGB.
-        "bayer": "RGGB",
-    },
-}
-PRESETS["grasshopper-icx285-mono"] = {
-    **PRESETS["grasshopper-icx285"],
-    "name": "grasshopper-icx285-mono",
-    # The monochrome part, Sony ICX285AL (GRAS-14S5M): the same CCD without the colour filter
-    # array, so the same read noise, full well, dark current, gain and ADC.
-    # Estimate: no datasheet figure of its absolute QE could be found here (Sony's datasheets
-    # give the relative spectral response only); cameras built on the ICX285AL quote a peak QE
-    # of about 0.60-0.65 near 500 nm, and 0.62 is the middle of that range.
-    "qe": 0.62,
-    "bayer": None,  # no colour filter: every pixel sees the grey image, no mosaic, no demosaic
-}
-"""Built-in presets: constructor keyword arguments by name."""
-
-MONO_PRESETS: dict[str, str] = {"grasshopper-icx285": "grasshopper-icx285-mono"}
-"""Each built-in colour (Bayer) preset's monochrome counterpart, for grey captures."""
-
-
-def mono_preset(name: str) -> str:
-    """The monochrome preset a grey capture uses in place of ``name``.
-
-    Parameters
-    ----------
-    name : str
-        A preset name (or file path).
-
-    Returns
-    -------
-    str
-        The built-in monochrome counterpart of a colour preset (:data:`MONO_PRESETS`), else
-        ``name`` itself.
-
-    Examples
-    --------
-    >>> mono_preset("grasshopper-icx285"), mono_preset("paper")
-    ('grasshopper-icx285-mono', 'paper')
-    """
-    return MONO_PRESETS.get(name, name) if isinstance(name, str) else name
-
-
-_FILE_EXTRA_KEYS = ("base", "sigma", "description")
-
-
-def available_presets() -> list[str]:
-    """Names of the built-in presets.
-
-    Returns
-    -------
-    list of str
-        The keys of :data:`PRESETS`, sorted (``grasshopper-icx285``,
-        ``grasshopper-icx285-mono`` and ``paper``).
-
-    Examples
-    --------
-    >>> available_presets()
-    ['grasshopper-icx285', 'grasshopper-icx285-mono', 'paper']
-    """
-    return sorted(PRESETS)
 
 
 def _number(name: str, value: Any) -> float:
@@ -232,14 +107,6 @@ def _physical(name: str, value: float) -> float:
             f"{name} must be in [{lo:g}, {hi:g}] {unit} (a physical sensor's range), got {value!r}"
         )
     return value
-
-
-def _integer(name: str, value: Any, lo: int, hi: int | None) -> int:
-    ok = isinstance(value, (int, np.integer)) and not isinstance(value, (bool, np.bool_))
-    rng = f"{lo}..{hi}" if hi is not None else f">= {lo}"
-    if not ok or value < lo or (hi is not None and value > hi):
-        raise ParameterError(f"{name} must be an integer {rng}, got {value!r}")
-    return int(value)
 
 
 @dataclass(frozen=True)
@@ -304,7 +171,7 @@ class SensorModel:
         qe = _number("qe", self.qe)
         if not 0 < qe <= 1:
             raise ParameterError(f"qe must be in (0, 1] e-/photon, got {self.qe!r}")
-        bits = _integer("bit_depth", self.bit_depth, 1, 32)
+        bits = check_integer("bit_depth", self.bit_depth, 1, 32)
         max_dn = float(2**bits - 1)
         offset = _non_negative("black_offset_dn", self.black_offset_dn, "DN")
         if offset > max_dn:
@@ -339,7 +206,7 @@ class SensorModel:
             "dsnu_e": _physical("dsnu_e", _non_negative("dsnu_e", self.dsnu_e, "e-")),
             "bayer": None if self.bayer is None else _bayer.check_pattern(self.bayer),
             "shot_noise": bool(self.shot_noise),
-            "seed": _integer("seed", self.seed, 0, None),
+            "seed": check_integer("seed", self.seed, 0, None),
         }
 
     # ----------------------------------------------------------------- derived quantities
@@ -374,7 +241,7 @@ class SensorModel:
         ``signal_e``; without shot noise (``paper``) the signal and dark terms drop out. Divided
         by the electrons of the white level, it is the paper's noise level sigma (Fig. 8).
         """
-        sig = _check_image("signal_e", signal_e)
+        sig = check_image("signal_e", signal_e)
         var = np.full(sig.shape, self.read_noise_e**2 + 1.0 / (12.0 * self.K**2))
         if self.shot_noise:
             var += sig + self.dark_electrons(exposure_ms)
@@ -417,7 +284,7 @@ class SensorModel:
     def from_file(cls, path: str | os.PathLike, **overrides: Any) -> SensorModel:
         """A user preset from a JSON or TOML file (see the module docstring for its keys)."""
         p = Path(path)
-        data = _read_preset_file(p)
+        data = read_preset_file(p)
         base = data.pop("base", None)
         params: dict[str, Any] = {}
         if base is not None:
@@ -435,7 +302,7 @@ class SensorModel:
         if unknown:
             raise ParameterError(
                 f"{where}: unknown key(s) {', '.join(unknown)}; valid: "
-                f"{', '.join(sorted(allowed | set(_FILE_EXTRA_KEYS)))}"
+                f"{', '.join(sorted(allowed | set(FILE_EXTRA_KEYS)))}"
             )
         _apply(params, data, where)
         return _build(params, overrides, where=where)
@@ -457,26 +324,12 @@ class SensorModel:
         key = tuple(int(s) for s in shape)
         hit = self._fpn_cache.get(key)
         if hit is None:
-            hit = self._draw_fixed_pattern(key)
+            hit = draw_fixed_pattern(self.seed, self.prnu, self.dsnu_e, key)
             if len(self._fpn_cache) >= _FPN_CACHE_SHAPES:
                 self._fpn_cache.pop(next(iter(self._fpn_cache)))
             self._fpn_cache[key] = hit
         return hit
 
-    def _draw_fixed_pattern(self, shape: tuple[int, ...]) -> tuple[np.ndarray | None, ...]:
-        ss_prnu, ss_dsnu = np.random.SeedSequence(self.seed, spawn_key=(_FPN_KEY, *shape)).spawn(2)
-        gain = offset = None
-        if self.prnu > 0:
-            # log-normal with mean 1 and std prnu exactly
-            s2 = math.log1p(self.prnu**2)
-            z = np.random.Generator(np.random.PCG64(ss_prnu)).standard_normal(shape)
-            gain = np.exp(z * math.sqrt(s2) - 0.5 * s2).astype(np.float32)
-        if self.dsnu_e > 0:
-            z = np.random.Generator(np.random.PCG64(ss_dsnu)).standard_normal(shape)
-            offset = (z * self.dsnu_e).astype(np.float32)
-        return gain, offset
-
-    # ---------------------------------------------------------------------------- capture
     def capture(
         self,
         photons: np.ndarray,
@@ -510,7 +363,7 @@ class SensorModel:
         src = plane.reshape(-1)
         out = np.empty(src.size, dtype=self.dtype)
         n_blocks = max(1, -(-src.size // BLOCK_PIXELS))
-        seeds = _frame_seed(seed).spawn(n_blocks)
+        seeds = frame_seed(seed).spawn(n_blocks)
         gain_f = None if gain is None else gain.reshape(-1)
         offset_f = None if offset is None else offset.reshape(-1)
 
@@ -520,7 +373,7 @@ class SensorModel:
             o = None if offset_f is None else offset_f[sl]
             out[sl] = self._chain(src[sl], dark_e, g, o, seeds[i])
 
-        _run_blocks(block, n_blocks, workers)
+        run_blocks(block, n_blocks, workers)
         return out.reshape(plane.shape)
 
     def _sensor_plane(self, photons: Any) -> np.ndarray:
@@ -554,7 +407,7 @@ class SensorModel:
         if dark_e:
             e += dark_e
         if self.shot_noise:
-            np.minimum(e, self._poisson_cap(), out=e)
+            np.minimum(e, poisson_cap(self.full_well_e), out=e)
             e = rng.poisson(e).astype(np.float64)
         np.minimum(e, self.full_well_e, out=e)
         if self.read_noise_e:
@@ -568,9 +421,6 @@ class SensorModel:
         np.rint(e, out=e)
         return np.clip(e, 0.0, float(self.max_dn), out=e)
 
-    def _poisson_cap(self) -> float:
-        return self.full_well_e + 40.0 * math.sqrt(self.full_well_e) + 100.0
-
     # ------------------------------------------------------------------- back to light
     def electrons_from_dn(self, dn: np.ndarray, exposure_ms: float | None = None) -> np.ndarray:
         """Signal electrons: (DN - black offset) / K minus the mean dark signal, float64."""
@@ -579,7 +429,7 @@ class SensorModel:
 
     def photons_from_unit(self, image: np.ndarray) -> np.ndarray:
         """Photons for a [0, 1] image where 1.0 fills the full well (the paper's convention)."""
-        img = _check_image("image", image)
+        img = check_image("image", image)
         return img * (self.full_well_e / self.qe)
 
     def unit_from_dn(self, dn: np.ndarray, exposure_ms: float | None = None) -> np.ndarray:
@@ -642,167 +492,11 @@ def _build(params: dict[str, Any], overrides: Mapping[str, Any], where: str) -> 
         raise ParameterError(f"{where}: {exc}") from None
 
 
-def _read_preset_file(path: Path) -> dict[str, Any]:
-    suffix = path.suffix.lower()
-    if suffix not in (".json", ".toml"):
-        raise ParameterError(f"preset file must end in .json or .toml, got {str(path)!r}")
-    text = read_text(path, "preset file")  # strictly UTF-8, a byte-order mark allowed
-    data = _parse_json(path, text) if suffix == ".json" else parse_toml(text, f"preset file {path}")
-    if not isinstance(data, dict):
-        raise ParameterError(f"preset file {path} must hold one table/object of parameters")
-    return data
-
-
-def _parse_json(path: Path, text: str) -> Any:
-    try:
-        return json.loads(text)
-    except json.JSONDecodeError as exc:
-        raise ParameterError(f"preset file {path} is not valid JSON: {exc}") from None
-
-
-def _frame_seed(seed: int | np.random.SeedSequence | None) -> np.random.SeedSequence:
-    """A fresh SeedSequence for one frame (a copy, so a reused SeedSequence repeats itself)."""
-    if isinstance(seed, np.random.SeedSequence):
-        return np.random.SeedSequence(seed.entropy, spawn_key=seed.spawn_key)
-    if seed is None:
-        return np.random.SeedSequence()
-    return np.random.SeedSequence(_integer("seed", seed, 0, None))
-
-
-def _run_blocks(fn: Callable[[int], None], n_blocks: int, workers: int | None) -> None:
-    if workers is None:
-        n = os.cpu_count() or 1
-    else:
-        n = _integer("workers", workers, 1, None)
-    n = min(n, n_blocks)
-    if n <= 1:
-        for i in range(n_blocks):
-            fn(i)
-        return
-    with ThreadPoolExecutor(max_workers=n) as pool:
-        for _ in pool.map(fn, range(n_blocks)):
-            pass
-
-
 def _check_photons(block: np.ndarray) -> None:
     if block.dtype.kind == "f" and not np.isfinite(block).all():
         raise ParameterError("photons must be finite (>= 0 photons), got NaN or infinity")
     if block.size and block.min() < 0:
         raise ParameterError(f"photons must be >= 0 photons, got {block.min()!r}")
-
-
-def _check_image(name: str, image: Any) -> np.ndarray:
-    img = np.asarray(image)
-    if img.dtype.kind not in "iuf":
-        raise ParameterError(f"{name} must be a real numeric array, got dtype {img.dtype}")
-    img = img.astype(np.float64, copy=False)
-    if not np.isfinite(img).all():
-        raise ParameterError(f"{name} must be finite and >= 0, got NaN or infinity")
-    if img.size and img.min() < 0:
-        raise ParameterError(
-            f"{name} must be >= 0, got {img.min()!r} (render with a non-negative "
-            "reconstruction filter such as box or gaussian)"
-        )
-    return img
-
-
-# --------------------------------------------------------------------------- light levels
-def aperture_area_mm2(radius_mm: float) -> float:
-    """Area of a circular opening, pi r^2, mm^2.
-
-    Parameters
-    ----------
-    radius_mm : float
-        Radius of the opening, mm, > 0: e.g. the aperture radius R, or R_max for the lens's full
-        clear aperture.
-
-    Returns
-    -------
-    float
-        The area, mm^2.
-
-    Raises
-    ------
-    ParameterError
-        If ``radius_mm`` is not a finite number > 0.
-    """
-    return math.pi * check_positive("radius_mm", radius_mm, "mm") ** 2
-
-
-def photons_per_unit(
-    light_level: float, exposure_ms: float, open_area_mm2: float, reference_area_mm2: float
-) -> float:
-    """Photons per pixel over the exposure for 1.0 of the linear render.
-
-    ``light_level`` (photons/px/ms) is what a white diffuse surface delivers with
-    ``reference_area_mm2`` open; photons scale with ``exposure_ms`` and ``open_area_mm2``.
-
-    Parameters
-    ----------
-    light_level : float
-        Photons/px/ms from a white diffuse surface with ``reference_area_mm2`` open, > 0.
-    exposure_ms : float
-        Exposure time, ms, > 0.
-    open_area_mm2 : float
-        Open aperture area during the exposure, mm^2, > 0.
-    reference_area_mm2 : float
-        Aperture area at which ``light_level`` is given, mm^2, > 0.
-
-    Returns
-    -------
-    float
-        light_level x exposure_ms x open_area_mm2 / reference_area_mm2, photons.
-
-    Raises
-    ------
-    ParameterError
-        If any argument is not a finite number > 0.
-    """
-    level = check_positive("light_level", light_level, "photons/px/ms")
-    t = check_positive("exposure_ms", exposure_ms, "ms")
-    a = check_positive("open_area_mm2", open_area_mm2, "mm^2")
-    a_ref = check_positive("reference_area_mm2", reference_area_mm2, "mm^2")
-    return level * t * a / a_ref
-
-
-def photons_from_render(
-    linear_image: np.ndarray,
-    light_level: float,
-    exposure_ms: float,
-    open_area_mm2: float,
-    reference_area_mm2: float,
-) -> np.ndarray:
-    """Mean photons per pixel for a linear render (1.0 = white diffuse surface), float64.
-
-    The render must not already include the open-area factor: pass the area that the image was
-    normalised to as ``reference_area_mm2`` if it does (then ``open_area_mm2`` equal to it).
-
-    Parameters
-    ----------
-    linear_image : array_like
-        The linear render, any shape, real, finite and >= 0.
-    light_level : float
-        Photons/px/ms from a white diffuse surface with ``reference_area_mm2`` open, > 0.
-    exposure_ms : float
-        Exposure time, ms, > 0.
-    open_area_mm2 : float
-        Open aperture area, mm^2, > 0.
-    reference_area_mm2 : float
-        Aperture area at which ``light_level`` is given, mm^2, > 0.
-
-    Returns
-    -------
-    ndarray of float64
-        ``linear_image`` x :func:`photons_per_unit`, photons, same shape.
-
-    Raises
-    ------
-    ParameterError
-        If the image is not a real numeric array, has NaN, infinite or negative values, or a
-        scalar argument is not a finite number > 0.
-    """
-    img = _check_image("linear_image", linear_image)
-    return img * photons_per_unit(light_level, exposure_ms, open_area_mm2, reference_area_mm2)
 
 
 @dataclass(frozen=True)
@@ -887,6 +581,6 @@ def simulate_capture(
         if open_area_mm2 is None or reference_area_mm2 is None:
             raise ParameterError("light_level needs open_area_mm2 and reference_area_mm2 (mm^2)")
         ppu = photons_per_unit(light_level, exposure_ms, open_area_mm2, reference_area_mm2)
-    photons = _check_image("linear_image", linear_image) * ppu
+    photons = check_image("linear_image", linear_image) * ppu
     raw = model.capture(photons, exposure_ms=exposure_ms, seed=seed, workers=workers)
     return SensorCapture(raw, model.linear_from_dn(raw, ppu, exposure_ms), ppu)

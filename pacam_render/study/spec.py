@@ -29,7 +29,7 @@ from pathlib import Path
 
 from ..errors import FileKeyError, ParameterError
 from ..io.toml_file import parse_toml, read_text
-from ..sensor.model import DEFAULT_LIGHT_LEVEL
+from ..sensor.radiometry import DEFAULT_LIGHT_LEVEL
 
 AXES = {
     "scene": "train",
@@ -46,7 +46,7 @@ AXES = {
 sensor). ``speed_px_per_ms``: image speed of the scene's fastest moving shape at t = 0 in the
 preset's own pixels (the motions are scaled); ``depth_mm``: the moving shapes' depth (they are
 moved along z, their image speed kept); ``light_level``: photons/px/ms of white through F2.8
-(by default :data:`~pacam_render.sensor.model.DEFAULT_LIGHT_LEVEL`, as for ``render`` and
+(by default :data:`~pacam_render.sensor.radiometry.DEFAULT_LIGHT_LEVEL`, as for ``render`` and
 ``sensor``; ``optimize``'s is :data:`~pacam_render.optimize.search.DEFAULT_LIGHT_LEVEL`);
 ``design``: ``prototype`` (the preset), ``cover=S`` with optional ``,F=N`` or ``,r=PX``
 (:func:`~pacam_render.model.design.solve`), ``schedule=PATH``: a designed schedule
@@ -73,7 +73,7 @@ GREY_RENDER = "grey"
 """The ``[render]`` key (true or false, default false) that renders every capture in one
 channel with Mitsuba's mono variant (:attr:`~pacam_render.exposure.capture_spec.CaptureSpec.grey`;
 ``pacam study --grey`` sets it). A grey study's built-in colour sensor presets become their
-monochrome twins (:data:`~pacam_render.sensor.model.MONO_PRESETS`: ``grasshopper-icx285`` ->
+monochrome twins (:data:`~pacam_render.sensor.presets.MONO_PRESETS`: ``grasshopper-icx285`` ->
 ``grasshopper-icx285-mono``, the same camera without its Bayer filter); a preset file with a
 ``bayer`` key is refused. It enters the study's keys only when true."""
 RELATIVE_ILLUMINATION_RENDER = "relative_illumination"
@@ -394,7 +394,8 @@ def _check_render(r: dict) -> dict:
 def _grey_sensor(name):
     """A grey study's sensor: a built-in colour preset becomes its monochrome twin; a preset
     file with a Bayer filter is refused (GREY_RENDER)."""
-    from ..sensor.model import SensorModel, mono_preset
+    from ..sensor.model import SensorModel
+    from ..sensor.presets import mono_preset
 
     if not isinstance(name, str):
         return name  # _check_point names the bad value

@@ -11,7 +11,8 @@ from pathlib import Path
 from pacam_render.cli import build_parser
 from pacam_render.optimize import search
 from pacam_render.sensor.apply import _light_level
-from pacam_render.sensor.model import DEFAULT_LIGHT_LEVEL, SensorModel
+from pacam_render.sensor.model import SensorModel
+from pacam_render.sensor.radiometry import DEFAULT_LIGHT_LEVEL
 from pacam_render.study.spec import AXES
 
 DOCS = Path(__file__).resolve().parents[2] / "docs"

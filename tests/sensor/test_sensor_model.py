@@ -21,15 +21,13 @@ from scipy import stats
 
 from pacam_render.errors import ParameterError
 from pacam_render.sensor import bayer
-from pacam_render.sensor.model import (
+from pacam_render.sensor.model import SensorModel, simulate_capture
+from pacam_render.sensor.presets import PRESETS, available_presets
+from pacam_render.sensor.radiometry import (
     DEFAULT_LIGHT_LEVEL,
-    PRESETS,
-    SensorModel,
     aperture_area_mm2,
-    available_presets,
     photons_from_render,
     photons_per_unit,
-    simulate_capture,
 )
 
 EMVA_NAMES = (

@@ -8,7 +8,8 @@ import pytest
 
 from pacam_render.errors import ParameterError
 from pacam_render.sensor.apply import check_grey_sensor, is_grey
-from pacam_render.sensor.model import MONO_PRESETS, SensorModel, available_presets, mono_preset
+from pacam_render.sensor.model import SensorModel
+from pacam_render.sensor.presets import MONO_PRESETS, available_presets, mono_preset
 
 MONO = "grasshopper-icx285-mono"
 
