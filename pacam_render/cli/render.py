@@ -12,7 +12,7 @@ from ..model.camera import preset
 from ..model.modes import MODES
 from ..render.samplers import DEFAULT_SAMPLER, SAMPLERS
 from ..render.variant import grey_request
-from ..sensor.model import DEFAULT_LIGHT_LEVEL
+from ..sensor.radiometry import DEFAULT_LIGHT_LEVEL
 from .capture_out import error_line, optics_lines, scale_line, write_or_rescue
 from .common import (
     add_design_flags,
@@ -66,6 +66,14 @@ def add(sub) -> None:
     )
     _add_sensor(p)
     add_optics(p)
+    p.add_argument(
+        "--from",
+        dest="from_store",
+        metavar="STORE",
+        help="synthesise the capture from a light-field store (pacam lightfield) instead of "
+        "rendering it: any design of the store's scene and window, in seconds; the store sets "
+        "the size, window, samples and seed",
+    )
     add_grey(p)
     add_limit_args(p)
     add_out(p)
@@ -139,6 +147,8 @@ def run(args: argparse.Namespace) -> int:
     from ..exposure.capture import check_budget, render_capture
     from ..io.lock import output_lock
 
+    if args.from_store is not None:
+        return _run_from_store(args)
     target = _noise_target(args)
     plan = _plan(args, target)
     spec = plan.spec
@@ -173,6 +183,46 @@ def run(args: argparse.Namespace) -> int:
             add_sensor_layers(cap, model, args.sensor, args.light_level, spec.seed)
         paths = write_or_rescue(cap, out, args.force, args.mc_sigma_layer)
     _print_summary(cap, spec, paths, args.mc_sigma_layer)
+    return 0
+
+
+FROM_STORE_REFUSED = ("spp", "passes", "noise_ratio", "noise_target", "per_pattern")
+"""Flags a synthesised capture cannot take: the store fixed its samples."""
+
+
+def _run_from_store(args: argparse.Namespace) -> int:
+    """``--from STORE``: the capture synthesised from a light-field store
+    (:func:`~pacam_render.lightfield.synthesis.synthesize`), written as a render's."""
+    from ..io.lock import output_lock
+    from ..lightfield import Store, synthesize
+
+    for name in FROM_STORE_REFUSED:
+        if getattr(args, name) not in (None, False):
+            flag = "--" + name.replace("_", "-")
+            raise ParameterError(f"{flag}: a capture from --from takes the store's samples")
+    store = Store.open(args.from_store)
+    s = store.manifest["spec"]["capture"]
+    args.width, args.height = args.width or s["width"], args.height or s["height"]
+    if args.crop is None and s["crop"]:
+        args.crop = ",".join(str(v) for v in s["crop"])
+    spec = _plan(args, None).spec
+    model = _checked_sensor(args, spec)
+    out = Path(args.out)
+    if (out / "capture.exr").exists() and not args.force:
+        raise ParameterError(f"--out {out} already holds a capture; pass --force to overwrite it")
+    with new_folder(out), output_lock(out):
+        cap = synthesize(store, spec, progress=not args.quiet)
+        if args.no_truth:
+            from ..exposure.truth import TRUTH_LAYERS
+
+            cap.extra_layers = {k: v for k, v in cap.extra_layers.items() if k not in TRUTH_LAYERS}
+        if model is not None:
+            from ..sensor.apply import add_sensor_layers
+
+            add_sensor_layers(cap, model, args.sensor, args.light_level, spec.seed)
+        paths = write_or_rescue(cap, out, args.force, args.mc_sigma_layer)
+    _print_summary(cap, spec, paths, args.mc_sigma_layer)
+    print(f"from the light-field store {args.from_store} (digest {store.digest})")
     return 0
 
 

@@ -65,9 +65,35 @@ class Diffracted:
     record: dict
 
 
+_KERNELS: dict = {}
+"""The last few :func:`channel_kernels` results, by what they depend on (a 381 px kernel takes
+about a second per wavelength: a study's or a light-field store's many captures of one opening
+compute it once)."""
+_KEPT = 8
+
+
+def _kernel_key(cam, mode: str, n_channels: int, pitch_mm: float, per_window: bool) -> tuple:
+    """What the kernels depend on: the openings (a disc's radius, or the bitmaps' digest), the
+    lens (F_min and R_max set D) and the sampling; not the focus or the openings' centres."""
+    bitmaps = shows_bitmaps(cam, mode)
+    opening = ("bitmap", cam.pattern_masks.digest) if bitmaps else ("disc", float(cam.R_mm))
+    lens = (float(cam.F_min), float(cam.R_max_mm))
+    return (*opening, *lens, int(n_channels), float(pitch_mm), bool(per_window and bitmaps))
+
+
 def channel_kernels(cam, mode: str, n_channels: int, pitch_mm: float, per_window: bool):
     """Per channel, the ``band`` kernels: one per pattern window when ``per_window`` (a bitmap
-    schedule's, None for a black pattern), else a list of one for the whole exposure."""
+    schedule's, None for a black pattern), else a list of one for the whole exposure. The
+    kernels are shared with earlier calls of the same openings (read-only)."""
+    key = _kernel_key(cam, mode, n_channels, pitch_mm, per_window)
+    if key not in _KERNELS:
+        if len(_KERNELS) >= _KEPT:
+            _KERNELS.pop(next(iter(_KERNELS)))
+        _KERNELS[key] = _channel_kernels(cam, mode, n_channels, pitch_mm, per_window)
+    return _KERNELS[key]
+
+
+def _channel_kernels(cam, mode: str, n_channels: int, pitch_mm: float, per_window: bool):
     out = []
     for wl in channel_wavelengths_nm(n_channels):
         if per_window or not shows_bitmaps(cam, mode):

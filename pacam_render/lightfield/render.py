@@ -102,7 +102,7 @@ def store_camera(spec: StoreSpec, plan, focus: float, m: int) -> dict:
 
 def plan_store_steps(spec: StoreSpec, desc, design, max_steps: int) -> list[tuple]:
     """(t0, t1, spp) per step of a pass, ms on the store's shutter clock [0, 45]."""
-    from ..exposure.steps import plan_windows, share_spp
+    from ..exposure.steps import merge_windows, plan_windows, share_spp
     from ..scenes import fastest_image_speed_px_per_ms
 
     E, cap = paper.EXPOSURE_MS, spec.capture
@@ -113,6 +113,7 @@ def plan_store_steps(spec: StoreSpec, desc, design, max_steps: int) -> list[tupl
 
     windows = plan_windows(np.array([0.0, E]), np.array([True]), speed, cap.max_step_px,
                            max_steps)  # fmt: skip
+    windows = merge_windows(windows, int(cap.spp))  # a low spp is honoured, as a capture's
     shares = share_spp([b - a for _, a, b in windows], cap.spp, 1)
     return [(a, b, n) for (_, a, b), n in zip(windows, shares)]
 
@@ -259,10 +260,10 @@ def _render_shards(spec, plan, cam, desc, steps, out, manifest, flag, progress, 
             meta = {"t0": t0, "t1": t1, "spp": spp, "time": None if animator is None else times}
             row.append(save_shard(out, name, rec, meta))
             manifest["seconds"] = manifest.get("seconds", 0.0) + time.perf_counter() - t_start
-            write_manifest(out, manifest)
             bar.update()
             new += 1
             if flag["signal"] is not None or (stop_after is not None and new >= stop_after):
+                write_manifest(out, manifest)
                 bar.close()
                 raise StoreInterrupted(
                     f"the store stopped after {new} new shard(s); they are saved in {out}: run "
@@ -270,6 +271,7 @@ def _render_shards(spec, plan, cam, desc, steps, out, manifest, flag, progress, 
                     signum=flag["signal"],
                 )
         digests.append(row)
+        write_manifest(out, manifest)
     bar.close()
     return digests
 

@@ -18,7 +18,7 @@ from __future__ import annotations
 import hashlib
 import json
 import shutil
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -141,10 +141,15 @@ def load_shard(path: Path) -> tuple[dict, dict]:
 
 @dataclass
 class Store:
-    """A store read back: its folder and manifest (``store.json``)."""
+    """A store read back: its folder and manifest (``store.json``). Shards read once are kept
+    in memory up to ``cache_bytes`` (a quarter of the memory available when it opens), so
+    that many designs synthesised from one store read the disk once."""
 
     folder: Path
     manifest: dict
+    cache_bytes: int = 0
+    _cache: dict = field(default_factory=dict, repr=False)
+    _cached: int = 0
 
     @classmethod
     def open(cls, folder) -> Store:
@@ -161,7 +166,7 @@ class Store:
             raise ParameterError(
                 f"the store at {folder} is not finished: run `pacam lightfield` again to resume"
             )
-        return cls(Path(folder), manifest)
+        return cls(Path(folder), manifest, cache_bytes=available_bytes() // 4)
 
     @property
     def digest(self) -> str:
@@ -170,7 +175,16 @@ class Store:
     def shards(self, pass_index: int):
         """(records, meta) of each of a pass's shards, in step order, one at a time."""
         for step in range(len(self.manifest["steps"][pass_index])):
-            yield load_shard(self.folder / shard_name(pass_index, step))
+            name = shard_name(pass_index, step)
+            if name in self._cache:
+                yield self._cache[name]
+                continue
+            shard = load_shard(self.folder / name)
+            size = sum(a.nbytes for a in shard[0].values())
+            if self._cached + size <= self.cache_bytes:
+                self._cache[name] = shard
+                self._cached += size
+            yield shard
 
     def truth(self) -> tuple[dict, dict | None]:
         """The ground-truth layers and the ``object_id`` legend (empty without truth)."""
