@@ -121,7 +121,7 @@ def run(args: argparse.Namespace) -> int:
     cam = m["camera"]
     print(
         f"light-field store of {m['scene']}: window {cam['window']} (+{cam['margin_px']} px "
-        f"margin), {m['passes']} passes of {steps} step(s), {m['seconds']:.1f} s, "
+        f"margin), {m['passes']} passes of {steps} step(s), {m['seconds']:.1f} s of tracing, "
         f"{gib(size)} -> {args.out} (digest {store.digest})"
     )
     print(f"synthesise a design's capture with: pacam render {m['scene']} --from {args.out} ...")

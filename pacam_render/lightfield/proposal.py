@@ -73,10 +73,15 @@ class Proposal:
         share = np.where(count > 0, 1.0 - self.alpha, 0.0)
         return (1.0 - share) / lens + share * focused / np.maximum(count, 1)
 
-    def sample(self, t: np.ndarray, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
-        """Lens points (u, v) mm drawn from p(. | t), one per time."""
+    def sample(
+        self, t: np.ndarray, rng: np.random.Generator, uv=None
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Lens points (u, v) mm drawn from p(. | t), one per time; ``uv`` (2, n) are the
+        uniforms that place each point in its disc (stratified ones, :class:`~.trace.Strata`),
+        else drawn from ``rng``. Which part of the mixture a point comes from is drawn."""
         n = len(t)
-        u, v = _disc(rng, n, self.lens_radius_mm, np.zeros((n, 2)))
+        uv = rng.random((2, n)) if uv is None else uv
+        u, v = _disc(uv, self.lens_radius_mm, np.zeros((n, 2)))
         comps = list(self._components(t))
         if not comps:
             return u, v
@@ -89,14 +94,15 @@ class Proposal:
         for j, (_, centre, r) in enumerate(comps):
             sel = focused & (chosen == j)
             if sel.any():
-                u[sel], v[sel] = _disc(rng, int(sel.sum()), r, centre[sel])
+                u[sel], v[sel] = _disc(uv[:, sel], r, centre[sel])
         return u, v
 
 
-def _disc(rng: np.random.Generator, n: int, radius: float, centre: np.ndarray):
-    """n points uniform on discs of ``radius`` about ``centre`` (n, 2)."""
-    rho = radius * np.sqrt(rng.random(n))
-    phi = 2 * np.pi * rng.random(n)
+def _disc(uv: np.ndarray, radius: float, centre: np.ndarray):
+    """Points uniform on discs of ``radius`` about ``centre`` (n, 2), from uniforms (2, n)
+    (the polar map: strata of the unit square stay strata of the disc)."""
+    rho = radius * np.sqrt(uv[0])
+    phi = 2 * np.pi * uv[1]
     return centre[:, 0] + rho * np.cos(phi), centre[:, 1] + rho * np.sin(phi)
 
 

@@ -39,6 +39,13 @@ from .store import (
     store_digest,
     write_manifest,
 )
+from .trace import Strata
+
+QUANTUM = 4
+"""Samples per pixel of each of a moving scene's steps (as a capture's ldsampler steps): the
+integrator's own dimensions are a low-discrepancy set of four per pixel. Measured on the
+train (96x64 window, 256 spp): the same Monte Carlo sigma as one independent sample per step
+(0.00054 both), with a quarter of the geometry updates (3.4 s against 7.7 s)."""
 
 
 class StoreInterrupted(CaptureInterrupted):
@@ -113,8 +120,8 @@ def plan_store_steps(spec: StoreSpec, desc, design, max_steps: int) -> list[tupl
 
     windows = plan_windows(np.array([0.0, E]), np.array([True]), speed, cap.max_step_px,
                            max_steps)  # fmt: skip
-    windows = merge_windows(windows, int(cap.spp))  # a low spp is honoured, as a capture's
-    shares = share_spp([b - a for _, a, b in windows], cap.spp, 1)
+    windows = merge_windows(windows, max(1, int(cap.spp) // QUANTUM))  # a low spp is honoured
+    shares = share_spp([b - a for _, a, b in windows], cap.spp, QUANTUM)
     return [(a, b, n) for (_, a, b), n in zip(windows, shares)]
 
 
@@ -219,6 +226,9 @@ def _manifest(spec: StoreSpec, plan, cam: dict, steps, out: Path, scene_digest: 
         "steps": [[list(s) for s in steps] for _ in range(plan.spec.passes)],
         "mid_ms": 0.5 * paper.EXPOSURE_MS, "seconds": 0.0,
         "proposal": cam["proposal"].to_json(),
+        "sampling": "per pixel, a Latin hypercube over each pass's samples (film and lens)"
+        if Strata.fits(cam["sensor"]["film"]["crop_width"] * cam["sensor"]["film"]["crop_height"],
+                       sum(s[2] for s in steps)) else "independent",
     }  # fmt: skip
     write_manifest(out, manifest)
     return manifest
@@ -241,9 +251,13 @@ def _render_shards(spec, plan, cam, desc, steps, out, manifest, flag, progress, 
     m, cap = cam["info"]["margin_px"], plan.spec
     digests, new = [], 0
     bar = tqdm(total=cap.passes * len(steps), desc=f"light field {cap.scene}", disable=not progress)
+    pixels = window[2] * window[3]
+    per_pass = sum(s[2] for s in steps)
     for p in range(cap.passes):
-        row = []
+        row, first = [], 0
+        strata = Strata(pixels, per_pass, cap.seed, p) if Strata.fits(pixels, per_pass) else None
         for k, (t0, t1, spp) in enumerate(steps):
+            first, k0 = first + spp, first
             name = shard_name(p, k)
             if (out / name).exists():
                 row.append(shard_digest(*load_shard(out / name)))
@@ -256,7 +270,8 @@ def _render_shards(spec, plan, cam, desc, steps, out, manifest, flag, progress, 
             else:
                 times = step_time(t0, t1, u)
                 animator.set_time(times - manifest["mid_ms"])
-            rec = _records(scene, sensor, window, spp, seed, times, cam, m)
+            rec = _records(scene, sensor, window, spp, seed, times, cam, m,
+                           None if strata is None else (strata, k0))  # fmt: skip
             meta = {"t0": t0, "t1": t1, "spp": spp, "time": None if animator is None else times}
             row.append(save_shard(out, name, rec, meta))
             manifest["seconds"] = manifest.get("seconds", 0.0) + time.perf_counter() - t_start
@@ -276,11 +291,11 @@ def _render_shards(spec, plan, cam, desc, steps, out, manifest, flag, progress, 
     return digests
 
 
-def _records(scene, sensor, window, spp, seed, times, cam, margin) -> dict:
+def _records(scene, sensor, window, spp, seed, times, cam, margin, strata) -> dict:
     """One step's records, film points in px of the capture's sensor (the margin taken off)."""
     from .trace import trace_records
 
-    rec = trace_records(scene, sensor, window, spp, seed, times, cam["proposal"])
+    rec = trace_records(scene, sensor, window, spp, seed, times, cam["proposal"], strata)
     rec["x"] += float(window[0] - margin)  # the crop's corner, in px of the enlarged film
     rec["y"] += float(window[1] - margin)
     return rec

@@ -242,7 +242,7 @@ def test_what_a_store_cannot_serve_is_refused_naming_why(store):
 
 @pytest.mark.render
 def test_an_interrupted_store_resumes_bit_for_bit(tmp_path):
-    spec = StoreSpec(CaptureSpec(**{**WINDOW, "crop": (456, 410, 16, 12)}, spp=4, passes=2))
+    spec = StoreSpec(CaptureSpec(**{**WINDOW, "crop": (456, 410, 16, 12)}, spp=16, passes=2))
     whole = render_lightfield(spec, tmp_path / "a", progress=False, truth=False)
     with pytest.raises(StoreInterrupted, match="resume"):
         render_lightfield(spec, tmp_path / "b", progress=False, truth=False, stop_after=3)

@@ -1,0 +1,170 @@
+"""Light-field stores against direct renders: cost per design, and paired design comparisons.
+
+On a window of the moving train at the prototype's pixel scale (both trains, occlusion), with
+covering designs of one F-number (the speed study's axis: they share the parabola and differ
+in focus):
+
+1. **Cost to one Monte Carlo sigma.** Each way's error per second is measured on the output
+   itself: a direct render of a design (its MC sigma and seconds), and one store with a
+   synthesis per design. Both scale as sigma^2 t, so the time each needs to bring *every*
+   design to the same sigma is computed from the measured figures: N direct renders, against
+   one store (rendered to its worst design's sigma) plus N syntheses. Direct renders are
+   measured on a subset of the designs and their mean cost per design used for the rest.
+2. **Paired comparisons.** Over seeds, the sd of PSNR(A) - PSNR(B) (each capture against its
+   ``sharp`` layer, white = 1): two designs synthesised from one store per seed, against two
+   independent direct renders per seed at about the same MC sigma.
+
+    python benchmarks/bench_lightfield.py [--quick]
+"""
+
+from __future__ import annotations
+
+import argparse
+import shutil
+import tempfile
+import time
+import warnings
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+from common import record
+
+from pacam_render.exposure.capture import render_capture
+from pacam_render.exposure.capture_spec import CaptureSpec
+from pacam_render.lightfield import StoreSpec, render_lightfield, synthesize
+from pacam_render.model.camera import preset
+from pacam_render.model.design_file import write_design
+
+
+def _psnr(image, sharp, lf) -> float:
+    mse = float(np.mean((image / lf - sharp) ** 2))
+    return 10 * np.log10(1.0 / mse)
+
+
+def _timed(fn, *args, **kw):
+    t0 = time.perf_counter()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        out = fn(*args, **kw)
+    return out, time.perf_counter() - t0
+
+
+def _sigma(cap) -> float:
+    return float(np.sqrt(np.mean(cap.mc_sigma**2)))
+
+
+def cost_table(window: dict, n_designs: tuple, spp: int, direct_subset: int, root: Path):
+    covers = np.linspace(0.6, 1.6, max(n_designs))
+    specs = [
+        CaptureSpec(**window, mode="coded", cover_px_per_ms=float(c), spp=spp, passes=4)
+        for c in covers
+    ]
+    store_spec = StoreSpec(replace(specs[0], seed=1), designs=(specs[0], specs[-1]))
+    store, t_store = _timed(render_lightfield, store_spec, root / "cost", progress=False,
+                            truth=False)  # fmt: skip
+    syn = [_timed(synthesize, store, s, progress=False) for s in specs]
+    picks = np.linspace(0, len(specs) - 1, direct_subset).round().astype(int)
+    direct = [
+        _timed(render_capture, replace(specs[i], seed=7), progress=False, truth=False)
+        for i in picks
+    ]
+    sig_d = [_sigma(c) for c, _ in direct]
+    target = float(np.mean(sig_d))  # bring every design to the direct renders' mean sigma
+    per_direct = float(np.mean([t * (s / target) ** 2 for (_, t), s in zip(direct, sig_d)]))
+    rows = []
+    for n in n_designs:
+        sig = [_sigma(c) for c, _ in syn[:n]]
+        scale = (max(sig) / target) ** 2  # the store's samples for its worst design
+        t_syn = float(np.mean([t for _, t in syn[:n]]))
+        t_lf = scale * (t_store + n * t_syn)
+        rows.append(
+            {
+                "designs": n,
+                "direct s (to sigma)": n * per_direct,
+                "store + syntheses s (to sigma)": t_lf,
+                "ratio": t_lf / (n * per_direct),
+                "store s": t_store * scale,
+                "synthesis s/design": scale * t_syn,
+                "worst synth sigma / target": max(sig) / target,
+            }
+        )
+    return rows, target
+
+
+def _dpsnr(ca, cb) -> float:
+    """PSNR(A) - PSNR(B), each capture against its own sharp layer."""
+    a = _psnr(ca.image, ca.extra_layers["sharp"], ca.record.light_factor)
+    return a - _psnr(cb.image, cb.extra_layers["sharp"], cb.record.light_factor)
+
+
+def paired_table(window: dict, seeds: int, spp: int, root: Path):
+    proto = preset("prototype")
+    wider = root / "wider.toml"
+    write_design(wider, proto.with_(R_mm=1.1 * proto.R_mm, name="wider"), force=True)
+    pairs = {
+        "prototype vs 1.1 R (same focus)": {"design": str(wider)},
+        "prototype vs cover 1.4 (refocused)": {"cover_px_per_ms": 1.4},
+    }
+    rows = []
+    for name, other in pairs.items():
+        a = CaptureSpec(**window, mode="coded", spp=spp, passes=4)
+        b = replace(a, **other)
+        d_store, d_direct, sig_s, sig_d = [], [], [], []
+        for seed in range(seeds):
+            folder = root / f"paired{seed}"
+            shutil.rmtree(folder, ignore_errors=True)
+            spec = StoreSpec(replace(a, seed=100 + seed), designs=(a, b))
+            store, _ = _timed(render_lightfield, spec, folder, progress=False)
+            ca, _ = _timed(synthesize, store, a, progress=False)
+            cb, _ = _timed(synthesize, store, b, progress=False)
+            ra, _ = _timed(render_capture, replace(a, seed=200 + 2 * seed), progress=False)
+            rb, _ = _timed(render_capture, replace(b, seed=201 + 2 * seed), progress=False)
+            d_store.append(_dpsnr(ca, cb))
+            d_direct.append(_dpsnr(ra, rb))
+            sig_s.append(_sigma(ca))
+            sig_d.append(_sigma(ra))
+        sd_s, sd_d = float(np.std(d_store, ddof=1)), float(np.std(d_direct, ddof=1))
+        rows.append(
+            {
+                "pair": name,
+                "seeds": seeds,
+                "mean dPSNR store (dB)": float(np.mean(d_store)),
+                "sd store (dB)": sd_s,
+                "mean dPSNR direct (dB)": float(np.mean(d_direct)),
+                "sd direct (dB)": sd_d,
+                "sd ratio": sd_s / sd_d,
+                "MC sigma store / direct": float(np.mean(sig_s) / np.mean(sig_d)),
+            }
+        )
+    return rows
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--quick", action="store_true", help="a smaller window and fewer seeds")
+    args = ap.parse_args()
+    crop = (456, 410, 48, 32) if args.quick else (440, 400, 96, 64)
+    window = {"scene": "train", "width": 1280, "height": 960, "crop": crop}
+    root = Path(tempfile.mkdtemp(prefix="bench_lightfield."))
+    try:
+        rows, target = cost_table(window, (1, 4, 16, 64), 16, 4, root)
+        record(
+            "Light-field store: wall time to one Monte Carlo sigma, N covering designs",
+            rows,
+            f"train window {crop} at 1280x960, moving; covers 0.6-1.6 px/ms (F9.85); target "
+            f"sigma {target:.3g} (the direct renders' mean); direct cost per design measured "
+            "on 4 of the designs",
+        )
+        record(
+            "Light-field store: sd over seeds of PSNR(A) - PSNR(B)",
+            paired_table(window, 3 if args.quick else 5, 16, root),
+            f"train window {crop}, each capture's PSNR against its sharp layer (no "
+            "deconvolution); one store per seed against two direct renders per seed",
+        )
+    finally:
+        shutil.rmtree(root, ignore_errors=True)
+
+
+if __name__ == "__main__":
+    main()
