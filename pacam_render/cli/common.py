@@ -156,6 +156,18 @@ def design_spec_fields(args: argparse.Namespace) -> dict:
     }
 
 
+def add_seed_and_steps(p: argparse.ArgumentParser) -> None:
+    """``--seed`` and ``--max-step-px``: a render's random numbers and its time steps."""
+    p.add_argument("--seed", type=int, default=0, metavar="S")
+    p.add_argument(
+        "--max-step-px",
+        type=float,
+        default=0.5,
+        metavar="PX",
+        help="largest image motion between time steps (default 0.5 px)",
+    )
+
+
 def add_grey(p: argparse.ArgumentParser, what: str = "captures") -> None:
     """``--grey``: render one channel with Mitsuba's mono variant (no RGB)."""
     p.add_argument(

@@ -8,7 +8,7 @@ from pathlib import Path
 
 from ..errors import ParameterError, check_positive
 from ..limits import gib
-from .common import add_design_flags, add_grey, add_quiet, design_spec_fields
+from .common import add_design_flags, add_grey, add_quiet, add_seed_and_steps, design_spec_fields
 
 
 def add(sub) -> None:
@@ -37,14 +37,7 @@ def add(sub) -> None:
         help="independent passes: their spread is every synthesised capture's Monte "
         "Carlo error (default 4)",
     )
-    p.add_argument("--seed", type=int, default=0, metavar="S")
-    p.add_argument(
-        "--max-step-px",
-        type=float,
-        default=0.5,
-        metavar="PX",
-        help="largest image motion between time steps (default 0.5 px)",
-    )
+    add_seed_and_steps(p)
     p.add_argument(
         "--designs",
         nargs="*",
@@ -122,7 +115,10 @@ def run(args: argparse.Namespace) -> int:
     print(
         f"light-field store of {m['scene']}: window {cam['window']} (+{cam['margin_px']} px "
         f"margin), {m['passes']} passes of {steps} step(s), {m['seconds']:.1f} s of tracing, "
-        f"{gib(size)} -> {args.out} (digest {store.digest})"
+        f"{gib(size)} -> {args.out}"
     )
-    print(f"synthesise a design's capture with: pacam render {m['scene']} --from {args.out} ...")
+    print(
+        f"digest {store.digest}; synthesise a design's capture with: pacam render "
+        f"{m['scene']} --from {args.out} ..."
+    )
     return 0

@@ -21,6 +21,7 @@ from .common import (
     add_limit_args,
     add_out,
     add_quiet,
+    add_seed_and_steps,
     design_spec_fields,
     new_folder,
 )
@@ -117,14 +118,7 @@ def _add_sampling(p: argparse.ArgumentParser) -> None:
         action="store_true",
         help="write the per-pixel Monte Carlo sigma as an mc_sigma layer in capture.exr",
     )
-    p.add_argument("--seed", type=int, default=0, metavar="S")
-    p.add_argument(
-        "--max-step-px",
-        type=float,
-        default=0.5,
-        metavar="PX",
-        help="largest image motion between time steps (default 0.5 px)",
-    )
+    add_seed_and_steps(p)
 
 
 def _add_sensor(p: argparse.ArgumentParser) -> None:

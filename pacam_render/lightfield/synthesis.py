@@ -240,7 +240,7 @@ def _capture(store: Store, plan, params, design_plan, stats, used: int, seconds:
     lf = record.light_factor
     err.update(time_steps_per_pass=steps["n_steps"] if desc.is_static is False else 0)
     err.update(mc_sigma_white_units=err["mc_sigma"] / lf if lf > 0 else None,
-               sampler="independent", seconds=round(seconds, 3), time_step_bias=0.0,
+               sampler="light-field store", seconds=round(seconds, 3), time_step_bias=0.0,
                time_sampling="the store's: one random time per step and pass, or uniform "
                "times for a still scene; unbiased, their noise is in mc_sigma")  # fmt: skip
     record.render_error = err

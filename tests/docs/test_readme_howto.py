@@ -1,5 +1,5 @@
-"""The README's five how-to commands, and docs/howto/own_scene.md's, run as written and print
-what the documents show (issue 38).
+"""The README's five how-to commands, and docs/howto/own_scene.md's and lightfield.md's, run as
+written and print what the documents show (issue 38).
 
 The ``$ ...`` lines of the document's first ``console`` block are run verbatim, in order, in a
 fresh folder that holds the repository's ``docs/`` (the commands name
@@ -72,3 +72,12 @@ def test_the_own_scene_how_to_runs_as_written(tmp_path):
 
 def test_the_readme_fits_on_a_few_screens():
     assert len((ROOT / "README.md").read_text().splitlines()) <= 250
+
+
+def test_the_lightfield_how_to_runs_as_written(tmp_path):
+    """docs/howto/lightfield.md: a store, then three designs' captures from it."""
+    printed = run_document(ROOT / "docs" / "howto" / "lightfield.md", tmp_path)
+    assert len(printed) == 4
+    check(printed)
+    for name in ("coded", "cover1.4", "normal"):
+        assert (tmp_path / "caps" / name / "capture.exr").is_file(), name
