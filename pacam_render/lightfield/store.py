@@ -94,7 +94,7 @@ def check_budget(samples: int, per_shard: int, nbytes: int, out: Path, max_disk:
             f"the store needs {gib(nbytes)} on disk ({samples:.4g} samples), above the limit of "
             f"{gib(max_disk)}; lower `spp`, `passes` or the window (`crop`), or raise max_disk"
         )
-    probe = out if out.exists() else out.parent
+    probe = next(p for p in (out, *out.parents) if p.exists())  # the folder may not exist yet
     free = shutil.disk_usage(probe).free
     if nbytes > free:
         raise ParameterError(

@@ -23,7 +23,8 @@ from .engine import (
     run_tasks,
     threads_per_worker,
 )
-from .point import Task, pilot_task, point_row, run_task
+from .lightfield_task import run_study_task
+from .point import Task, pilot_task, point_row
 from .results import Results
 from .spec import StudySpec, builtin_studies, load_study
 
@@ -174,7 +175,7 @@ def _render_all(tasks: list, run, results, summary, name: str, progress: bool) -
         bar.update(len(rows))
 
     with bar:
-        run(run_task, tasks, done)
+        run(run_study_task, tasks, done)
 
 
 def _tasks(spec: StudySpec, done: set[int], out: Path, keep: bool) -> list:

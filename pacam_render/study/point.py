@@ -85,19 +85,27 @@ def run_task(task: Task) -> list[dict]:
         except CaptureInterrupted:  # Ctrl-C in a serial run stops the study, not the point
             raise
         except Exception as exc:  # a point that cannot render is reported, the study goes on
-            return [
-                point_row(p, {}, _status(exc), 0.0, time.perf_counter() - t0) for p in task.points
-            ]
+            return error_rows(task.points, exc, time.perf_counter() - t0)
         render_s = time.perf_counter() - t0
-        rows = []
-        for p in task.points:
-            t1 = time.perf_counter()
-            try:
-                values, status = {**info, **_evaluate(cap, desc, p, task, info)}, "ok"
-            except Exception as exc:
-                values, status = info, _status(exc)
-            rows.append(point_row(p, values, status, render_s, render_s + time.perf_counter() - t1))
+        return score_points(cap, desc, info, task, task.points, render_s)
+
+
+def score_points(cap, desc, info: dict, task: Task, points, render_s: float) -> list[dict]:
+    """One row per point on one capture: its sensor, deconvolution and scores."""
+    rows = []
+    for p in points:
+        t1 = time.perf_counter()
+        try:
+            values, status = {**info, **_evaluate(cap, desc, p, task, info)}, "ok"
+        except Exception as exc:
+            values, status = info, _status(exc)
+        rows.append(point_row(p, values, status, render_s, render_s + time.perf_counter() - t1))
     return rows
+
+
+def error_rows(points, exc: Exception, seconds: float) -> list[dict]:
+    """The rows of points whose capture failed: the error in each one's status."""
+    return [point_row(p, {}, _status(exc), 0.0, seconds) for p in points]
 
 
 def _status(exc: Exception) -> str:
@@ -149,6 +157,12 @@ def _render(task: Task):
     cap = render_capture(
         spec, _partial(task), progress=False, description=desc, truth=True, target=target
     )
+    return cap, desc, capture_info(cap, desc, info)
+
+
+def capture_info(cap, desc, info: dict) -> dict:
+    """A rendered (or synthesised) capture's columns: its camera, scale, errors and optics."""
+    info = dict(info)
     rec = cap.record
     optics = rec.optics
     info.update({k: optics[k] for k in ("r_px", "a_i_px_per_ms2", "velocity_range_px_per_ms")})
@@ -161,7 +175,7 @@ def _render(task: Task):
     )
     info["model_sigma"] = _model_sigma(cap, desc)
     info.update(optics_columns(rec.optics_error, rec.light_factor))
-    return cap, desc, info
+    return info
 
 
 def optics_columns(block: dict | None, light_factor: float) -> dict:

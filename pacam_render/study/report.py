@@ -23,6 +23,7 @@ import numpy as np
 from ..errors import ParameterError
 from ..io.outputs import save_figure, write_text
 from .crossover_map import map_applies, map_section, write_map
+from .paired import paired_section
 from .results import RESULTS, read_csv
 from .small_multiples import curves_section, write_curves
 from .spec import StudySpec
@@ -164,6 +165,8 @@ def write_report(spec: StudySpec, out: Path) -> list[str]:
             xlabel = "speed of the moving object (px/ms, preset pixels)"
             files.append(_plot(out, f"{name}.png", data, xlabel, "light", False, _YLABEL[y], title))
             text += _speed_text(ok, y)
+    if spec.render.get("lightfield"):
+        text += paired_section(ok)
     text += _error_text(ok)
     text += _plateau_text(ok)
     text += ["## Every point", "", *_table(rows)]

@@ -85,6 +85,13 @@ DIFFRACTION_RENDER = "diffraction"
 """The ``[render]`` key ``diffraction``: ``off`` (default), ``on`` or ``auto``, as
 :attr:`~pacam_render.exposure.capture_spec.CaptureSpec.diffraction`. It enters the study's keys
 only when not ``off``; results.csv says per row whether the capture has it."""
+LIGHTFIELD_RENDER = "lightfield"
+"""The ``[render]`` key ``lightfield`` (true or false, default false): render one light-field
+store per scene, speed, depth and seed, and synthesise every design and mode of the grid from
+it (:mod:`pacam_render.lightfield`) instead of rendering each. The designs then share the
+store's random numbers, so their differences are less noisy. A store is rendered to ``spp``
+(``noise_ratio = false``); Levin's moving camera cannot be served. It enters the study's keys
+only when true."""
 QUICK_RENDER = {"width": 160, "height": 120, "crop": None, "spp": 16}
 """--quick for a study without a [quick] table: a small binned frame at 16 spp."""
 REPORTS = ("crossover", "speed", "table")
@@ -169,8 +176,10 @@ class StudySpec:
     def groups(self) -> list[tuple[Point, ...]]:
         """The points grouped by render, in order of their first point."""
         out: dict[tuple, list[Point]] = {}
+        shared = self.render.get(LIGHTFIELD_RENDER)  # one store serves every design and mode
         for p in self.points:
-            out.setdefault(p.render_key(), []).append(p)
+            key = p.render_key()
+            out.setdefault((key[0], *key[3:]) if shared else key, []).append(p)
         return [tuple(g) for g in out.values()]
 
 
@@ -300,10 +309,13 @@ def _parse(doc: dict, quick: bool, source: str, grey: bool = False) -> StudySpec
     if grey:
         render["grey"] = True
     _keys(
-        render, "[render]", set(RENDER) | {"grey", DIFFRACTION_RENDER, RELATIVE_ILLUMINATION_RENDER}
+        render,
+        "[render]",
+        set(RENDER) | {"grey", DIFFRACTION_RENDER, RELATIVE_ILLUMINATION_RENDER, LIGHTFIELD_RENDER},
     )
     render = _check_render(render)
     pts = _expand(grid, points, render)
+    _check_lightfield(render, pts)
     return StudySpec(
         name=str(head.get("name", Path(source).stem or "study")),
         report=report,
@@ -315,6 +327,29 @@ def _parse(doc: dict, quick: bool, source: str, grey: bool = False) -> StudySpec
         decompose=head.get("decompose", False),
         quick=bool(quick),
     )
+
+
+def _check_lightfield(render: dict, points) -> None:
+    """``[render] lightfield``: a bool; with it, no noise target and no moving camera."""
+    if LIGHTFIELD_RENDER not in render:
+        return
+    on = render[LIGHTFIELD_RENDER]
+    if not isinstance(on, bool):
+        raise ParameterError(f"[render] lightfield must be true or false, got {on!r}")
+    if not on:  # absent and false are the same study (and the same keys)
+        del render[LIGHTFIELD_RENDER]
+        return
+    if render["noise_ratio"] is not None:
+        raise ParameterError(
+            "[render] lightfield renders each store to `spp`: give noise_ratio = false (a "
+            "store is not rendered to a noise target yet)"
+        )
+    levin = sorted({p.mode for p in points if p.mode == "levin"})
+    if levin:
+        raise ParameterError(
+            "[render] lightfield cannot serve mode 'levin': Levin's camera moves its body, so "
+            "its rays are not the store's; leave it out of the grid, or render directly"
+        )
 
 
 def _table(doc: dict, key: str, where: str | None = None) -> dict:
