@@ -9,10 +9,12 @@ in focus):
    synthesis per design. Both scale as sigma^2 t, so the time each needs to bring *every*
    design to the same sigma is computed from the measured figures: N direct renders, against
    one store (rendered to its worst design's sigma) plus N syntheses. Direct renders are
-   measured on a subset of the designs and their mean cost per design used for the rest.
+   measured on a subset of the designs and their mean cost per design used for the rest. The
+   store takes 4x the direct renders' spp: as many samples and time steps per pass (a direct
+   render of N spp takes 4 spp in each of its 16 pattern windows).
 2. **Paired comparisons.** Over seeds, the sd of PSNR(A) - PSNR(B) (each capture against its
    ``sharp`` layer, white = 1): two designs synthesised from one store per seed, against two
-   independent direct renders per seed at about the same MC sigma.
+   independent direct renders per seed (the store with as many samples and time steps).
 
     python benchmarks/bench_lightfield.py [--quick]
 """
@@ -60,7 +62,9 @@ def cost_table(window: dict, n_designs: tuple, spp: int, direct_subset: int, roo
         CaptureSpec(**window, mode="coded", cover_px_per_ms=float(c), spp=spp, passes=4)
         for c in covers
     ]
-    store_spec = StoreSpec(replace(specs[0], seed=1), designs=(specs[0], specs[-1]))
+    # a direct render of `spp` takes 4 samples in each of its 16 pattern windows per pass;
+    # the store takes 4 spp per step too, so 4 x spp gives it as many samples and poses
+    store_spec = StoreSpec(replace(specs[0], seed=1, spp=4 * spp), designs=(specs[0], specs[-1]))
     store, t_store = _timed(render_lightfield, store_spec, root / "cost", progress=False,
                             truth=False)  # fmt: skip
     syn = [_timed(synthesize, store, s, progress=False) for s in specs]
@@ -114,7 +118,7 @@ def paired_table(window: dict, seeds: int, spp: int, root: Path):
         for seed in range(seeds):
             folder = root / f"paired{seed}"
             shutil.rmtree(folder, ignore_errors=True)
-            spec = StoreSpec(replace(a, seed=100 + seed), designs=(a, b))
+            spec = StoreSpec(replace(a, seed=100 + seed, spp=4 * spp), designs=(a, b))
             store, _ = _timed(render_lightfield, spec, folder, progress=False)
             ca, _ = _timed(synthesize, store, a, progress=False)
             cb, _ = _timed(synthesize, store, b, progress=False)
@@ -140,6 +144,24 @@ def paired_table(window: dict, seeds: int, spp: int, root: Path):
     return rows
 
 
+def synthesis_table(spp: int, root: Path) -> list[dict]:
+    """Seconds per synthesis of a 400x160 window (the issue's size), against its samples."""
+    window = {"scene": "train", "width": 1280, "height": 960, "crop": (440, 400, 400, 160)}
+    base = CaptureSpec(**window, spp=spp, passes=4, seed=3)
+    store, t_store = _timed(render_lightfield, StoreSpec(base), root / "big", progress=False,
+                            truth=False)  # fmt: skip
+    rows = []
+    for name, extra in (("prototype", {}), ("cover 1.4", {"cover_px_per_ms": 1.4}),
+                        ("normal", {"mode": "normal"})):  # fmt: skip
+        spec = replace(base, **extra)
+        synthesize(store, spec, progress=False)  # the shards read once, the kernels once
+        cap, t = _timed(synthesize, store, spec, progress=False)
+        used = cap.record.extra["lightfield"]["samples_used"]
+        row = {"design": name, "store spp/pass": spp, "store s": t_store, "synthesis s": t}
+        rows.append({**row, "samples used (M)": used / 1e6, "MC sigma": _sigma(cap)})
+    return rows
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="a smaller window and fewer seeds")
@@ -161,6 +183,13 @@ def main() -> None:
             paired_table(window, 3 if args.quick else 5, 16, root),
             f"train window {crop}, each capture's PSNR against its sharp layer (no "
             "deconvolution); one store per seed against two direct renders per seed",
+        )
+        record(
+            "Light-field store: synthesis time of a 400x160 window",
+            synthesis_table(16 if args.quick else 64, root),
+            "train window (440, 400, 400, 160) at 1280x960, moving; the second synthesis of "
+            "each design timed (the store's shards and the optics budget's kernels are kept "
+            "from the first)",
         )
     finally:
         shutil.rmtree(root, ignore_errors=True)

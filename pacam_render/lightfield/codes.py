@@ -39,13 +39,13 @@ def transmission(
     plan: AperturePlan, u, v, t, masks: np.ndarray | None = None, contrast: float | None = None
 ) -> np.ndarray:
     """A(u, v, t) of ``plan`` at lens points (u, v) (mm, the plugin's local frame) and times
-    t (ms on the design's shutter clock), float32.
+    t (ms on the design's shutter clock: one per point, or one for all), float32.
 
     0 outside the exposure and in closed patterns; inside an open pattern, 1 in the opening
     (a disc about the pattern's centre at t, or a bitmap's value at its LCoS pixel) and
     1 / ``contrast`` elsewhere on the lens (a finite-contrast LCoS's leakage, disc schedules).
     """
-    t = np.asarray(t, np.float64)
+    t = np.asarray(t, np.float64)  # one time (a moving scene's step) is computed once
     inside = (t >= plan.t_open) & (t < plan.t_close)
     k = plan.pattern_at(np.clip(t, plan.t_open, plan.t_close))
     shown = inside & plan.is_open[k]
@@ -66,6 +66,7 @@ def _bitmap(plan: AperturePlan, masks: np.ndarray, u, v, k) -> np.ndarray:
     if masks is None:
         raise ParameterError("a bitmap schedule's transmission needs its masks")
     n, h, w = masks.shape
+    k = np.broadcast_to(k, np.shape(u))
     pitch = plan.tables.pitch_mm
     col = np.floor(w / 2.0 - u / pitch).astype(np.int64)
     row = np.floor(h / 2.0 - v / pitch).astype(np.int64)

@@ -181,8 +181,8 @@ def pass_images(store: Store, plan, params, design_plan, progress: bool = False)
     for p in range(store.manifest["passes"]):
         image = np.zeros((h * w, c))
         for rec, meta in store.shards(p):
-            t = rec["t"] if "t" in rec else np.full(len(rec["x"]), meta["time"], np.float32)
-            a = transmission(design_plan, rec["u"], rec["v"], t + offset, masks, contrast)
+            t = rec["t"] + offset if "t" in rec else meta["time"] + offset  # a step: one time
+            a = transmission(design_plan, rec["u"], rec["v"], t, masks, contrast)
             x = geo.shifted(rec["x"], rec["u"], k) - x0
             y = geo.shifted(rec["y"], rec["v"], k) - y0
             ok = (a > 0) & (x >= 0) & (x < w) & (y >= 0) & (y < h)
