@@ -179,26 +179,33 @@ def pass_images(store: Store, plan, params, design_plan, progress: bool = False)
     lens_area = np.pi * info["lens_radius_mm"] ** 2
     bar = tqdm(total=sum(len(r) for r in steps), desc="synthesis", disable=not progress)
     for p in range(store.manifest["passes"]):
-        image = np.zeros((h * w, c))
+        image = np.zeros((c, h * w + 1))  # the last bin takes what falls outside the window
         for rec, meta in store.shards(p):
             t = rec["t"] + offset if "t" in rec else meta["time"] + offset  # a step: one time
             a = transmission(design_plan, rec["u"], rec["v"], t, masks, contrast)
-            x = geo.shifted(rec["x"], rec["u"], k) - x0
-            y = geo.shifted(rec["y"], rec["v"], k) - y0
-            ok = (a > 0) & (x >= 0) & (x < w) & (y >= 0) & (y < h)
+            x = geo.shifted(rec["x"], rec["u"], k) - np.float32(x0)
+            y = geo.shifted(rec["y"], rec["v"], k) - np.float32(y0)
             share = (meta["t1"] - meta["t0"]) / info["exposure_ms"] / meta["spp"]
-            weight = a[ok] * (share / (rec["p"][ok] * lens_area))  # A / (p pi R_max^2)
+            weight = a * np.float32(share / lens_area) / rec["p"]  # A / (p pi R_max^2)
             if cos4:
-                weight = weight * _cos4(x[ok] + x0, y[ok] + y0, info)
-            pix = np.floor(y[ok]).astype(np.int64) * w + np.floor(x[ok]).astype(np.int64)
-            for ch in range(c):
-                image[:, ch] += np.bincount(pix, rec["L"][ok, ch] * weight, minlength=h * w)
-            used += int(ok.sum())
+                weight *= _cos4(x + x0, y + y0, info)
+            pix = _pixels(x, y, w, h)
+            for ch in range(c):  # L is (channels, n): each row a contiguous weight
+                image[ch] += np.bincount(pix, rec["L"][ch] * weight, minlength=h * w + 1)
+            used += int(np.count_nonzero((a > 0) & (pix < h * w)))
             bar.update()
-        img = image.reshape(h, w, c)
+        img = np.moveaxis(image[:, :-1].reshape(c, h, w), 0, -1)
         images.append(img[..., 0] if c == 1 else img)
     bar.close()
     return images, used
+
+
+def _pixels(x: np.ndarray, y: np.ndarray, w: int, h: int) -> np.ndarray:
+    """The window's pixel index of each film point (px from the window's corner); h * w for a
+    point outside it."""
+    ix, iy = np.floor(x).astype(np.int64), np.floor(y).astype(np.int64)
+    inside = (ix >= 0) & (ix < w) & (iy >= 0) & (iy < h)
+    return np.where(inside, iy * w + ix, h * w)
 
 
 def _cos4(x, y, info: dict) -> np.ndarray:

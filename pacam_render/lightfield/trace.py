@@ -84,7 +84,7 @@ def trace_records(scene, sensor, window, spp: int, seed: int, times, proposal, s
         ``x``, ``y`` (float32, px of the window, from its corner), ``u``, ``v`` (float32, mm,
         the lens point in the plugin's local frame), ``p`` (float32, the proposal's density
         there, 1/mm^2), ``t`` (float32, ms; absent for one time) and ``L`` (float32,
-        (n, channels): radiance times the sensor's weight).
+        (channels, n): radiance times the sensor's weight).
     """
     x0, y0, w, h = window
     n = w * h * spp
@@ -94,7 +94,7 @@ def trace_records(scene, sensor, window, spp: int, seed: int, times, proposal, s
         lanes = (start, stop)
         parts.append(_trace_chunk(scene, sensor, (w, h), spp, lanes, seed, c, times, proposal,
                                   strata))  # fmt: skip
-    return {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
+    return {k: np.concatenate([p[k] for p in parts], axis=-1) for k in parts[0]}
 
 
 def _trace_chunk(scene, sensor, size, spp, lanes, seed, chunk, times, proposal, strata):
@@ -137,7 +137,7 @@ def _trace_chunk(scene, sensor, size, spp, lanes, seed, chunk, times, proposal, 
         "u": np.asarray(a.x, np.float32),
         "v": np.asarray(a.y, np.float32),
         "p": density,
-        "L": np.asarray(value, np.float32).reshape(-1, n).T.copy(),
+        "L": np.asarray(value, np.float32).reshape(-1, n),  # (channels, n): rows
     }
     if isinstance(times, tuple):
         out["t"] = t
