@@ -5,13 +5,12 @@ covering designs of one F-number (the speed study's axis: they share the parabol
 in focus):
 
 1. **Cost to one Monte Carlo sigma.** Each way's error per second is measured on the output
-   itself: a direct render of a design (its MC sigma and seconds), and one store with a
-   synthesis per design. Both scale as sigma^2 t, so the time each needs to bring *every*
-   design to the same sigma is computed from the measured figures: N direct renders, against
-   one store (rendered to its worst design's sigma) plus N syntheses. Direct renders are
-   measured on a subset of the designs and their mean cost per design used for the rest. The
-   store takes 4x the direct renders' spp: as many samples and time steps per pass (a direct
-   render of N spp takes 4 spp in each of its 16 pattern windows).
+   itself. Direct renders of a subset of the designs give the target sigma (their mean) and
+   the cost per design to reach it (sigma^2 t). A pilot store with as many samples and time
+   steps as a direct render (4x its spp: a direct render of N spp takes 4 spp in each of its
+   16 pattern windows per pass) gives the samples the store needs for its worst design; the
+   store is rendered with them, and each design's synthesis from it is timed. So the
+   comparison is N direct renders against one store plus N syntheses, each measured.
 2. **Paired comparisons.** Over seeds, the sd of PSNR(A) - PSNR(B) (each capture against its
    ``sharp`` layer, white = 1): two designs synthesised from one store per seed, against two
    independent direct renders per seed (the store with as many samples and time steps).
@@ -62,12 +61,6 @@ def cost_table(window: dict, n_designs: tuple, spp: int, direct_subset: int, roo
         CaptureSpec(**window, mode="coded", cover_px_per_ms=float(c), spp=spp, passes=4)
         for c in covers
     ]
-    # a direct render of `spp` takes 4 samples in each of its 16 pattern windows per pass;
-    # the store takes 4 spp per step too, so 4 x spp gives it as many samples and poses
-    store_spec = StoreSpec(replace(specs[0], seed=1, spp=4 * spp), designs=(specs[0], specs[-1]))
-    store, t_store = _timed(render_lightfield, store_spec, root / "cost", progress=False,
-                            truth=False)  # fmt: skip
-    syn = [_timed(synthesize, store, s, progress=False) for s in specs]
     picks = np.linspace(0, len(specs) - 1, direct_subset).round().astype(int)
     direct = [
         _timed(render_capture, replace(specs[i], seed=7), progress=False, truth=False)
@@ -76,20 +69,31 @@ def cost_table(window: dict, n_designs: tuple, spp: int, direct_subset: int, roo
     sig_d = [_sigma(c) for c, _ in direct]
     target = float(np.mean(sig_d))  # bring every design to the direct renders' mean sigma
     per_direct = float(np.mean([t * (s / target) ** 2 for (_, t), s in zip(direct, sig_d)]))
+    # a pilot store of as many samples and steps as a direct render (4 spp in each of its 16
+    # pattern windows per pass) says how many the store needs; the store is then rendered
+    # with that many, and every synthesis from it timed: nothing is scaled
+    designs = (specs[0], specs[-1])
+    pilot = render_lightfield(StoreSpec(replace(specs[0], seed=1, spp=4 * spp), designs=designs),
+                              root / "pilot", progress=False, truth=False)  # fmt: skip
+    worst = max(_sigma(synthesize(pilot, s, progress=False)) for s in specs[:: len(specs) // 8])
+    store_spp = 16 * int(np.ceil(4 * spp * (worst / target) ** 2 / 16))
+    spec = StoreSpec(replace(specs[0], seed=2, spp=store_spp), designs=designs)
+    store, t_store = _timed(render_lightfield, spec, root / "cost", progress=False, truth=False)
+    syn = [_timed(synthesize, store, s, progress=False) for s in specs]
     rows = []
     for n in n_designs:
         sig = [_sigma(c) for c, _ in syn[:n]]
-        scale = (max(sig) / target) ** 2  # the store's samples for its worst design
         t_syn = float(np.mean([t for _, t in syn[:n]]))
-        t_lf = scale * (t_store + n * t_syn)
+        t_lf = t_store + n * t_syn
         rows.append(
             {
                 "designs": n,
                 "direct s (to sigma)": n * per_direct,
-                "store + syntheses s (to sigma)": t_lf,
+                "store + syntheses s": t_lf,
                 "ratio": t_lf / (n * per_direct),
-                "store s": t_store * scale,
-                "synthesis s/design": scale * t_syn,
+                "store spp/pass": store_spp,
+                "store s": t_store,
+                "synthesis s/design": t_syn,
                 "worst synth sigma / target": max(sig) / target,
             }
         )

@@ -76,6 +76,8 @@ FLAGS = {
     "out": "--out",
     "force": "--force",
     "grey": "--grey",
+    "margin_px": "--margin-px",
+    "max_disk": "--max-disk-gib",
 }
 """Parameter names in library messages, and the flags a CLI user typed instead: the one
 mapping (a file's keys, :class:`~pacam_render.errors.FileKeyError`, are left as they are)."""

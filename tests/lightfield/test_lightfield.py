@@ -276,3 +276,10 @@ def test_the_command_line_renders_a_store_and_a_capture_from_it(tmp_path, capsys
     assert main(["render", "train", "--from", str(store), "--spp", "8", "--out",
                  str(tmp_path / "x")]) == 2  # fmt: skip
     assert "--spp" in capsys.readouterr().err
+
+
+def test_a_store_beyond_its_disk_budget_is_refused_before_any_work(tmp_path):
+    spec = StoreSpec(CaptureSpec(**{**WINDOW, "crop": (0, 0, 1280, 960)}, spp=256, passes=4))
+    with pytest.raises(ParameterError, match=r"GiB on disk .* max_disk"):
+        render_lightfield(spec, tmp_path / "s", progress=False, max_disk=2**30)
+    assert not (tmp_path / "s").exists()
