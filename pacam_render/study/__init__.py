@@ -23,7 +23,7 @@ from .engine import (
     run_tasks,
     threads_per_worker,
 )
-from .lightfield_task import run_study_task
+from .lightfield_task import run_study_task as run_task  # rendered, or on a store
 from .point import Task, pilot_task, point_row
 from .results import Results
 from .spec import StudySpec, builtin_studies, load_study
@@ -175,7 +175,7 @@ def _render_all(tasks: list, run, results, summary, name: str, progress: bool) -
         bar.update(len(rows))
 
     with bar:
-        run(run_study_task, tasks, done)
+        run(run_task, tasks, done)
 
 
 def _tasks(spec: StudySpec, done: set[int], out: Path, keep: bool) -> list:
