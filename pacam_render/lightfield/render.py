@@ -188,7 +188,7 @@ def render_lightfield(
     pixels = window["crop_width"] * window["crop_height"]
     total, largest = planned_samples([steps] * cap.passes, pixels)
     per = bytes_per_sample(1 if cap.grey else 3, desc.is_static)
-    check_budget(total, largest * per, total * per, out, max_disk)
+    check_budget(total, largest, per, out, max_disk)
     out.mkdir(parents=True, exist_ok=True)
     with output_lock(out), deferred_signals() as flag:
         manifest = _manifest(spec, plan, cam, steps, out, desc.digest())

@@ -87,12 +87,29 @@ def bytes_per_sample(channels: int, per_sample_time: bool) -> int:
     return 4 * (len(RECORD_FIELDS) + int(per_sample_time) + channels)
 
 
-def check_budget(samples: int, per_shard: int, nbytes: int, out: Path, max_disk: int) -> None:
-    """Refuse a store whose disk or one shard's memory would not fit, with the numbers."""
+LANE_BYTES = 370
+"""Peak memory per ray of a wavefront: Dr.Jit's state and the host copies, measured (a static
+400x160 window at 32 spp, 2 M rays: 720 MB)."""
+
+
+def check_budget(samples: int, largest: int, per: int, out: Path, max_disk: int) -> None:
+    """Refuse a store whose disk or one shard's memory would not fit, with the numbers:
+    ``samples`` in all, ``largest`` in one shard, ``per`` bytes each on disk. A shard's rays
+    are traced in wavefronts of at most :data:`~.trace.CHUNK_LANES`; its records are held
+    about three times (the wavefronts' parts, their concatenation, the file)."""
+    from .trace import CHUNK_LANES
+
+    nbytes = samples * per
     if nbytes > max_disk:
         raise ParameterError(
             f"the store needs {gib(nbytes)} on disk ({samples:.4g} samples), above the limit of "
             f"{gib(max_disk)}; lower `spp`, `passes` or the window (`crop`), or raise max_disk"
+        )
+    peak = min(largest, CHUNK_LANES) * LANE_BYTES + 3 * largest * per
+    if peak > available_bytes():
+        raise ParameterError(
+            f"one step of the store needs about {gib(peak)} of memory and "
+            f"{gib(available_bytes())} is available; lower `spp` or the window (`crop`)"
         )
     probe = next(p for p in (out, *out.parents) if p.exists())  # the folder may not exist yet
     free = shutil.disk_usage(probe).free
@@ -100,12 +117,6 @@ def check_budget(samples: int, per_shard: int, nbytes: int, out: Path, max_disk:
         raise ParameterError(
             f"the store needs {gib(nbytes)} on disk and {gib(free)} is free at {probe}; lower "
             "`spp`, `passes` or the window (`crop`)"
-        )
-    peak = per_shard * 120  # the wavefront's Dr.Jit state and the host copies, measured
-    if peak > available_bytes():
-        raise ParameterError(
-            f"one step of the store needs about {gib(peak)} of memory and "
-            f"{gib(available_bytes())} is available; lower `spp` or the window (`crop`)"
         )
 
 

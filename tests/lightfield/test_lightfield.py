@@ -283,3 +283,13 @@ def test_a_store_beyond_its_disk_budget_is_refused_before_any_work(tmp_path):
     with pytest.raises(ParameterError, match=r"GiB on disk .* max_disk"):
         render_lightfield(spec, tmp_path / "s", progress=False, max_disk=2**30)
     assert not (tmp_path / "s").exists()
+
+
+def test_a_shard_beyond_the_memory_available_is_refused(tmp_path):
+    """One step of 10^9 rays holds 3 x 36 GB of records: refused, with the numbers; a step of
+    10^7 (a 400x160 window at about 150 spp) fits in about 1.8 GB (measured 1.6 GB at 8 M)."""
+    from pacam_render.lightfield.store import check_budget
+
+    with pytest.raises(ParameterError, match="of memory"):
+        check_budget(10**9, 10**9, 36, tmp_path, 2**60)
+    check_budget(10**7, 10**7, 36, tmp_path, 2**40)
