@@ -132,23 +132,49 @@ def _point_scene(cam, n: int, diffraction: bool, as_dict: bool = False):
     return scene if as_dict else mi.load_dict(scene)
 
 
+_POINT_RENDERS = """
+import sys
+import numpy as np
+import mitsuba as mi
+from pacam_render.model.camera import prototype
+from pacam_render.model.modes import capture_camera
+from pacam_render.render.backend import select_variant
+from tests.exposure.test_capture_diffraction_render import _point_scene
+
+select_variant(mono=False)
+cam = capture_camera(prototype(), "normal")
+n = 33
+off = np.array(mi.render(_point_scene(cam, n, False), spp=64, seed=0), dtype=float)
+scene = _point_scene(cam, n, True)
+on = np.array([np.array(mi.render(scene, spp=64, seed=k), float) for k in range(128)])
+np.savez(sys.argv[1], off=off, on=on)
+"""
+
+
 @pytest.fixture(scope="module")
-def point():
+def point(tmp_path_factory):
     """The point through the F9.85 disc, without and with diffraction: 128 renders of 64 spp
-    each, summed in float64 (one render of many more spp loses light to float32 splats)."""
-    import mitsuba as mi
+    each, summed in float64 (one render of many more spp loses light to float32 splats).
+
+    Rendered in a process of its own. In two of four full-suite runs (never alone, nor after
+    the same tests in a shorter session), the red channel came out biased in this session's
+    process, chi^2 4.03 both times: some state that earlier tests leave behind, not yet found
+    (the 0.4.0 stop note names it)."""
+    import subprocess
+    import sys
+    from pathlib import Path
 
     from pacam_render.model.camera import prototype
     from pacam_render.model.modes import capture_camera
-    from pacam_render.render.backend import select_variant
 
-    select_variant(mono=False)
-    cam = capture_camera(prototype(), "normal")
-    n = 33
-    off = np.array(mi.render(_point_scene(cam, n, False), spp=64, seed=0), dtype=float)
-    scene = _point_scene(cam, n, True)
-    on = np.array([np.array(mi.render(scene, spp=64, seed=k), float) for k in range(128)])
-    return cam, n, off, on
+    root = Path(__file__).resolve().parents[2]
+    out = tmp_path_factory.mktemp("point") / "point.npz"
+    done = subprocess.run([sys.executable, "-c", _POINT_RENDERS, str(out)], cwd=root,
+                          capture_output=True, text=True, timeout=900)  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    with np.load(out) as z:
+        off, on = z["off"], z["on"]
+    return capture_camera(prototype(), "normal"), 33, off, on
 
 
 def test_an_in_focus_point_is_the_pixel_integrated_airy_pattern_of_each_channel(point):
