@@ -78,7 +78,7 @@ def synthesize(store: Store, spec, progress: bool = True, description=None):
     """
     t_start = time.perf_counter()
     desc = _scene(store, spec, description)
-    plan, params, design_plan = _resolve(store, spec, desc)
+    plan, params, design_plan = _resolve(store, spec)
     images, used = pass_images(store, plan, params, design_plan, progress)
     stats = PassStats([PassGroup(sum(s[2] for s in store.manifest["steps"][0]))])
     for img in images:
@@ -87,13 +87,13 @@ def synthesize(store: Store, spec, progress: bool = True, description=None):
     return _capture(store, plan, params, design_plan, stats, used, seconds, desc)
 
 
-def _resolve(store: Store, spec, description):
+def _resolve(store: Store, spec):
     """The capture's plan (the store's seed, samples and passes), its sensor parameters and
-    aperture plan, each checked against what the store can serve."""
+    aperture plan, each checked against what the store can serve (its scene is checked by
+    the caller, :func:`_scene`, once)."""
     from ..exposure.plan import plan_capture
 
     check_fits(store, spec)
-    _scene(store, spec, description)
     s = store.manifest["spec"]["capture"]
     spec = replace(spec, seed=s["seed"], spp=s["spp"], passes=s["passes"], sampler="independent",
                    max_step_px=s["max_step_px"])  # fmt: skip
@@ -128,9 +128,10 @@ def paired_difference(store: Store, a, b, description=None) -> tuple[np.ndarray,
     (numpy.ndarray, numpy.ndarray)
         The difference (capture units) and its sigma.
     """
+    _scene(store, a, description)
     per = []
     for spec in (a, b):
-        plan, params, design_plan = _resolve(store, spec, description)
+        plan, params, design_plan = _resolve(store, spec)
         per.append(pass_images(store, plan, params, design_plan, False)[0])
     stats = PassStats([PassGroup(1)])
     for ia, ib in zip(*per):

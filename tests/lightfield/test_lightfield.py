@@ -20,7 +20,7 @@ from pacam_render.lightfield.proposal import Proposal
 from pacam_render.lightfield.synthesis import paired_difference
 from pacam_render.model.camera import preset
 from pacam_render.model.design_file import write_design
-from pacam_render.model.masks import MaskStack, disc_masks
+from pacam_render.model.masks import MaskStack
 from pacam_render.scenes import load_scene
 
 FULL = {"scene": "train", "width": 1280, "height": 960}
@@ -34,13 +34,10 @@ def _pooled(a, b) -> float:
 
 
 def _bitmaps(path) -> str:
-    """8 LCoS bitmap discs along the prototype's parabola (every other pattern)."""
-    proto = preset("prototype")
-    stack = MaskStack(disc_masks(-proto.pattern_centres_xy_mm()[::2], proto.R_mm))
-    cam = proto.with_(
-        pattern_masks=stack, n_patterns=8, R_mm=stack.equivalent_radius_mm(), name="bitmaps"
-    )
-    write_design(path, cam)
+    """8 LCoS bitmap discs along the prototype's parabola (the design CLI tests' file)."""
+    from tests.cli.test_design_cli import _bitmap_design
+
+    _bitmap_design(path)
     return str(path)
 
 
