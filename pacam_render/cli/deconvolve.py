@@ -206,10 +206,10 @@ def _deconvolve_out(args: argparse.Namespace, inputs: list[Path]) -> tuple[Path,
 
 
 def _deconvolve_score(est, layers: dict, layer: str, record) -> dict:
-    """PSNR and SSIM against ``sharp`` as a study scores (:func:`.study.score.score_capture`),
-    on the white scale; empty without the truth layers (``--no-truth``) or for a layer that is
-    not the image."""
-    from ..study.score import score_capture
+    """PSNR and SSIM against ``sharp`` as a study scores
+    (:func:`~pacam_render.restore.object_score.score_capture`), on the white scale; empty
+    without the truth layers (``--no-truth``) or for a layer that is not the image."""
+    from ..restore.object_score import score_capture
 
     truth = {"sharp", "object_id", "velocity"}
     if record is None or layer not in ("capture", "noisy") or not truth <= set(layers):

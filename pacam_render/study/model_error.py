@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .score import best_shift_se
+from ..restore.object_score import best_shift_se
 
 
 def convolve(image: np.ndarray, k: np.ndarray) -> np.ndarray:

@@ -15,10 +15,14 @@ from pathlib import Path
 
 import numpy as np
 
+from ..restore.capture_score import (
+    deconvolve_capture,
+    edge_px_of,
+    flat_sigma,
+    kernel,
+    radiance,
+)
 from .spec import Point, parse_design, target_sensors
-
-STILL_KERNEL_MODES = ("normal", "short")
-"""Modes restored with a delta kernel: denoised, not deblurred (see :func:`kernel`)."""
 
 COLUMNS = (
     "point", "scene", "mode", "design", "speed_px_per_ms", "depth_mm",
@@ -169,7 +173,7 @@ def capture_info(cap, desc, info: dict) -> dict:
     info.update(exposure_ms=rec.exposure_ms, light_factor=rec.light_factor)
     err = rec.render_error
     info.update(
-        render_noise_sigma=_flat_sigma(cap, err["mc_sigma_white_units"]),
+        render_noise_sigma=flat_sigma(cap, err["mc_sigma_white_units"]),
         sharp_noise_sigma=err.get("sharp_mc_sigma"),
         render_spp=err["spp"],
     )
@@ -261,23 +265,23 @@ def _model_sigma(cap, desc) -> float:
 def _evaluate(cap, desc, p: Point, task: Task, info: dict) -> dict:
     """Sensor, deconvolution and scores of one point on the rendered capture."""
     from ..restore.metrics import shift_search_px
+    from ..restore.object_score import score
     from ..sensor.apply import add_sensor_layers
     from ..sensor.model import SensorModel
     from .plateau import decompose
-    from .score import score
 
     add_sensor_layers(cap, SensorModel.from_preset(p.sensor), p.sensor, p.light_level, p.seed)
     noisy = radiance(cap, cap.extra_layers["noisy"])  # white reads ~ its reflectance
-    sigma = _flat_sigma(cap, cap.record.noise_sigma_white_units)
+    sigma = flat_sigma(cap, cap.record.noise_sigma_white_units)
     # the deconvolver is told every noise the capture has: the sensor's, the render's, and its
     # measured departure from the model
     parts = (sigma, info["render_noise_sigma"], info["model_sigma"])
     total = float(np.sqrt(sum(x * x for x in parts)))
-    est = noisy if p.method == "none" else _deconvolve(cap, noisy, total, p.method)
+    est = noisy if p.method == "none" else deconvolve_capture(cap, noisy, total, p.method)
     if task.keep_dir is not None:
         _keep(cap, est, p, Path(task.keep_dir))
     shift = shift_search_px(cap.record.spec["width"])
-    edge = _edge_px(cap)
+    edge = edge_px_of(cap)
 
     def scorer(image):
         return score(image, cap.extra_layers, cap.record.objects, set(desc.moving_ids), shift, edge)
@@ -288,66 +292,6 @@ def _evaluate(cap, desc, p: Point, task: Task, info: dict) -> dict:
         out.update(decompose(cap, kernel(cap), p.method, noisy, parts, scorer, clean))
     ratio = info["render_noise_sigma"] / sigma if sigma > 0 else float("inf")
     return {**out, "noise_sigma": sigma, "render_noise_ratio": ratio, "deconv_sigma": total}
-
-
-def radiance(cap, layer: np.ndarray) -> np.ndarray:
-    """A capture layer in white = 1 units, flat-fielded by the capture's relative-illumination
-    map when it has one (irradiance -> radiance, as a camera pipeline does and as the sharp
-    layer and the kernels are)."""
-    from ..model.illumination import flat_field
-    from ..restore.flat_field import RI_LAYER
-
-    return flat_field(layer / cap.record.light_factor, cap.extra_layers.get(RI_LAYER))
-
-
-def _flat_sigma(cap, sigma: float) -> float:
-    """A noise sigma of the capture, after :func:`radiance` (RMS over the window)."""
-    from ..restore.flat_field import RI_LAYER, flat_field_sigma
-
-    m = cap.extra_layers.get(RI_LAYER)
-    return sigma if m is None else flat_field_sigma(sigma, m)
-
-
-def _edge_px(cap) -> int:
-    """How far a moving object's blur reaches past its outline, px (:func:`.score.edge_px`)."""
-    from .score import edge_px
-
-    return edge_px(cap.extra_layers["velocity"], cap.record.exposure_ms, cap.record.optics["r_px"])
-
-
-def _deconvolve(cap, noisy, sigma: float, method: str) -> np.ndarray:
-    """Restore with the mode's kernel (:func:`kernel`) and ``method``'s prior: ``sigma`` goes
-    to the methods that take one; ``rl`` gets the noisy layer clipped at 0 (its data must be
-    non-negative; a pacam deconvolve of the same layer does the same, with a note)."""
-    from ..restore.deconvolve import SIGMA_METHODS, deconvolve, nonnegative_for
-
-    kw = {"noise_sigma": sigma} if method in SIGMA_METHODS else {}
-    return deconvolve(nonnegative_for(method, noisy)[0], kernel(cap), method, **kw)
-
-
-def kernel(cap) -> np.ndarray:
-    """The kernel a study restores a capture with.
-
-    The motion-invariant modes (``coded``, ``coded_continuous``, ``levin``) use their analytic
-    PSF at s = 0; ``flutter`` the PSF at the fastest object's own velocity (Raskar et al.
-    assume the motion known); ``normal`` and ``short``, whose blur depends on each object's
-    unknown speed, a delta, so that the method only denoises them with the same prior, and
-    every mode is restored alike.
-    """
-    from ..capture.kernels import analytic_psf
-
-    mode = cap.record.mode
-    if mode in STILL_KERNEL_MODES:
-        return np.ones((1, 1))
-    return analytic_psf(cap.record, _fastest_u(cap) if mode == "flutter" else 0.0)
-
-
-def _fastest_u(cap) -> float:
-    """The horizontal image velocity of the fastest-moving visible object, px/ms (median)."""
-    u = cap.extra_layers["velocity"][..., 0]
-    ids = cap.extra_layers["object_id"]
-    fastest = ids[np.unravel_index(np.argmax(np.abs(u)), u.shape)]
-    return float(np.median(u[ids == fastest]))
 
 
 def _keep(cap, est, p: Point, folder: Path) -> None:

@@ -14,7 +14,7 @@ A study renders captures, passes them through the image sensor, deconvolves and 
 and, instead of or beside ``[grid]``, an array ``[[points]]`` of single points. The axes are
 :data:`AXES`. Points that differ only in light level, sensor or method share one render
 (:meth:`Point.render_key`). Method ``none`` scores the capture as it is; any other restores it
-with the mode's kernel (:func:`~pacam_render.study.point.kernel`). Every key is checked
+with the mode's kernel (:func:`~pacam_render.restore.capture_score.kernel`). Every key is checked
 before any work, and an error names it.
 """
 

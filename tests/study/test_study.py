@@ -10,12 +10,12 @@ import pytest
 
 from pacam_render.errors import ParameterError
 from pacam_render.model.camera import prototype
+from pacam_render.restore.object_score import best_shift_se, score
 from pacam_render.scenes import load_scene
 from pacam_render.scenes.edit import at_depth, scaled_motion, scene_speed_px_per_ms, with_speed
 from pacam_render.scenes.motion import Motion
 from pacam_render.study import builtin_studies, load_study, run_study
 from pacam_render.study import engine as E
-from pacam_render.study.score import best_shift_se, score
 from pacam_render.study.spec import parse_study
 
 TINY = """

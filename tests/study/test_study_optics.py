@@ -10,7 +10,9 @@ import numpy as np
 import pytest
 
 from pacam_render.errors import ParameterError
-from pacam_render.study.point import Task, _flat_sigma, capture_inputs, radiance, run_task
+from pacam_render.restore.capture_score import flat_sigma as _flat_sigma
+from pacam_render.restore.capture_score import radiance
+from pacam_render.study.point import Task, capture_inputs, run_task
 from pacam_render.study.report import diffraction_cell
 from pacam_render.study.spec import parse_study
 

@@ -43,6 +43,37 @@ def best_shift_se(est, truth, mask, max_shift_px: int) -> tuple[float, int]:
     return errs[k], k - max_shift_px
 
 
+def moving_object_se(est, layers: dict, objects: dict, moving: set[str], max_shift_px: int):
+    """Each moving object's smallest sum of squared errors over horizontal shifts and its
+    count of values (pixels x channels), for objects of at least :data:`MIN_OBJECT_PX`
+    visible pixels away from the shift search's edge columns.
+
+    Returns
+    -------
+    dict
+        Shape id to (se, n).
+    """
+    truth, ids = layers["sharp"], layers["object_id"]
+    channels = 1 if truth.ndim == 2 else truth.shape[2]
+    m = int(max_shift_px)
+    valid = np.zeros(ids.shape, bool)
+    valid[:, m : ids.shape[1] - m] = True
+    out = {}
+    for key, name in objects.items():
+        mask = valid & (ids == int(key))
+        if name in moving and mask.sum() >= MIN_OBJECT_PX:
+            out[name] = (best_shift_se(est, truth, mask, m)[0], int(mask.sum()) * channels)
+    return out
+
+
+def psnr_moving_db(est, layers: dict, objects: dict, moving: set[str], max_shift_px: int) -> float:
+    """:func:`score`'s ``psnr_moving_db`` alone (no SSIM, no whole frame): every moving
+    object's pixels, each at its own best shift (:func:`moving_object_se`); nan without any."""
+    per = moving_object_se(est, layers, objects, moving, max_shift_px).values()
+    n = sum(v[1] for v in per)
+    return _psnr_from_mse(sum(v[0] for v in per) / n) if n else float("nan")
+
+
 def score(
     est, layers: dict, objects: dict, moving: set[str], max_shift_px: int, edge_px: int = 0
 ) -> dict:
