@@ -78,6 +78,7 @@ FLAGS = {
     "grey": "--grey",
     "margin_px": "--margin-px",
     "max_disk": "--max-disk-gib",
+    "alpha": "--uniform-share",
 }
 """Parameter names in library messages, and the flags a CLI user typed instead: the one
 mapping (a file's keys, :class:`~pacam_render.errors.FileKeyError`, are left as they are)."""

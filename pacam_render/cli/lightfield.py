@@ -7,6 +7,7 @@ import argparse
 from pathlib import Path
 
 from ..errors import ParameterError, check_positive
+from ..lightfield.proposal import DEFENSIVE
 from ..limits import gib
 from .common import add_design_flags, add_grey, add_quiet, add_seed_and_steps, design_spec_fields
 
@@ -54,6 +55,15 @@ def add(sub) -> None:
         "the designs need)",
     )
     p.add_argument(
+        "--uniform-share",
+        type=float,
+        default=DEFENSIVE,
+        metavar="ALPHA",
+        help=f"the share of lens samples spread uniformly over the whole lens (default "
+        f"{DEFENSIVE:g}); 1 for a store that `pacam optimize --lightfield` searches, where "
+        "any opening may be tried",
+    )
+    p.add_argument(
         "--max-disk-gib",
         type=float,
         default=20.0,
@@ -89,7 +99,7 @@ def _spec(args: argparse.Namespace):
         max_step_px=args.max_step_px,
     )
     designs = tuple(CaptureSpec(**base, design=d) for d in args.designs)
-    return StoreSpec(capture, margin_px=args.margin_px, designs=designs)
+    return StoreSpec(capture, margin_px=args.margin_px, designs=designs, alpha=args.uniform_share)
 
 
 def run(args: argparse.Namespace) -> int:

@@ -7,7 +7,14 @@ import argparse
 from ..errors import ParameterError
 from ..io.outputs import prepare_out_dir
 from ..model.camera import preset
+from ..optimize.rendered import DEFAULT_METHOD
+from ..optimize.rendered_run import CHECK_SEEDS, NOISE_DRAWS, POSITIONS, SWEEPS
 from .common import add_outputs, add_preset, new_folder
+
+FOURIER_ONLY = ("depth_range", "n_patterns", "free_radius", "f_number", "r_px", "design",
+                "starts", "iterations", "quick", "max_velocity")  # fmt: skip
+"""Flags of the Fourier objective that a search on stores does not take (its camera is the
+stores')."""
 
 
 def add(sub) -> None:
@@ -15,9 +22,50 @@ def add(sub) -> None:
     p.add_argument(
         "--max-velocity",
         type=float,
-        required=True,
         metavar="PX_PER_MS",
-        help="cover speeds |s| <= this, px/ms of the preset's sensor",
+        help="cover speeds |s| <= this, px/ms of the preset's sensor (the Fourier objective; "
+        "required without --lightfield)",
+    )
+    p.add_argument(
+        "--lightfield",
+        nargs="+",
+        metavar="STORE",
+        help="search on rendered captures instead: light-field stores (pacam lightfield "
+        "--uniform-share 1), one per scene or speed; the worst case over them is maximised",
+    )
+    p.add_argument(
+        "--positions",
+        type=int,
+        default=POSITIONS,
+        metavar="J",
+        help=f"with --lightfield: candidate centres over the lens (default {POSITIONS})",
+    )
+    p.add_argument(
+        "--sweeps",
+        type=int,
+        default=SWEEPS,
+        metavar="S",
+        help=f"with --lightfield: sweeps over the patterns at most (default {SWEEPS})",
+    )
+    p.add_argument(
+        "--noise-draws",
+        type=int,
+        default=NOISE_DRAWS,
+        metavar="D",
+        help=f"with --lightfield: sensor noise draws per evaluation (default {NOISE_DRAWS})",
+    )
+    p.add_argument(
+        "--method",
+        default=DEFAULT_METHOD,
+        help=f"with --lightfield: the deconvolver scored (default {DEFAULT_METHOD})",
+    )
+    p.add_argument(
+        "--check-seeds",
+        type=int,
+        default=CHECK_SEEDS,
+        metavar="K",
+        help=f"with --lightfield: fresh renders per store and design that check the result "
+        f"(default {CHECK_SEEDS}; 0 skips the check)",
     )
     p.add_argument("--depth-range", metavar="NEAR,FAR", help="mm (default: the preset's depth)")
     p.add_argument(
@@ -31,7 +79,7 @@ def add(sub) -> None:
         default="grasshopper-icx285",
         help="sensor noise preset (default grasshopper-icx285; paper: sigma 0.01)",
     )
-    p.add_argument("--n-patterns", type=int, default=16, metavar="N", help="default 16")
+    p.add_argument("--n-patterns", type=int, metavar="N", help="default 16")
     p.add_argument(
         "--free-radius",
         action="store_true",
@@ -59,6 +107,10 @@ def add(sub) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    if args.lightfield:
+        return _run_lightfield(args)
+    if args.max_velocity is None:
+        raise ParameterError("--max-velocity is required (or search stores with --lightfield)")
     from ..io.lock import output_lock
     from ..optimize.run import run_optimize
     from ..optimize.search import Problem, check_problem, reference_design
@@ -66,7 +118,7 @@ def run(args: argparse.Namespace) -> int:
     problem = Problem(
         max_velocity_px_per_ms=args.max_velocity,
         depth_range_mm=_depth_range(args.depth_range, args.preset, args.design),
-        n_patterns=args.n_patterns,
+        n_patterns=16 if args.n_patterns is None else args.n_patterns,
         sensor=args.sensor,
         light_level=args.light_level,
         preset=args.preset,
@@ -112,3 +164,33 @@ def _depth_range(text: str | None, preset_name: str, design: str | None) -> tupl
     except ValueError:
         raise ParameterError(f"--depth-range must be NEAR,FAR in mm, got {text!r}") from None
     return near, far
+
+
+def _run_lightfield(args: argparse.Namespace) -> int:
+    """``--lightfield``: the schedule searched on rendered captures (:mod:`..optimize.rendered`)."""
+    from ..io.lock import output_lock
+    from ..optimize.rendered_run import RenderedProblem, open_stores, run_rendered_optimize
+    from ..optimize.search import DEFAULT_LIGHT_LEVEL
+
+    for name in FOURIER_ONLY:
+        if getattr(args, name) not in (None, False):
+            raise ParameterError(
+                f"--{name.replace('_', '-')}: a search on light-field stores takes the stores' "
+                "camera and speeds; leave it out"
+            )
+    if not 0 <= args.seed < 2**32:
+        raise ParameterError(f"--seed must be an integer in [0, 2^32), got {args.seed!r}")
+    problem = RenderedProblem(
+        stores=tuple(args.lightfield), sensor=args.sensor,
+        light_level=DEFAULT_LIGHT_LEVEL if args.light_level is None else args.light_level,
+        positions=args.positions, sweeps=args.sweeps, noise_draws=args.noise_draws,
+        method=args.method, seed=args.seed, check_seeds=args.check_seeds,
+    )  # fmt: skip
+    open_stores(problem)  # refused before any output
+    out = prepare_out_dir(args.out, args.force)
+    with new_folder(out), output_lock(out):
+        doc = run_rendered_optimize(problem, out, args.force, progress=not args.quiet)
+    print((out / "report.md").read_text())
+    print(f"written: {out / 'design.toml'} (pacam render/psf/validate-psf --design), "
+          "search.json, search.png, report.md")  # fmt: skip
+    return 0 if doc else 1

@@ -43,7 +43,7 @@ class Proposal:
     def __post_init__(self) -> None:
         if not 0.0 < self.alpha <= 1.0:
             raise ParameterError(
-                f"the proposal's defensive share must be in (0, 1], got {self.alpha!r}"
+                f"`alpha`, the proposal's uniform share, must be in (0, 1], got {self.alpha!r}"
             )
 
     def to_json(self) -> dict:

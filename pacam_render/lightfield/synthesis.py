@@ -161,43 +161,61 @@ def _shear(store: Store, plan) -> float:
     return k
 
 
-def pass_images(store: Store, plan, params, design_plan, progress: bool = False):
-    """Each store pass binned into one pass of the capture (a list of images), and the number
-    of samples with weight > 0."""
+def weighted_samples(store: Store, plan, params, design_plan, progress: bool = False):
+    """The store's samples as the design's camera sees them, shard by shard.
+
+    Yields
+    ------
+    (int, dict, numpy.ndarray, numpy.ndarray, numpy.ndarray)
+        The store pass, the shard's records (``u``, ``v`` lens points in mm, ``L`` radiance
+        (channels, n)), each sample's time on the design's shutter clock (ms), its pixel in
+        the window (h * w for a point outside it) and its weight before the design's
+        transmission: its step's share of the exposure / (spp p pi R_max^2), times cos^4 where
+        the design has it.
+    """
     from tqdm import tqdm
 
     info = store.manifest["camera"]
     k = _shear(store, plan)
     x0, y0, w, h = info["window"]
     steps = store.manifest["steps"]
-    images = []
-    masks = params.get("masks")
-    masks = None if masks is None else np.asarray(masks, np.float32)
-    contrast = params.get("lcos_contrast")
     cos4 = params.get("relative_illumination") == "cos4"
     offset = design_plan.t_mid - store.manifest["mid_ms"]  # the paper's t = 0 is shared
-    used, c = 0, store.manifest["channels"]
     lens_area = np.pi * info["lens_radius_mm"] ** 2
     bar = tqdm(total=sum(len(r) for r in steps), desc="synthesis", disable=not progress)
     for p in range(store.manifest["passes"]):
-        image = np.zeros((c, h * w + 1))  # the last bin takes what falls outside the window
         for rec, meta in store.shards(p):
             t = rec["t"] + offset if "t" in rec else meta["time"] + offset  # a step: one time
-            a = transmission(design_plan, rec["u"], rec["v"], t, masks, contrast)
             x = geo.shifted(rec["x"], rec["u"], k) - np.float32(x0)
             y = geo.shifted(rec["y"], rec["v"], k) - np.float32(y0)
             share = (meta["t1"] - meta["t0"]) / info["exposure_ms"] / meta["spp"]
-            weight = a * np.float32(share / lens_area) / rec["p"]  # A / (p pi R_max^2)
+            weight = np.float32(share / lens_area) / rec["p"]
             if cos4:
-                weight *= _cos4(x + x0, y + y0, info)
-            pix = _pixels(x, y, w, h)
-            for ch in range(c):  # L is (channels, n): each row a contiguous weight
-                image[ch] += np.bincount(pix, rec["L"][ch] * weight, minlength=h * w + 1)
-            used += int(np.count_nonzero((a > 0) & (pix < h * w)))
+                weight = weight * _cos4(x + x0, y + y0, info)
+            yield p, rec, t, _pixels(x, y, w, h), weight
             bar.update()
+    bar.close()
+
+
+def pass_images(store: Store, plan, params, design_plan, progress: bool = False):
+    """Each store pass binned into one pass of the capture (a list of images), and the number
+    of samples with weight > 0."""
+    masks = params.get("masks")
+    masks = None if masks is None else np.asarray(masks, np.float32)
+    contrast = params.get("lcos_contrast")
+    _, _, w, h = store.manifest["camera"]["window"]
+    c, passes = store.manifest["channels"], store.manifest["passes"]
+    sums = np.zeros((passes, c, h * w + 1))  # the last bin takes what falls outside the window
+    used = 0
+    for p, rec, t, pix, weight in weighted_samples(store, plan, params, design_plan, progress):
+        a = transmission(design_plan, rec["u"], rec["v"], t, masks, contrast)
+        for ch in range(c):  # L is (channels, n): each row a contiguous weight
+            sums[p, ch] += np.bincount(pix, rec["L"][ch] * (a * weight), minlength=h * w + 1)
+        used += int(np.count_nonzero((a > 0) & (pix < h * w)))
+    images = []
+    for image in sums:
         img = np.moveaxis(image[:, :-1].reshape(c, h, w), 0, -1)
         images.append(img[..., 0] if c == 1 else img)
-    bar.close()
     return images, used
 
 

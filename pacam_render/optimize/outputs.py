@@ -104,14 +104,16 @@ def plot_all(out: Path, obj: Objective, best, parabola: dict, starts, force: boo
     """schedule.png, psnr.png, psf.png and convergence.png."""
     th = best.theta
     return [
-        _save(out / "schedule.png", lambda fig: _plot_schedule(fig, obj, th, parabola), force),
-        _save(out / "psnr.png", lambda fig: _plot_psnr(fig, obj, th, parabola), force),
-        _save(out / "psf.png", lambda fig: _plot_psfs(fig, obj, th, parabola), force),
-        _save(out / "convergence.png", lambda fig: _plot_convergence(fig, starts), force),
+        save_figure(
+            out / "schedule.png", lambda fig: _plot_schedule(fig, obj, th, parabola), force
+        ),
+        save_figure(out / "psnr.png", lambda fig: _plot_psnr(fig, obj, th, parabola), force),
+        save_figure(out / "psf.png", lambda fig: _plot_psfs(fig, obj, th, parabola), force),
+        save_figure(out / "convergence.png", lambda fig: _plot_convergence(fig, starts), force),
     ]
 
 
-def _save(path: Path, draw, force: bool) -> Path:
+def save_figure(path: Path, draw, force: bool) -> Path:
     import matplotlib
 
     matplotlib.use("Agg")
