@@ -45,7 +45,7 @@ def test_a_design_on_the_grid_is_the_stores_own_synthesis(store, tmp_path, contr
     positions = candidate_positions(plan_capture(spec).cam, 5)
     basis = centre_basis(store, spec, positions)
     rng = np.random.default_rng(0)
-    for trial in range(2):
+    for _ in range(2):
         index = rng.integers(0, len(positions), basis.n_patterns)
         direct = synthesize(store, _design_spec(spec, positions[index], tmp_path / "d.toml"),
                             progress=False)  # fmt: skip
