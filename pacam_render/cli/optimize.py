@@ -168,7 +168,10 @@ def _depth_range(text: str | None, preset_name: str, design: str | None) -> tupl
 
 def _run_lightfield(args: argparse.Namespace) -> int:
     """``--lightfield``: the schedule searched on rendered captures (:mod:`..optimize.rendered`)."""
+    import warnings
+
     from ..io.lock import output_lock
+    from ..limits import PacamWarning
     from ..optimize.rendered_run import RenderedProblem, open_stores, run_rendered_optimize
     from ..optimize.search import DEFAULT_LIGHT_LEVEL
 
@@ -188,8 +191,20 @@ def _run_lightfield(args: argparse.Namespace) -> int:
     )  # fmt: skip
     open_stores(problem)  # refused before any output
     out = prepare_out_dir(args.out, args.force)
-    with new_folder(out), output_lock(out):
-        doc = run_rendered_optimize(problem, out, args.force, progress=not args.quiet)
+    show, seen = warnings.showwarning, set()
+
+    def once(message, category, *rest, **kw):  # each store and fresh render repeats its notes
+        if issubclass(category, PacamWarning) and str(message) in seen:
+            return
+        seen.add(str(message))
+        show(message, category, *rest, **kw)
+
+    warnings.showwarning = once
+    try:
+        with new_folder(out), output_lock(out):
+            doc = run_rendered_optimize(problem, out, args.force, progress=not args.quiet)
+    finally:
+        warnings.showwarning = show
     print((out / "report.md").read_text())
     print(f"written: {out / 'design.toml'} (pacam render/psf/validate-psf --design), "
           "search.json, search.png, report.md")  # fmt: skip

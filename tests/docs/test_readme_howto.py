@@ -1,5 +1,5 @@
-"""The README's five how-to commands, and docs/howto/own_scene.md's and lightfield.md's, run as
-written and print what the documents show (issue 38).
+"""The README's five how-to commands, and docs/howto/own_scene.md's, lightfield.md's and
+design_on_renders.md's, run as written and print what the documents show (issue 38).
 
 The ``$ ...`` lines of the document's first ``console`` block are run verbatim, in order, in a
 fresh folder that holds the repository's ``docs/`` (the commands name
@@ -81,3 +81,11 @@ def test_the_lightfield_how_to_runs_as_written(tmp_path):
     check(printed)
     for name in ("coded", "cover1.4", "normal"):
         assert (tmp_path / "caps" / name / "capture.exr").is_file(), name
+
+
+def test_the_design_on_renders_how_to_runs_as_written(tmp_path):
+    """docs/howto/design_on_renders.md: two stores, then a search on them, checked."""
+    printed = run_document(ROOT / "docs" / "howto" / "design_on_renders.md", tmp_path)
+    assert len(printed) == 3
+    check(printed)
+    assert (tmp_path / "designed" / "design.toml").is_file()
