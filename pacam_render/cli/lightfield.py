@@ -8,8 +8,13 @@ from pathlib import Path
 
 from ..errors import ParameterError, check_positive
 from ..lightfield.proposal import DEFENSIVE
+from ..lightfield.target import PILOT_SPP
 from ..limits import gib
 from .common import add_design_flags, add_grey, add_quiet, add_seed_and_steps, design_spec_fields
+from .render import noise_target_from_flags
+
+DEFAULT_STORE_SPP = 64
+"""Samples per pixel and pass of a store without a noise target."""
 
 
 def add(sub) -> None:
@@ -26,9 +31,29 @@ def add(sub) -> None:
     p.add_argument(
         "--spp",
         type=int,
-        default=64,
         metavar="N",
-        help="samples per pixel and pass, shared among a moving scene's time steps (default 64)",
+        help=f"samples per pixel and pass, shared among a moving scene's time steps (default "
+        f"{DEFAULT_STORE_SPP}, or what a noise target plans)",
+    )
+    p.add_argument(
+        "--noise-ratio",
+        type=float,
+        metavar="R",
+        help="plan the samples so that every design the store is for (--designs) has a Monte "
+        "Carlo sigma of at most R x the sensor's noise (--sensor), from a pilot store",
+    )
+    p.add_argument(
+        "--noise-target",
+        type=float,
+        metavar="SIGMA",
+        help="as --noise-ratio, to this Monte Carlo sigma (the captures' units)",
+    )
+    p.add_argument("--sensor", metavar="PRESET", help="the sensor whose noise --noise-ratio scales")
+    p.add_argument(
+        "--light-level",
+        type=float,
+        metavar="L",
+        help="with --sensor: photons/px/ms of white through the full lens (default the preset's)",
     )
     p.add_argument(
         "--passes",
@@ -93,7 +118,7 @@ def _spec(args: argparse.Namespace):
     capture = CaptureSpec(
         **base,
         **design_spec_fields(args),
-        spp=args.spp,
+        spp=DEFAULT_STORE_SPP if args.spp is None else args.spp,
         passes=args.passes,
         seed=args.seed,
         max_step_px=args.max_step_px,
@@ -110,6 +135,7 @@ def run(args: argparse.Namespace) -> int:
         raise ParameterError(
             f"--passes must be >= 2 (their spread is the error), got {args.passes}"
         )
+    target = noise_target_from_flags(args)
     spec = _spec(args)
     store = render_lightfield(
         spec,
@@ -117,8 +143,17 @@ def run(args: argparse.Namespace) -> int:
         progress=not args.quiet,
         max_disk=int(args.max_disk_gib * 2**30),
         truth=not args.no_truth,
+        target=target,
     )
     m = store.manifest
+    if "noise_target" in m:
+        plan = m["noise_target"]
+        worst = max(plan["designs"], key=lambda r: r["spp_needed"])
+        name = worst["mode"] + (f" {worst['design']}" if worst["design"] else "")
+        print(
+            f"noise target: {plan['spp']} spp per pass, set by {name} (pilot sigma "
+            f"{worst['pilot_sigma']:.3g} at {PILOT_SPP} spp, target {worst['target_sigma']:.3g})"
+        )
     size = sum(f.stat().st_size for f in Path(args.out).glob("*.npz"))
     steps = len(m["steps"][0])
     cam = m["camera"]

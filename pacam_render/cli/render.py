@@ -143,7 +143,7 @@ def run(args: argparse.Namespace) -> int:
 
     if args.from_store is not None:
         return _run_from_store(args)
-    target = _noise_target(args)
+    target = noise_target_from_flags(args)
     plan = _plan(args, target)
     spec = plan.spec
     model = _checked_sensor(args, spec)
@@ -325,7 +325,7 @@ def _discard_partial(partial: Path) -> None:
         )
 
 
-def _noise_target(args: argparse.Namespace):
+def noise_target_from_flags(args: argparse.Namespace):
     """The render's noise target from --noise-ratio (with --sensor) or --noise-target."""
     from ..exposure.estimate import AbsoluteTarget
 

@@ -134,6 +134,7 @@ def render_lightfield(
     stop_after: int | None = None,
     truth: bool = True,
     description=None,
+    target=None,
 ) -> Store:
     """Render a store into folder ``out`` (module docstring), resuming the shards on disk.
 
@@ -156,6 +157,10 @@ def render_lightfield(
         ``velocity``) of the capture's window, once.
     description : SceneDescription, optional
         A scene to render instead of ``spec.capture.scene`` (its digest is recorded).
+    target : NoiseTarget, optional
+        Render as many samples as bring every design the store is made for to this Monte
+        Carlo sigma, planned from a pilot store (:func:`~.target.target_spp`); replaces
+        ``spec.capture.spp``, and the store's manifest records the plan.
 
     Returns
     -------
@@ -173,6 +178,13 @@ def render_lightfield(
     from ..scenes import load_scene
 
     out = Path(out)
+    planned = None
+    if target is not None:
+        from .target import target_spp
+
+        spp, rows = target_spp(spec, target, progress, description, QUANTUM)
+        spec = replace(spec, capture=replace(spec.capture, spp=spp))
+        planned = {"target": target.to_json(), "spp": spp, "designs": rows}
     cap = replace(spec.capture, mode="coded", diffraction="off", relative_illumination="off")
     plan = plan_capture(cap)
     designs = proposal_designs(spec, plan)
@@ -197,6 +209,8 @@ def render_lightfield(
         if truth and not (out / "truth.npz").exists():
             _render_truth(cap, plan, cam, desc, out)
         manifest.update(complete=True, digest=store_digest(spec.key(), digests))
+        if planned is not None:
+            manifest["noise_target"] = planned
         manifest["shard_digests"] = digests
         manifest["seconds"] = round(manifest.get("seconds", 0.0), 3)
         write_manifest(out, manifest)

@@ -290,3 +290,29 @@ def test_a_shard_beyond_the_memory_available_is_refused(tmp_path):
     with pytest.raises(ParameterError, match="of memory"):
         check_budget(10**9, 10**9, 36, tmp_path, 2**60)
     check_budget(10**7, 10**7, 36, tmp_path, 2**40)
+
+
+def test_a_noise_target_plans_the_stores_samples_for_each_of_its_designs(tmp_path):
+    """A pilot store sets the spp; every design the store is for then meets the target (the
+    variance falls as 1/spp: the plan needs no margin beyond the sigma's own scatter)."""
+    from pacam_render.exposure.estimate import AbsoluteTarget
+
+    spec = CaptureSpec(mode="coded", spp=16, passes=2, seed=5, **WINDOW)
+    target = AbsoluteTarget(0.0015)
+    store = render_lightfield(StoreSpec(spec), tmp_path / "s", progress=False, target=target)
+    plan = store.manifest["noise_target"]
+    assert plan["spp"] % 4 == 0 and plan["spp"] >= max(r["spp_needed"] for r in plan["designs"])
+    assert plan["spp"] > 16  # the target asks for more than the pilot had
+    for mode in ("coded", "normal"):
+        cap = synthesize(store, dataclasses.replace(spec, mode=mode), progress=False)
+        assert np.sqrt(np.mean(cap.mc_sigma**2)) < 1.3 * 0.0015, mode
+
+
+def test_the_noise_target_flags_are_checked(tmp_path, capsys):
+    from pacam_render.cli import main
+
+    base = ["lightfield", "train", "--crop", "456,410,48,32", "--out", str(tmp_path / "s")]
+    assert main([*base, "--noise-ratio", "0.5"]) == 2
+    assert "--noise-ratio needs --sensor" in capsys.readouterr().err
+    assert main([*base, "--noise-target", "0.01", "--spp", "16"]) == 2
+    assert "--spp and --noise-target both set the samples" in capsys.readouterr().err
