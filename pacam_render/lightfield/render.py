@@ -182,7 +182,7 @@ def render_lightfield(
     if target is not None:
         from .target import target_spp
 
-        spp, rows = target_spp(spec, target, progress, description, QUANTUM)
+        spp, rows = target_spp(render_lightfield, spec, target, progress, description, QUANTUM)
         spec = replace(spec, capture=replace(spec.capture, spp=spp))
         planned = {"target": target.to_json(), "spp": spp, "designs": rows}
     cap = replace(spec.capture, mode="coded", diffraction="off", relative_illumination="off")

@@ -28,11 +28,13 @@ MAX_SPP = 65536
 """The most samples per pixel and pass a target may ask for (the disk budget refuses sooner)."""
 
 
-def target_spp(spec, target, progress: bool = False, description=None, quantum: int = 4):
+def target_spp(render, spec, target, progress: bool = False, description=None, quantum: int = 4):
     """The spp per pass that meets ``target`` for every design ``spec`` is made for.
 
     Parameters
     ----------
+    render : callable
+        :func:`~.render.render_lightfield` (passed in: it calls this function).
     spec : StoreSpec
         The store (its ``capture.spp`` is replaced).
     target : NoiseTarget
@@ -46,13 +48,12 @@ def target_spp(spec, target, progress: bool = False, description=None, quantum: 
     (int, list of dict)
         The spp per pass, and per design its pilot sigma, target and spp needed.
     """
-    from .render import render_lightfield
     from .synthesis import synthesize
 
     folder = Path(tempfile.mkdtemp(prefix="pacam_pilot_store."))
     try:
         pilot = replace(spec, capture=replace(spec.capture, spp=PILOT_SPP))
-        store = render_lightfield(pilot, folder / "store", progress=progress, truth=False,
+        store = render(pilot, folder / "store", progress=progress, truth=False,
                                   description=description)  # fmt: skip
         rows = []
         designs = spec.designs or tuple(replace(spec.capture, mode=m) for m in ("coded", "normal"))

@@ -52,17 +52,32 @@ def sensor_params(design: CameraDesign, mode: str, n_channels: int, pitch_mm=Non
 
 
 def diffracted_model(
-    build, design: CameraDesign, mode: str, shape, n_channels: int, pitch_mm=None
+    build,
+    design: CameraDesign,
+    mode: str,
+    shape,
+    n_channels: int,
+    pitch_mm=None,
+    speed: float = 0.0,
+    origin: str = "t0",
 ) -> np.ndarray:
     """The kernel the rays make with diffraction: per channel the geometric kernel (``build``,
     as :func:`~pacam_render.psf.diffraction.diffracted_kernel` takes it) convolved with its
     Airy pattern on pixels of ``pitch_mm`` (default the design's own), the box counted once,
     cropped to ``shape`` and renormalised; then mixed by luminance."""
     from ..psf.diffraction import diffracted_kernel
+    from ..psf.exact_defocus import exact_defocus_kernel, mode_edge_phase
+    from ..render.ray_defocus import PSI_MAX
     from ..wave.patterns import channel_wavelengths_nm
 
     weights = LUMINANCE_RGB if n_channels == 3 else (1.0,)
+    waves = channel_wavelengths_nm(n_channels)
+    pitch = pitch_mm or design.pixel_pitch_mm
+    exact = all(mode_edge_phase(design, mode, wl, pitch)[0] <= PSI_MAX for wl in waves)
     out = np.zeros(tuple(shape))
-    for w, wl in zip(weights, channel_wavelengths_nm(n_channels)):
-        out += w * diffracted_kernel(build, design, mode, wl, shape, pitch_mm)
+    for w, wl in zip(weights, waves):
+        if exact:  # the particles' exact defocused PSF (:mod:`..render.defocus_draw`)
+            out += w * exact_defocus_kernel(design, mode, speed, origin, wl, shape, pitch)
+        else:
+            out += w * diffracted_kernel(build, design, mode, wl, shape, pitch_mm)
     return out / out.sum()

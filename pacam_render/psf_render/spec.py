@@ -163,7 +163,8 @@ def plan_render(
         def build(cam, f, fine):  # the same kernel on pixels f times finer
             return design_psf(cam, spec.mode, velocity * f, fine, origin=spec.origin)
 
-        model = diffracted_model(build, design, spec.mode, model.shape, n, spec.pixel_pitch_mm)
+        model = diffracted_model(build, design, spec.mode, model.shape, n, spec.pixel_pitch_mm,
+                                 velocity, spec.origin)  # fmt: skip
     shape = model.shape
     centre = setup.origin_px if spec.origin == "t0" else 0.0
     filmset = film_for(design, centre, shape, spec.film)

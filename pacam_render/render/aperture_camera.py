@@ -207,6 +207,7 @@ import numpy as np
 from ..errors import ParameterError, check_finite, check_positive
 from .aperture_optics import LCoSOptics
 from .aperture_sampling import ApertureSampling
+from .defocus_draw import ExactDefocus
 from .kernel_types import (
     JIT,
     VARIANT,  # noqa: F401 - the registry reads it here
@@ -263,6 +264,15 @@ class ProgrammableApertureCamera(mi.Sensor):
     _diffraction_text = LCoSOptics._diffraction_text
     _diffraction_draw = LCoSOptics._diffraction_draw
     _grid_draw = LCoSOptics._grid_draw
+    # The exact defocused PSF in the particle tracer (:mod:`.defocus_draw`).
+    _set_defocus = ExactDefocus._set_defocus
+    _exact_defocus_on = ExactDefocus._exact_defocus_on
+    _landing = ExactDefocus._landing
+    _defocus_landing = ExactDefocus._defocus_landing
+    _defocus_draw = ExactDefocus._defocus_draw
+    _row = ExactDefocus._row
+    _defocus_quantile = ExactDefocus._defocus_quantile
+    _defocus_pdf = ExactDefocus._defocus_pdf
 
     def __init__(self, props):
         mi.Sensor.__init__(self, props)
@@ -289,6 +299,7 @@ class ProgrammableApertureCamera(mi.Sensor):
         self._sync_traversed()
         self._set_illumination(props)
         self._set_diffraction(props)
+        self._set_defocus()
         self._set_contrast(props)
         self._set_switching(props)
 
@@ -655,6 +666,10 @@ class ProgrammableApertureCamera(mi.Sensor):
             seeds = (sample.x, sample.y, ref_p.x, ref_p.y)
             off, w_diff = self._diffraction_draw(seeds, active)
             uv = uv + Point2f(off.x / self._resolution.x, off.y / self._resolution.y)
+            if self._exact_defocus_on():  # or, up to 4 waves, the exact defocused PSF's
+                exact, w_exact, inside = self._defocus_landing(ref_p, z, k, time, seeds, active)
+                uv = Point2f(dr.select(inside, exact.x, uv.x), dr.select(inside, exact.y, uv.y))
+                w_diff = dr.select(inside, w_exact, w_diff)
             landed = self._sample_to_camera @ Point3f(uv.x, uv.y, 0.0)
             focus_p = landed * (self._focus / landed.z)  # for the landing pixel's factor
         active &= (uv.x >= 0.0) & (uv.x <= 1.0) & (uv.y >= 0.0) & (uv.y <= 1.0)

@@ -42,6 +42,7 @@ _DEPENDENCIES = {
         "aperture_sampling",
         "relative_illumination",
         "aperture_optics",
+        "defocus_draw",
     )
 }
 """Variant-bound modules a plugin module imports: re-imported first, in this order."""

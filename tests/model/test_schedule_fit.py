@@ -240,7 +240,7 @@ def test_optimize_records_and_reports_the_true_pattern_count(tmp_path, monkeypat
             texts.extend(t.get_text() for t in (legend.get_texts() if legend else []))
         return path
 
-    monkeypatch.setattr(outputs, "_save", draw_only)
+    monkeypatch.setattr(outputs, "save_figure", draw_only)
     out = tmp_path / "o"
     args = ["optimize", "--max-velocity", "1.4", "--n-patterns", "8", "--quick", "--starts", "1"]
     assert main([*args, "--iterations", "3", "--quiet", "--out", str(out)]) == 0

@@ -252,10 +252,12 @@ def test_in_focus_depth_is_a_clear_error(tmp_path, capsys):
 @pytest.mark.parametrize("mode", ["coded", "normal", "flutter"])
 def test_a_psf_rendered_with_diffraction_matches_the_diffracted_model(renderer, mode):
     """The prototype's PSF at its full pixel scale (F9.85: lambda N = 0.93 / 0.84 / 0.71 px in
-    R, G, B) with the opening's diffraction in the rays: at the Monte Carlo floor of two seeds
-    against the geometric kernel convolved with each channel's Airy pattern, the pixel's box
-    counted once, mixed by luminance; the geometric kernel, and the combination that counts
-    the box twice (with_diffraction), are several floors away."""
+    R, G, B) with the opening's diffraction in the particles: at the Monte Carlo floor of two
+    seeds against each channel's exact defocused kernel, mixed by luminance (issue 45; the
+    exact kernel itself is checked against an independent Fresnel computation in
+    tests/render/test_exact_defocus.py); the geometric kernel, and the geometric kernel
+    convolved with the Airy pattern (the box counted twice, with_diffraction), are several
+    floors away."""
     import mitsuba as mi
 
     from pacam_render.psf.diffraction import with_diffraction
@@ -271,7 +273,7 @@ def test_a_psf_rendered_with_diffraction_matches_the_diffracted_model(renderer, 
         return design_psf(c, mode, s * f, fine)
 
     n = 1 if "mono" in mi.variant() else 3
-    model = diffracted_model(build, cam, mode, (h, w), n)
+    model = diffracted_model(build, cam, mode, (h, w), n, None, s, "t0")
     assert np.allclose(a.model, model)
     assert metrics.rel_l1(mean, model) < 1.3 * floor + 2e-3
     assert metrics.rel_l1(mean, geometric) > 5 * floor
