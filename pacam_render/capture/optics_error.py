@@ -184,11 +184,13 @@ def add_ratios(block: dict, noise_sigma: float | None, where: str) -> None:
 
 
 def largest_left_out(block: dict) -> str | None:
-    """The left-out effect of the largest size (None when every one is 0 or unknown)."""
+    """The left-out effect of the largest size (None when every one is 0 or unknown): an
+    effect left out, or the part an included effect's approximation leaves out
+    (``residual``)."""
     sizes = {
         k: e["size_rms"]
         for k, e in block["effects"].items()
-        if not e["included"] and e.get("size_rms")
+        if (not e["included"] or e.get("residual")) and e.get("size_rms")
     }
     return max(sizes, key=sizes.get) if sizes else None
 
@@ -201,4 +203,7 @@ def summary_line(block: dict | None) -> str | None:
     e = block["effects"][k]
     ratio = e.get("ratio_to_sensor")
     vs = f", {ratio:.2g}x the sensor's noise" if ratio is not None else ""
-    return f"optics left out: largest is {k.replace('_', ' ')}, RMS {e['size_rms']:.3g}{vs}"
+    what = k.replace("_", " ")
+    if e.get("residual"):
+        what += " (what its approximation leaves out)"
+    return f"optics left out: largest is {what}, RMS {e['size_rms']:.3g}{vs}"

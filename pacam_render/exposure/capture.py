@@ -324,7 +324,8 @@ def _render(plan: CapturePlan, description, run: Run, truth: bool, target, keep:
     record.relative_illumination = illumination_record(spec, cam, ri_map)
     if ri_map is not None:
         layers["relative_illumination"] = ri_map
-    ctx = {"record": record, "target": target, "lcos_contrast": params.get("lcos_contrast")}
+    ctx = {"record": record, "target": target, "lcos_contrast": params.get("lcos_contrast"),
+           "sharp": layers.get("sharp")}  # fmt: skip
     ctx["lcos_switching_ms"] = params.get("lcos_switching")
     ctx["diffraction_on"], ctx["diffraction_decision"] = plan.diffraction
     optics = _optics(plan, desc, image, prog, ctx)

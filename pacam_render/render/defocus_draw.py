@@ -81,10 +81,13 @@ class ExactDefocus:
 
     def _defocus_draw(self, seeds, r_px, active):
         """An offset (px) from the exact PSF of a disc blurred to r px, each channel's weight,
-        and whether psi = pi r / (2 lambda N) is inside the table (per channel: all)."""
+        and whether psi = pi r / (2 lambda N) is inside the table (per channel: all). The
+        random numbers are the Airy draw's (the same TEA hash of the same seeds): another
+        mix of the seeds, (s0 ^ 0x27D4EB2F s3, s1 ^ s2), drew measurably non-uniform numbers
+        at 4 rounds (an in-focus point's chi^2 1.9 per pixel against the Airy pattern's 0.6)."""
         bits = [dr.reinterpret_array(UInt, as_type(Float, x)) for x in seeds]
-        h0, h1 = mi.sample_tea_32(bits[0] ^ (bits[3] * UInt(0x27D4EB2F)), bits[1] ^ bits[2], 4)
-        h2, _ = mi.sample_tea_32(h1, h0, 4)
+        h0, h1 = mi.sample_tea_32(bits[0] ^ (bits[2] * UInt(0x9E3779B1)), bits[1] ^ bits[3], 4)
+        h2, _ = mi.sample_tea_32(h0, h1, 4)
         unit = 2.0**-32
         u_c, u_phi, u_v = Float(h0) * unit, Float(h1) * unit, Float(h2) * unit
         ln = self._diff_ln

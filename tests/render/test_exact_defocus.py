@@ -120,3 +120,29 @@ def test_in_focus_the_rendered_psf_is_the_airy_pattern(tmp_path):
     ref, psi = _reference(cam, k.shape, origin)
     assert psi < 0.05  # W020 < 0.01 waves
     assert np.abs(k - ref).sum() < 0.03
+
+
+@pytest.mark.render
+def test_a_coded_capture_states_what_its_rays_diffraction_leaves_out(tmp_path):
+    """Path-traced captures diffract as the disc convolved with the Airy pattern; the record
+    sizes the exact PSF's departure from that on the capture (RMS, capture units, against the
+    sensor's noise at 10^4 photons/px/ms). In focus (normal mode) the two PSFs are one, so
+    what is left out is far smaller."""
+    from pacam_render.capture.files import read_record
+
+    sizes = {}
+    for mode in ("coded", "normal"):
+        out = tmp_path / mode
+        args = ["render", "train", "--mode", mode, "--crop", "400,500,96,64", "--spp", "16",
+                "--diffraction", "on", "--sensor", "grasshopper-icx285", "--light-level",
+                "10000", "--quiet", "--out", str(out)]  # fmt: skip
+        assert main(args) == 0
+        block = read_record(out / "capture.json").optics_error
+        entry = block["effects"]["diffraction"]
+        assert entry["included"] and entry["residual"]
+        assert entry["ratio_to_sensor"] == pytest.approx(
+            entry["size_rms"] / block["reference_noise"]["sigma"]
+        )
+        sizes[mode] = entry["size_rms"]
+    assert sizes["coded"] > 0.0
+    assert sizes["normal"] < 0.2 * sizes["coded"]
