@@ -246,6 +246,10 @@ def _plan(args: argparse.Namespace, target):
         lcos_fill_factor=args.lcos_fill_factor,
         lcos_switching_ms=args.lcos_switching,
     )
+    if args.sensor is not None:  # a monochrome --sensor renders one channel, as --grey
+        from ..exposure.plan import grey_for_sensor
+
+        spec = grey_for_sensor(spec, args.sensor, "--sensor")
     plan = plan_capture(spec)
     if args.sensor is None and plan.design.sensor_preset is not None:  # the design names it
         args.sensor = plan.design.sensor_preset

@@ -154,13 +154,16 @@ def plan_capture(spec: CaptureSpec) -> CapturePlan:
     from ..render.backend import select_variant
     from ..render.variant import is_mono
 
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", PacamWarning)
+        full, digest = _read_design(spec)
+        spec = grey_for_sensor(spec, full.sensor_preset, "the design's sensor")
     variant = select_variant(mono=spec.grey)
     if is_mono(variant) and not spec.grey:  # PACAM_VARIANT=llvm_ad_mono: a grey capture
         spec = replace(spec, grey=True)
-    with warnings.catch_warnings(record=True) as caught:
+    with warnings.catch_warnings(record=True) as more:
         warnings.simplefilter("always", PacamWarning)
         note_ignored_options(spec)
-        full, digest = _read_design(spec)
         design = scaled_design(spec, full)
         cam, mode_params = mode_camera(design, spec.mode)
         pitch = binned_pitch_mm(full, spec.width)  # a depth changes neither pitch nor size
@@ -170,11 +173,31 @@ def plan_capture(spec: CaptureSpec) -> CapturePlan:
             **switching_params(spec, mode_params),
         }
         note_binning(spec, cam, full)
+    caught = caught + more
     others = [w for w in caught if not issubclass(w.category, PacamWarning)]
     for w in others:  # not ours: shown as they were
         warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
     notes = tuple(str(w.message) for w in caught if issubclass(w.category, PacamWarning))
     return CapturePlan(spec, variant, full, design, cam, mode_params, optics, pitch, digest, notes)
+
+
+def grey_for_sensor(spec: CaptureSpec, preset: str | None, whose: str) -> CaptureSpec:
+    """``spec`` grey, with a note, when ``preset`` is a monochrome sensor (a physical sensor
+    with no colour filter) and the capture is RGB: the sensor sees one channel, so the
+    capture renders one (an RGB capture through it took the mono noise model per channel).
+    ``whose`` names the sensor in the note."""
+    if preset is None or spec.grey:
+        return spec
+    from ..render.variant import grey_request
+    from ..sensor.model import SensorModel
+
+    model = SensorModel.from_preset(preset)
+    if model.bayer is not None or not model.shot_noise:
+        return spec
+    grey_request(True)  # refused under an RGB PACAM_VARIANT, naming it
+    note(f"{whose} {preset} is monochrome: the capture renders one channel (grey), as `grey` "
+         "would ask")  # fmt: skip
+    return replace(spec, grey=True)
 
 
 def _read_design(spec: CaptureSpec) -> tuple[CameraDesign, str | None]:

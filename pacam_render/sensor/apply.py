@@ -182,7 +182,8 @@ def is_grey(image: np.ndarray) -> bool:
 
 
 def check_grey_sensor(grey: bool, model: SensorModel, preset: str) -> None:
-    """Refuse a colour-filter (Bayer) sensor on a grey capture.
+    """Refuse a colour-filter (Bayer) sensor on a grey capture, and a monochrome one (a
+    physical sensor with no colour filter) on an RGB capture.
 
     Parameters
     ----------
@@ -199,8 +200,15 @@ def check_grey_sensor(grey: bool, model: SensorModel, preset: str) -> None:
     ParameterError
         If ``grey`` and ``model.bayer`` is set: the sensor would take the grey image
         for a raw mosaic and demosaic it into false colour. The message names the monochrome
-        preset to use (:func:`~pacam_render.sensor.presets.mono_preset`).
+        preset to use (:func:`~pacam_render.sensor.presets.mono_preset`). If not ``grey``
+        and the sensor is monochrome: its noise would be drawn per channel.
     """
+    if not grey and model.bayer is None and model.shot_noise:
+        raise ParameterError(
+            f"`sensor` {preset} is monochrome (no colour filter), but the capture is RGB: its "
+            "noise model would be applied to each channel as if each were the whole sensor; "
+            "render the capture grey (`grey=True`), or pick a colour sensor"
+        )
     if model.bayer is None or not grey:
         return
     mono = mono_preset(preset)
