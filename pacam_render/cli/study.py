@@ -8,6 +8,7 @@ from pathlib import Path
 
 from ..errors import check_positive
 from ..exposure.integrate import CaptureInterrupted
+from ..limits import duration
 from .common import (
     add_engine_args,
     add_force,
@@ -58,7 +59,7 @@ def run(args: argparse.Namespace) -> int:
     def estimate(summary) -> None:
         print(
             f"study {spec.name}: the renders still to do need about "
-            f"{summary.estimate_s / 3600:.2f} h (predicted from their pilot passes, kept)",
+            f"{duration(summary.estimate_s)} (predicted from their pilot passes, kept)",
             flush=True,
         )
 

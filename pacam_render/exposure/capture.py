@@ -398,17 +398,17 @@ def _truth(scene, desc, spec, design, run: Run, prog, record, store, truth: bool
         ) from None
 
 
-def write_capture(cap: Capture, out: Path, force: bool, error_layer: bool = False) -> list[Path]:
+def write_capture(cap: Capture, out, force: bool = False, error_layer: bool = False) -> list[Path]:
     """capture.exr (float32 layers), capture.png (sRGB preview), capture.json.
 
     Parameters
     ----------
     cap : Capture
         The capture to write.
-    out : pathlib.Path
+    out : str or pathlib.Path
         The output folder (created if missing).
-    force : bool
-        Overwrite existing files.
+    force : bool, optional
+        Overwrite existing files (default: refuse them).
     error_layer : bool, optional
         Also write the per-pixel Monte Carlo sigma (``cap.mc_sigma``) as the ``mc_sigma`` layer.
 
@@ -435,6 +435,8 @@ def write_capture(cap: Capture, out: Path, force: bool, error_layer: bool = Fals
     from ..io.exr import write_exr
     from ..io.preview import srgb8, write_png
 
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
     layers = {"capture": cap.image, **cap.extra_layers}
     if error_layer and cap.mc_sigma is not None:
         layers["mc_sigma"] = cap.mc_sigma

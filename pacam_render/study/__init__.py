@@ -16,6 +16,7 @@ from functools import partial
 from pathlib import Path
 
 from ..errors import ParameterError, check_positive
+from ..limits import duration
 from .engine import (
     check_workers,
     dashboard_link,
@@ -221,7 +222,7 @@ def _safe_pilot(task: Task):
 def _check_budget(estimate_s: float, budget_hours: float | None) -> None:
     if budget_hours is not None and estimate_s > budget_hours * 3600:
         raise ParameterError(
-            f"the study's renders would take about {estimate_s / 3600:.2f} h (predicted from "
+            f"the study's renders would take about {duration(estimate_s)} (predicted from "
             f"their pilot passes, which are kept), over budget_hours = {budget_hours:g} h; "
             "raise it, or make the study cheaper (in its file: a tighter [render] crop, a "
             "larger [render] noise_ratio, fewer points)"

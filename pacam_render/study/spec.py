@@ -68,7 +68,8 @@ RENDER = {
 """Settings every point shares, and their defaults. ``noise_ratio``: each render is rendered
 until its Monte Carlo sigma is at most this times the lowest sensor noise among the points it
 feeds (0.2: the render adds at most 4 % to any point's noise variance); ``false`` renders
-``spp`` samples instead."""
+``spp`` samples instead, and so does a ``[render]`` table that gives ``spp`` without a
+``noise_ratio`` (with both, ``spp`` is the target's first passes)."""
 GREY_RENDER = "grey"
 """The ``[render]`` key (true or false, default false) that renders every capture in one
 channel with Mitsuba's mono variant (:attr:`~pacam_render.exposure.capture_spec.CaptureSpec.grey`;
@@ -297,7 +298,10 @@ def _parse(doc: dict, quick: bool, source: str, grey: bool = False) -> StudySpec
     report = head.get("report", "table")
     if report not in REPORTS:
         raise ParameterError(f"[study] report must be one of {', '.join(REPORTS)}, got {report!r}")
-    render = {**RENDER, **_table(doc, "render")}
+    given = _table(doc, "render")
+    render = {**RENDER, **given}
+    if "spp" in given and "noise_ratio" not in given:  # the samples asked for, not a default
+        render["noise_ratio"] = None  # target's (which took over with no word)
     grid, points = doc.get("grid", {}), doc.get("points", [])
     if quick:
         q = _table(doc, "quick")

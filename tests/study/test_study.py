@@ -26,6 +26,7 @@ report = "crossover"
 width = 48
 height = 36
 spp = 4
+noise_ratio = 0.2
 max_step_px = 4.0
 [grid]
 mode = ["coded", "short"]
@@ -362,3 +363,13 @@ def test_a_worker_runs_one_pacam_task_at_a_time_whatever_its_threads():
     for t in threads:
         t.join()
     assert most[0] == 1
+
+
+def test_an_spp_without_a_noise_ratio_is_the_samples(tmp_path):
+    """Issue 46: a [render] spp was silently overridden by the default noise target."""
+    own = _tiny(tmp_path, TINY.replace("spp = 4\nnoise_ratio = 0.2\n", "spp = 256\n"))
+    assert own.render["spp"] == 256 and own.render["noise_ratio"] is None
+    both = _tiny(tmp_path, TINY)
+    assert both.render["noise_ratio"] == 0.2  # given with it, the spp is the pilot's
+    default = _tiny(tmp_path, TINY.replace("spp = 4\nnoise_ratio = 0.2\n", ""))
+    assert default.render["noise_ratio"] == 0.2

@@ -82,7 +82,7 @@ def test_paired_differences_are_taken_seed_by_seed():
 @pytest.mark.parametrize(
     "change, words",
     [
-        (("noise_ratio = false\n", ""), "noise_ratio = false"),
+        (("noise_ratio = false\n", "noise_ratio = 0.2\n"), "noise_ratio = false"),
         (('mode = ["coded", "normal"]', 'mode = ["coded", "levin"]'), "levin"),
         (("lightfield = true", 'lightfield = "yes"'), "lightfield must be true or false"),
     ],
