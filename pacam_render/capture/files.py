@@ -10,6 +10,7 @@ from typing import NamedTuple
 import numpy as np
 
 from ..errors import ParameterError
+from ..io.arrays import read_json
 from .record import CAPTURE_UNIT, WHITE_UNIT, CaptureRecord, image_size, layer_unit
 
 
@@ -52,7 +53,6 @@ def read_capture_layers(path: str | os.PathLike) -> tuple[dict[str, np.ndarray],
     ParameterError
         If a file is missing or unreadable.
     """
-    import json
 
     from ..io.exr import read_exr
 
@@ -63,10 +63,7 @@ def read_capture_layers(path: str | os.PathLike) -> tuple[dict[str, np.ndarray],
         raise ParameterError(f"no capture at {exr}")
     if not sidecar.is_file():
         raise ParameterError(f"{exr} has no {sidecar.name} beside it: its scale is not known")
-    try:
-        record = CaptureRecord.from_json(json.loads(sidecar.read_text()), where=str(sidecar))
-    except json.JSONDecodeError as exc:
-        raise ParameterError(f"{sidecar} is not valid JSON ({exc})") from None
+    record = CaptureRecord.from_json(read_json(sidecar, "capture record"), where=str(sidecar))
     layers = read_exr(exr)
     check_layers_fit(layers, record, exr, sidecar)
     return layers, record
@@ -93,7 +90,6 @@ def read_record(capture: str | os.PathLike, required: bool = True) -> CaptureRec
     ParameterError
         If the sidecar is not valid JSON, or (``required``) not a complete record.
     """
-    import json
     import warnings
 
     from ..limits import PacamWarning
@@ -101,10 +97,7 @@ def read_record(capture: str | os.PathLike, required: bool = True) -> CaptureRec
     path = Path(capture).with_suffix(".json")
     if not path.is_file():
         return None
-    try:
-        data = json.loads(path.read_text())
-    except json.JSONDecodeError as exc:
-        raise ParameterError(f"{path} is not valid JSON ({exc})") from exc
+    data = read_json(path, "capture record")
     try:
         return CaptureRecord.from_json(data, where=str(path))
     except ParameterError as exc:

@@ -5,6 +5,7 @@ speed, or read from a schedule file), the mode's camera and sensor parameters fr
 
 from __future__ import annotations
 
+from ..errors import ParameterError
 from ..limits import note
 from ..model.camera import CameraDesign, preset
 from ..model.modes import DESIGNED_REFUSED, MODES, capture_camera, mode, sensor_params
@@ -148,13 +149,20 @@ def contrast_params(spec: CaptureSpec, params: dict) -> dict:
     return {}
 
 
-def switching_params(spec: CaptureSpec, params: dict) -> dict:
+def switching_params(spec: CaptureSpec, params: dict, cam: CameraDesign) -> dict:
     """``lcos_switching`` (ms) for the sensor where the mode switches discs on the LCoS
-    (discrete parabolic or centres schedules); a note where it does not."""
+    (discrete parabolic or centres schedules), at most a pattern's time (checked here, before
+    the plugin is built); a note where it does not switch."""
     t = spec.lcos_switching_ms
     if not t:
         return {}
     if params.get("schedule") in ("parabolic", "centres") and not params.get("continuous"):
+        width = cam.exposure_ms / cam.n_patterns
+        if t > width:
+            raise ParameterError(
+                f"lcos_switching_ms ({t:g} ms) must be at most a pattern's time: {width:g} ms "
+                f"(the {cam.exposure_ms:g} ms exposure / {cam.n_patterns} patterns)"
+            )
         return {"lcos_switching": float(t)}
     note(
         f"lcos_switching_ms has no effect in {spec.mode} mode: it switches no disc on the "

@@ -4,7 +4,6 @@ against the capture's sensor size, with the image point its centre pixel stands 
 
 from __future__ import annotations
 
-import json
 import os
 import warnings
 from pathlib import Path
@@ -212,10 +211,9 @@ def psf_sidecar(path: Path) -> dict | None:
     sidecar = path.parent / "psf.json"
     if path.suffix == ".npy" or not sidecar.is_file():
         return None
-    try:
-        meta = json.loads(sidecar.read_text())
-    except json.JSONDecodeError:
-        return None
+    from ..io.arrays import read_json
+
+    meta = read_json(sidecar, "kernel record")
     return meta if isinstance(meta, dict) else None
 
 
@@ -266,18 +264,6 @@ def check_psf_scale(
 
 def load_npy_psf(path: Path) -> np.ndarray:
     """A kernel from a ``.npy`` file: numbers only (never unpickle a file from elsewhere)."""
-    if not path.is_file():
-        raise ParameterError(f"`psf` file {path} does not exist")
-    try:
-        k = np.load(path, allow_pickle=False)
-    except (ValueError, EOFError) as exc:  # object arrays, an empty file, or not a .npy file
-        why = "holds Python objects" if "allow_pickle" in str(exc) else f"is not readable ({exc})"
-        raise ParameterError(
-            f"`psf` file {path} {why}; save the kernel as numbers: "
-            "np.save(path, np.asarray(kernel, dtype=float))"
-        ) from None
-    if not isinstance(k, np.ndarray) or k.dtype.kind not in "biuf":
-        raise ParameterError(f"`psf` file {path} holds {k.dtype} values, not real numbers")
-    if k.size == 0:
-        raise ParameterError(f"`psf` file {path} holds an empty array (shape {k.shape})")
-    return k
+    from ..io.arrays import read_npy
+
+    return read_npy(path, "`psf` file")

@@ -170,7 +170,7 @@ def plan_capture(spec: CaptureSpec) -> CapturePlan:
         optics = {
             **illumination_params(spec, pitch),
             **contrast_params(spec, mode_params),
-            **switching_params(spec, mode_params),
+            **switching_params(spec, mode_params, cam),
         }
         note_binning(spec, cam, full)
     caught = caught + more

@@ -54,7 +54,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import ParameterError
-from ..io.toml_file import read_text, read_toml
+from ..io.toml_file import read_toml
 from .camera import CameraDesign, preset
 from .masks import MaskStack, read_mask_source
 
@@ -356,10 +356,9 @@ def resolve_design(source, **overrides) -> CameraDesign:
 def _design_from_json(path: Path) -> CameraDesign:
     """The design in a capture's, a PSF's or a legacy schedule's JSON."""
     jpath = path.with_suffix(".json") if path.suffix.lower() == ".exr" else path
-    try:
-        d = json.loads(read_text(jpath, "design source"))
-    except json.JSONDecodeError as exc:
-        raise ParameterError(f"{jpath}: not valid JSON ({exc})") from None
+    from ..io.arrays import read_json
+
+    d = read_json(jpath, "design source")
     if not isinstance(d, dict):
         raise ParameterError(f"{jpath}: expected a JSON object")
     for key in ("design", "camera"):  # a capture's coded design, else the camera of a PSF

@@ -289,6 +289,8 @@ def _read_json(text: str, where: str):
         doc = json.loads(text)
     except json.JSONDecodeError as exc:
         raise ParameterError(f"{where}: not valid JSON ({exc})") from None
+    except RecursionError:
+        raise ParameterError(f"{where}: nested too deep to be a curve") from None
     if not isinstance(doc, dict):
         raise ParameterError(f"{where}: expected a JSON object, got {type(doc).__name__}")
     keys = [k for k in ABSCISSAE if k in doc]

@@ -26,6 +26,7 @@ from __future__ import annotations
 import base64
 import hashlib
 import os
+import zipfile
 import zlib
 from collections.abc import Sequence
 
@@ -128,6 +129,8 @@ def _as_array(source) -> np.ndarray:
     cls = type(source).__name__
     if cls == "Bitmap":
         arr = np.array(source)
+        codes = arr.dtype in (np.uint8, np.uint16)  # levels: read as level / max, no gamma
+        top = np.iinfo(arr.dtype).max if codes else 1.0
         if arr.ndim == 3:
             if arr.shape[2] in (2, 4):  # drop alpha
                 arr = arr[..., :-1]
@@ -135,6 +138,8 @@ def _as_array(source) -> np.ndarray:
                 arr = arr @ np.array([0.2126, 0.7152, 0.0722], dtype=np.float64)
             else:
                 arr = arr[..., 0]
+        if codes and arr.dtype.kind == "f":  # a colour image's luminance of its code values
+            arr = np.clip(arr / top, 0.0, 1.0)
         return arr
     return np.array(source)
 
@@ -160,15 +165,27 @@ def _load_file(path: str) -> np.ndarray:
     if not os.path.isfile(path):
         raise ParameterError(f"mask_file: no such file {path!r}")
     if path.lower().endswith(".npy"):
-        return np.load(path, allow_pickle=False)
+        from ..io.arrays import read_npy
+
+        return read_npy(path, "mask_file")
     if path.lower().endswith(".npz"):  # a design file's compressed stack (key ``masks``)
-        with np.load(path, allow_pickle=False) as z:
-            if "masks" not in z.files:
-                raise ParameterError(f"mask_file: {path!r} holds no 'masks' array ({z.files})")
-            return z["masks"]
+        try:
+            with np.load(path, allow_pickle=False) as z:
+                if "masks" not in z.files:
+                    raise ParameterError(f"mask_file: {path!r} holds no 'masks' array ({z.files})")
+                return z["masks"]
+        except (ValueError, EOFError, OSError, zipfile.BadZipFile) as exc:
+            raise ParameterError(f"mask_file: {path!r} is not a readable .npz ({exc})") from None
     import mitsuba as mi
 
-    return _as_array(mi.Bitmap(path))
+    try:
+        return _as_array(mi.Bitmap(path))
+    except RuntimeError as exc:  # Mitsuba's "Unknown file format", a truncated stream
+        why = str(exc).strip().splitlines()[-1][:200]
+        raise ParameterError(
+            f"mask_file: {path!r} is not an image Mitsuba can read ({why}); masks are PNG, "
+            "EXR or other image files, or a .npy stack"
+        ) from None
 
 
 def load_masks(source, name: str = "masks") -> np.ndarray:

@@ -153,3 +153,5 @@ def _parse_json(path: Path, text: str) -> Any:
         return json.loads(text)
     except json.JSONDecodeError as exc:
         raise ParameterError(f"preset file {path} is not valid JSON: {exc}") from None
+    except RecursionError:
+        raise ParameterError(f"preset file {path} is nested too deep") from None

@@ -1,0 +1,80 @@
+"""Issue 47: files from outside refused cleanly, before they load (each test fails on the main
+before it): masks that are not images, .npy stacks that are not numbers, colour mask PNGs read
+as luminance, records nested too deep, and an LCoS switching time longer than a pattern."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from pacam_render.cli import main
+from pacam_render.errors import ParameterError
+from pacam_render.model.masks import load_masks
+
+
+def test_a_mask_that_is_not_an_image_is_refused_naming_it(tmp_path):
+    text = tmp_path / "passwd.png"
+    text.write_text("root:x:0:0:root:/root:/bin/bash\n")
+    with pytest.raises(ParameterError, match="not an image Mitsuba can read"):
+        load_masks(str(text))
+    good = tmp_path / "good.npy"
+    np.save(good, np.ones((4, 4)))
+    broken = tmp_path / "broken.png"
+    broken.write_bytes(b"\x89PNG\r\n\x1a\n" + b"\0" * 20)  # a PNG's signature, then nothing
+    with pytest.raises(ParameterError, match="broken.png"):
+        load_masks(f"{good},{broken}")
+
+
+@pytest.mark.parametrize("kind", ["strings", "objects", "record", "complex", "truncated"])
+def test_a_npy_mask_stack_of_anything_but_numbers_is_refused(tmp_path, kind):
+    path = tmp_path / f"{kind}.npy"
+    if kind == "strings":
+        np.save(path, np.array([["a", "b"], ["c", "d"]]))
+    elif kind == "objects":
+        np.save(path, np.array([[{}, None]], dtype=object), allow_pickle=True)
+    elif kind == "record":
+        np.save(path, np.zeros((2, 2), dtype=[("a", "f4"), ("b", "i4")]))
+    elif kind == "complex":
+        np.save(path, np.ones((2, 2), complex))
+    else:
+        np.save(path, np.ones((64, 64)))
+        path.write_bytes(path.read_bytes()[:200])
+    with pytest.raises(ParameterError, match="mask_file"):
+        load_masks(str(path))
+
+
+def test_a_colour_mask_png_is_read_as_luminance(tmp_path):
+    import mitsuba as mi
+
+    from pacam_render.render.backend import select_variant
+
+    select_variant()
+    rgb = np.zeros((8, 8, 3), np.uint8)
+    rgb[:, 4:] = 255
+    path = tmp_path / "rgb.png"
+    mi.Bitmap(rgb).write(str(path))
+    m = load_masks(str(path))
+    assert m.shape == (1, 8, 8) and m.min() == 0.0 and m.max() == pytest.approx(1.0)
+
+
+def test_a_capture_record_nested_too_deep_is_one_line(tmp_path, capsys):
+    from pacam_render.exposure.capture import render_capture, write_capture
+    from pacam_render.exposure.capture_spec import CaptureSpec
+
+    folder = tmp_path / "cap"
+    spec = CaptureSpec(scene="train", width=32, height=24, mode="reference", spp=4)
+    write_capture(render_capture(spec, progress=False, truth=False), folder)
+    (folder / "capture.json").write_text("[" * 1_000_000 + "]" * 1_000_000)
+    assert main(["deconvolve", str(folder / "capture.exr"), "--psf", "analytic", "--out",
+                 str(tmp_path / "d")]) == 2  # fmt: skip
+    err = capsys.readouterr().err
+    assert "nested too deep" in err and "Traceback" not in err
+
+
+def test_a_switching_time_longer_than_a_pattern_is_refused_before_mitsuba(capsys, tmp_path):
+    args = ["render", "train", "--width", "64", "--height", "48", "--spp", "4", "--diffraction",
+            "off", "--lcos-switching", "10", "--quiet", "--out", str(tmp_path / "sw")]  # fmt: skip
+    assert main(args) == 2
+    err = capsys.readouterr().err
+    assert "--lcos-switching (10 ms) must be at most a pattern's time: 2.8125 ms" in err
+    assert "parser.cpp" not in err and "Traceback" not in err
