@@ -40,17 +40,48 @@ def _diffracted(k, record: CaptureRecord, cam, size, build):
 def analytic_psf(record: CaptureRecord, s: float = 0.0, size=None):
     """The analytic PSF of a recorded capture at speed s (px/ms), registered to the pinhole
     image as the ``reference`` capture and the scene are (``origin="pinhole"``); with the
-    capture's diffraction, when it includes it (:func:`capture_diffraction`)."""
+    LCoS's leak, when the capture has a finite contrast (:func:`leaky_psf`), and the capture's
+    diffraction, when it includes it (:func:`capture_diffraction`)."""
     from ..model.camera import CameraDesign
     from ..psf.analytic import design_psf
 
     cam = CameraDesign.from_inputs(record.camera)
-    k = design_psf(cam, record.mode, s, size, origin="pinhole")
+    contrast = (record.sensor_params or {}).get("lcos_contrast")
 
     def build(c, f, fine):
-        return design_psf(c, record.mode, s * f, fine, origin="pinhole")
+        return leaky_psf(c, record.mode, s * f, fine, contrast)
 
+    if contrast is None:
+        k = design_psf(cam, record.mode, s, size, origin="pinhole")
+    else:
+        k = leaky_psf(cam, record.mode, s, size, contrast)
     return _diffracted(k, record, cam, size, build)
+
+
+def leaky_psf(cam, mode: str, s: float, size, contrast: float | None):
+    """The kernel of ``cam`` in ``mode`` when the LCoS's "off" pixels pass 1/C of the light:
+    (1 - 1/C) A_c K_coded + (1/C) K_full over their sum, with A_c the opening's share of the
+    lens and K_full the whole lens's kernel over the same exposure, focus and motion (the rays'
+    transmittance: 1 in the opening, 1/C on the rest of the lens). A disc schedule only; the
+    leak's own diffraction is taken as the opening's (its light is 1/C)."""
+    from ..psf.analytic import design_psf
+
+    k = design_psf(cam, mode, s, size, origin="pinhole")
+    if contrast is None or cam.pattern_masks is not None or cam.R_mm >= cam.R_max_mm:
+        return k
+    full = cam.with_(pattern_centres_mm=((0.0, 0.0),) * cam.n_patterns, R_mm=cam.R_max_mm,
+                     quoted_a_i_px_per_ms2=None)  # fmt: skip
+    if size is None:  # the whole lens's disc is the wider: both on its window
+        kf = design_psf(full, mode, s, None, origin="pinhole")
+        shape = tuple(max(a, b) for a, b in zip(k.shape, kf.shape))
+        k = design_psf(cam, mode, s, shape, origin="pinhole")
+    else:
+        shape = k.shape
+    kf = design_psf(full, mode, s, shape, origin="pinhole")
+    c = float(contrast)
+    w_coded = (1.0 - 1.0 / c) * (cam.R_mm / cam.R_max_mm) ** 2
+    out = w_coded * k + kf / c
+    return out / out.sum()
 
 
 def robust_psf(record: CaptureRecord, size=None):

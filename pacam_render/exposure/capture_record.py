@@ -39,7 +39,8 @@ def build_record(plan, params: dict, aperture, seconds: float, steps: dict) -> C
     :class:`~pacam_render.render.plan.AperturePlan` (None for the pinhole reference), whatever
     produced the capture (a render, or a light-field store)."""
     spec, design, cam, variant = plan.spec, plan.design, plan.cam, plan.variant
-    weight = 1.0 if spec.mode == "reference" else float(aperture.mean_weight())
+    contrast = params.get("lcos_contrast")  # the light the "off" pixels leak counts too
+    weight = 1.0 if spec.mode == "reference" else float(aperture.mean_weight(contrast))
     crop = None
     if spec.crop is not None:
         x, y, w, h = spec.crop

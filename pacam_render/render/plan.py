@@ -202,15 +202,20 @@ class AperturePlan:
             f.add("bitmap")
         return frozenset(f)
 
-    def mean_weight(self) -> float:
-        """Expected ray weight: the image's scale relative to thinlens (exact)."""
+    def mean_weight(self, contrast: float | None = None) -> float:
+        """Expected ray weight: the image's scale relative to thinlens (exact). With an LCoS
+        of finite ``contrast`` C, an open pattern also passes 1/C of the light on the rest of
+        the lens (as the rays do)."""
         a, b = self.integration_interval
+        area = self.area_ratio
+        if contrast is not None:
+            area = np.where(self.is_open, area + (1.0 - area) / float(contrast), 0.0)
         if self.duration <= 0:
-            return float(self.area_ratio[0])
+            return float(area[0])
         # the open area is constant between these times
         cuts = np.unique(np.clip(np.concatenate([[a, b], self.pattern_edges]), a, b))
         k = self.pattern_at(0.5 * (cuts[:-1] + cuts[1:]))
-        collected = float(np.sum(self.area_ratio[k] * np.diff(cuts)))  # ms
+        collected = float(np.sum(area[k] * np.diff(cuts)))  # ms
         return collected / (self.reference_exposure or self.duration)
 
 

@@ -35,11 +35,14 @@ def test_a_uniform_emitter_reads_the_closed_form(contrast):
     cap = _capture(_glowing_wall(False), **kw, lcos_contrast=contrast)
     rec = cap.record
     full = rec.exposure_ms / rec.reference_exposure_ms  # the full aperture's light factor
-    want = 0.8 * ((1 - 1 / contrast) * rec.light_factor + full / contrast)
+    coded = (rec.camera["R_mm"] / rec.camera["R_max_mm"]) ** 2 * full  # the opening's alone
+    want = 0.8 * ((1 - 1 / contrast) * coded + full / contrast)
     err = float(np.sqrt(np.mean(cap.mc_sigma**2)))
     assert abs(float(cap.image.mean()) - want) < 5 * err / np.sqrt(cap.image.size) + 1e-6
     assert rec.optics_error["effects"]["lcos_leakage"]["included"]
-    assert float(cap.image.mean()) > 0.8 * rec.light_factor * 1.01  # the leak is visible
+    assert float(cap.image.mean()) > 0.8 * coded * 1.01  # the leak is visible
+    # the record's scale counts the leak too (issue 47): white reads 1 on the white scale
+    assert rec.light_factor == pytest.approx(want / 0.8, rel=1e-9)
 
 
 def test_contrast_one_is_the_full_aperture(tmp_path):
