@@ -170,7 +170,8 @@ class StudySpec:
                 del blob["point"]["index"]
                 if self.decompose:
                     blob["decompose"] = True
-                blob["files"] = {n: files[n] for n in _named_files(p) if n in files}
+                named = [*_named_files(p), design_file_path(p.design)]  # the design file too
+                blob["files"] = {n: files[n] for n in named if n in files}
                 out[p.index] = _digest(blob)
         return out
 

@@ -282,3 +282,23 @@ def test_a_point_added_to_a_rendered_group_gets_the_groups_noise_target(tmp_path
     strip = lambda rows: [{k: v for k, v in r.items() if k not in drop} for r in rows]  # noqa: E731
     rows = _rows(out / RESULTS)
     assert rows[:2] == before and strip(rows) == strip(_rows(tmp_path / "fresh" / RESULTS))
+
+
+def test_a_changed_design_file_reruns_its_points(tmp_path):
+    """Issue 47 item 6: the point key hashes the design file a `design` axis names (the
+    camera it makes): an edited R_mm is another camera, its rows are not kept."""
+    from pacam_render.model.camera import prototype
+    from pacam_render.model.design_file import write_design
+
+    design = tmp_path / "s1.toml"
+    write_design(design, prototype())
+    path = tmp_path / "st.toml"
+    path.write_text(
+        '[study]\nname = "st"\n[render]\nwidth = 48\nheight = 36\nspp = 4\nmax_step_px = 4.0\n'
+        f'[grid]\nmode = ["coded"]\ndesign = ["{design}"]\nlight_level = [300.0]\n'
+    )
+    first = run_study(load_study(str(path)), tmp_path / "out", workers=0, progress=False)
+    assert first.ran == 1
+    write_design(design, prototype().with_(R_mm=1.5), force=True)
+    again = run_study(load_study(str(path)), tmp_path / "out", workers=0, progress=False)
+    assert again.ran == 1  # not "1 already done"
