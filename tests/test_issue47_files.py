@@ -78,3 +78,15 @@ def test_a_switching_time_longer_than_a_pattern_is_refused_before_mitsuba(capsys
     err = capsys.readouterr().err
     assert "--lcos-switching (10 ms) must be at most a pattern's time: 2.8125 ms" in err
     assert "parser.cpp" not in err and "Traceback" not in err
+
+
+def test_a_forced_kernel_without_render_takes_the_old_rendered_kernel_away(tmp_path, capsys):
+    """Issue 47 item 4: a stale psf_rendered.exr stayed beside a new psf.json that vouched
+    for it, and deconvolve took it without a note."""
+    out = tmp_path / "g"
+    base = ["psf", "--mode", "normal", "--depth", "500", "--quiet", "--out", str(out)]
+    assert main([*base, "--velocity", "0.2", "--render", "--spp", "16"]) == 0
+    assert (out / "psf_rendered.exr").is_file()
+    assert main([*base, "--velocity", "0", "--force"]) == 0
+    assert not (out / "psf_rendered.exr").exists() and not (out / "psf_rendered.png").exists()
+    assert (out / "psf_analytic.exr").is_file()

@@ -178,6 +178,9 @@ def run(args: argparse.Namespace) -> int:
             f"{r.seed}): L1 to {versus} {l1:.4f}, fitted a_i "
             f"{r.fitted_a_i:.5g} px/ms^2 (Eq. 18: {r.model_a_i:.5g})"
         )
+    if r is None:  # a rendered kernel of an earlier run is not this record's: --force took it
+        for name in ("psf_rendered.exr", "psf_rendered.png"):
+            (out / name).unlink(missing_ok=True)
     write_json(out / "psf.json", meta, force=args.force)
     print(f"wrote {out}/: {written}, psf.json ({k.shape[0]}x{k.shape[1]} px)")
     return 0
