@@ -90,3 +90,49 @@ def test_a_forced_kernel_without_render_takes_the_old_rendered_kernel_away(tmp_p
     assert main([*base, "--velocity", "0", "--force"]) == 0
     assert not (out / "psf_rendered.exr").exists() and not (out / "psf_rendered.png").exists()
     assert (out / "psf_analytic.exr").is_file()
+
+
+def _capture_folder(tmp_path):
+    from pacam_render.exposure.capture import render_capture, write_capture
+    from pacam_render.exposure.capture_spec import CaptureSpec
+
+    folder = tmp_path / "cap"
+    spec = CaptureSpec(scene="train", width=32, height=24, mode="coded", spp=4)
+    write_capture(render_capture(spec, progress=False, truth=False), folder)
+    return folder
+
+
+@pytest.mark.parametrize("value", ['"abc"', "NaN", "Infinity", "null", "[64]"])
+def test_an_edited_camera_in_a_capture_record_is_one_line(tmp_path, capsys, value):
+    import json
+    import re
+
+    folder = _capture_folder(tmp_path)
+    path = folder / "capture.json"
+    text = path.read_text()
+    d = json.loads(text)
+    w = d["camera"]["width_px"]
+    path.write_text(re.sub(rf'"width_px": {w}', f'"width_px": {value}', text, count=1))
+    assert main(["deconvolve", str(folder / "capture.exr"), "--psf", "analytic", "--out",
+                 str(tmp_path / "d")]) == 2  # fmt: skip
+    err = capsys.readouterr().err
+    assert "capture.json: camera" in err and "Traceback" not in err
+
+
+def test_a_pattern_count_is_bounded_and_a_mask_bomb_refused_before_it_inflates():
+    import base64
+    import zlib
+
+    from pacam_render.model.camera import prototype
+    from pacam_render.model.masks import MaskStack
+
+    with pytest.raises(ParameterError, match="at most 4096"):
+        prototype().with_(n_patterns=10**6, lcos_rate_fps=1e12)
+    blob = base64.b64encode(zlib.compress(b"\\0" * 2**20)).decode()
+    bomb = {"shape": [16, 4096, 8192], "dtype": "uint8", "zlib_base64": blob,
+            "pitch_mm": 0.01362, "digest": "x"}  # fmt: skip
+    with pytest.raises(ParameterError, match="MiB a stack may take"):
+        MaskStack.from_json(bomb)
+    small = {**bomb, "shape": [2, 4, 4], "digest": None}
+    with pytest.raises(ParameterError, match="digest is missing"):
+        MaskStack.from_json(small)

@@ -186,6 +186,9 @@ class CaptureRecord:
             )
         if not isinstance(d["camera"], dict):
             raise ParameterError(f"{where}: 'camera' must be an object of camera parameters")
+        for key in ("camera", "design"):  # every reader rebuilds them: check them here, once
+            if isinstance(d.get(key), dict):
+                _check_camera(d[key], f"{where}: {key}")
         kw: dict[str, Any] = {k: d[k] for k in known if k in d}
         _check_numbers(kw, where)
         kw.setdefault("light_factor", 1.0)
@@ -220,6 +223,19 @@ class CaptureRecord:
         if self.noise_sigma is None or not self.light_factor > 0:
             return None
         return self.noise_sigma / self.light_factor
+
+
+def _check_camera(inputs: dict, where: str) -> None:
+    """Refuse camera parameters no design can be built from (a hand-edited record): one line
+    naming the record, where a reader would have raised a ValueError or TypeError deep in."""
+    from ..model.camera import CameraDesign
+
+    try:
+        CameraDesign.from_inputs(inputs)
+    except ParameterError as exc:
+        raise ParameterError(f"{where}: {exc}") from None
+    except (TypeError, ValueError, OverflowError, ArithmeticError) as exc:
+        raise ParameterError(f"{where}: not a camera's parameters ({exc})") from None
 
 
 _POSITIVE = ("light_factor", "exposure_ms", "reference_exposure_ms")

@@ -93,7 +93,7 @@ class CameraDesign:
         check_positive("exposure_ms", self.exposure_ms, "ms")
         check_positive("pixel_pitch_mm", self.pixel_pitch_mm, "mm")
         check_positive("lcos_pitch_mm", self.lcos_pitch_mm, "mm")
-        sch.check_n_patterns(self.n_patterns)
+        sch.check_design_patterns(self.n_patterns)
         self._check_physical_limits()
         check_positive("lcos_rate_fps", self.lcos_rate_fps, "patterns/s")
         if self.pattern_centres_mm is not None:

@@ -377,7 +377,12 @@ class MaskStack:
         try:
             shape = tuple(int(v) for v in d["shape"])
             dtype = {"uint8": np.uint8, "float32": np.dtype("<f4")}[d["dtype"]]
-            raw = zlib.decompress(base64.b64decode(d["zlib_base64"]))
+            blob = base64.b64decode(d["zlib_base64"])
+        except (KeyError, TypeError, ValueError) as exc:
+            raise ParameterError(f"{where}: not a stored mask stack ({exc})") from None
+        _check_declared(shape, dtype, d.get("digest"), where)  # before anything inflates
+        raw = _inflate(blob, shape, dtype, where)
+        try:
             a = np.frombuffer(raw, dtype=dtype).reshape(shape)
             pitch = float(d["pitch_mm"])
         except (KeyError, TypeError, ValueError, zlib.error) as exc:
@@ -389,3 +394,41 @@ class MaskStack:
                 f"{stack.digest} read): the record was edited or damaged"
             )
         return stack
+
+
+MAX_STACK_BYTES = 256 * 2**20
+"""The most a stored mask stack may inflate to (256 MiB: 256 patterns of the prototype's
+1024 x 1024 LCoS disc, uint8)."""
+
+
+def _check_declared(shape: tuple, dtype, digest, where: str) -> None:
+    """A stored stack's declared shape and digest, checked before anything is inflated."""
+    from .schedule import MAX_PATTERNS
+
+    if len(shape) != 3 or min(shape) < 1:
+        raise ParameterError(f"{where}: shape must be (patterns, rows, columns), got {shape}")
+    if shape[0] > MAX_PATTERNS:
+        raise ParameterError(f"{where}: {shape[0]} patterns, over {MAX_PATTERNS}")
+    size = int(np.prod(shape, dtype=np.int64)) * np.dtype(dtype).itemsize
+    if size > MAX_STACK_BYTES:
+        raise ParameterError(
+            f"{where}: declares {shape} ({size / 2**20:.0f} MiB), over the "
+            f"{MAX_STACK_BYTES // 2**20} MiB a stack may take"
+        )
+    if not isinstance(digest, str):
+        raise ParameterError(f"{where}: the stack's digest is missing: the record was edited")
+
+
+def _inflate(blob: bytes, shape: tuple, dtype, where: str) -> bytes:
+    """zlib-inflate at most the declared size (a bomb stops there)."""
+    want = int(np.prod(shape, dtype=np.int64)) * np.dtype(dtype).itemsize
+    d = zlib.decompressobj()
+    try:
+        raw = d.decompress(blob, want + 1)
+    except zlib.error as exc:
+        raise ParameterError(f"{where}: the stored patterns are not zlib data ({exc})") from None
+    if len(raw) != want or d.unconsumed_tail:
+        raise ParameterError(
+            f"{where}: the stored patterns do not inflate to their declared shape {shape}"
+        )
+    return raw

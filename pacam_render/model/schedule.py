@@ -66,10 +66,27 @@ def max_patterns(exposure_ms: float, rate_fps: float) -> int:
     return int(math.floor(rate_fps * exposure_ms / 1000.0 + 1e-9))
 
 
+MAX_PATTERNS = 4096
+"""The most patterns a schedule may have: 11x what the fastest LCoS we know of shows in 45 ms
+(a ferroelectric display at ~10^4 fps holds ~450), and what keeps a design's per-pattern
+tables, records and reports bounded (a 10^6-pattern design printed a million lines)."""
+
+
 def check_n_patterns(n: int) -> int:
     if int(n) != n or n < 1:
         raise ParameterError(f"n_patterns must be an integer >= 1, got {n!r}")
     return int(n)
+
+
+def check_design_patterns(n: int) -> int:
+    """A camera's pattern count: :func:`check_n_patterns`, and at most :data:`MAX_PATTERNS`."""
+    n = check_n_patterns(n)
+    if n > MAX_PATTERNS:
+        raise ParameterError(
+            f"n_patterns must be at most {MAX_PATTERNS} (11x the patterns the fastest known "
+            f"LCoS shows in one 45 ms exposure), got {n}"
+        )
+    return n
 
 
 def pattern_edges_ms(T_ms: float, n: int) -> np.ndarray:
