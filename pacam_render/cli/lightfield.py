@@ -35,26 +35,7 @@ def add(sub) -> None:
         help=f"samples per pixel and pass, shared among a moving scene's time steps (default "
         f"{DEFAULT_STORE_SPP}, or what a noise target plans)",
     )
-    p.add_argument(
-        "--noise-ratio",
-        type=float,
-        metavar="R",
-        help="plan the samples so that every design the store is for (--designs) has a Monte "
-        "Carlo sigma of at most R x the sensor's noise (--sensor), from a pilot store",
-    )
-    p.add_argument(
-        "--noise-target",
-        type=float,
-        metavar="SIGMA",
-        help="as --noise-ratio, to this Monte Carlo sigma (the captures' units)",
-    )
-    p.add_argument("--sensor", metavar="PRESET", help="the sensor whose noise --noise-ratio scales")
-    p.add_argument(
-        "--light-level",
-        type=float,
-        metavar="L",
-        help="with --sensor: photons/px/ms of white through the full lens (default the preset's)",
-    )
+    _add_noise_target(p)
     p.add_argument(
         "--passes",
         type=int,
@@ -100,6 +81,30 @@ def add(sub) -> None:
     p.add_argument("--out", required=True, metavar="STORE", help="the store's folder")
     add_quiet(p)
     p.set_defaults(func=run)
+
+
+def _add_noise_target(p) -> None:
+    """``--noise-ratio`` (with ``--sensor`` and ``--light-level``) or ``--noise-target``."""
+    p.add_argument(
+        "--noise-ratio",
+        type=float,
+        metavar="R",
+        help="plan the samples so that every design the store is for (--designs) has a Monte "
+        "Carlo sigma of at most R x the sensor's noise (--sensor), from a pilot store",
+    )
+    p.add_argument(
+        "--noise-target",
+        type=float,
+        metavar="SIGMA",
+        help="as --noise-ratio, to this Monte Carlo sigma (the captures' units)",
+    )
+    p.add_argument("--sensor", metavar="PRESET", help="the sensor whose noise --noise-ratio scales")
+    p.add_argument(
+        "--light-level",
+        type=float,
+        metavar="L",
+        help="with --sensor: photons/px/ms of white through the full lens (default the preset's)",
+    )
 
 
 def _spec(args: argparse.Namespace):

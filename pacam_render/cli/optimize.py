@@ -26,6 +26,41 @@ def add(sub) -> None:
         help="cover speeds |s| <= this, px/ms of the preset's sensor (the Fourier objective; "
         "required without --lightfield)",
     )
+    _add_lightfield(p)
+    p.add_argument(
+        "--sensor",
+        default="grasshopper-icx285",
+        help="sensor noise preset (default grasshopper-icx285; paper: sigma 0.01)",
+    )
+    p.add_argument("--n-patterns", type=int, metavar="N", help="default 16")
+    p.add_argument(
+        "--free-radius",
+        action="store_true",
+        help="also choose the opening's radius (light counted through the noise)",
+    )
+    p.add_argument("--f-number", type=float, metavar="N", help="the parabola's opening")
+    p.add_argument("--r-px", type=float, metavar="PX", help="the parabola's defocus radius")
+    add_preset(p)
+    p.add_argument(
+        "--design",
+        metavar="FILE",
+        help="design the schedule for this camera (a design file) instead of --preset",
+    )
+    p.add_argument("--seed", type=int, default=0, metavar="S", help="random starts (default 0)")
+    p.add_argument("--starts", type=int, metavar="K", help="local searches (default 6; quick 2)")
+    p.add_argument(
+        "--iterations",
+        type=int,
+        metavar="I",
+        help="L-BFGS-B iterations per start (default 100; quick 30)",
+    )
+    p.add_argument("--quick", action="store_true", help="a coarse grid, 2 short starts")
+    add_outputs(p)
+    p.set_defaults(func=run)  # fmt: skip
+
+
+def _add_lightfield(p) -> None:
+    """The flags of a search on light-field stores (``--lightfield``)."""
     p.add_argument(
         "--lightfield",
         nargs="+",
@@ -74,36 +109,6 @@ def add(sub) -> None:
         metavar="L",
         help="photons/px/ms of white through the full lens (default 300, the demo's)",
     )
-    p.add_argument(
-        "--sensor",
-        default="grasshopper-icx285",
-        help="sensor noise preset (default grasshopper-icx285; paper: sigma 0.01)",
-    )
-    p.add_argument("--n-patterns", type=int, metavar="N", help="default 16")
-    p.add_argument(
-        "--free-radius",
-        action="store_true",
-        help="also choose the opening's radius (light counted through the noise)",
-    )
-    p.add_argument("--f-number", type=float, metavar="N", help="the parabola's opening")
-    p.add_argument("--r-px", type=float, metavar="PX", help="the parabola's defocus radius")
-    add_preset(p)
-    p.add_argument(
-        "--design",
-        metavar="FILE",
-        help="design the schedule for this camera (a design file) instead of --preset",
-    )
-    p.add_argument("--seed", type=int, default=0, metavar="S", help="random starts (default 0)")
-    p.add_argument("--starts", type=int, metavar="K", help="local searches (default 6; quick 2)")
-    p.add_argument(
-        "--iterations",
-        type=int,
-        metavar="I",
-        help="L-BFGS-B iterations per start (default 100; quick 30)",
-    )
-    p.add_argument("--quick", action="store_true", help="a coarse grid, 2 short starts")
-    add_outputs(p)
-    p.set_defaults(func=run)  # fmt: skip
 
 
 def run(args: argparse.Namespace) -> int:

@@ -125,6 +125,18 @@ def plan_store_steps(spec: StoreSpec, desc, design, max_steps: int) -> list[tupl
     return [(a, b, n) for (_, a, b), n in zip(windows, shares)]
 
 
+def _planned(spec: StoreSpec, target, progress: bool, description):
+    """``spec`` at the spp a noise target plans (:func:`~.target.target_spp`), and the plan
+    for the manifest; ``spec`` and None without a target."""
+    if target is None:
+        return spec, None
+    from .target import target_spp
+
+    spp, rows = target_spp(render_lightfield, spec, target, progress, description, QUANTUM)
+    spec = replace(spec, capture=replace(spec.capture, spp=spp))
+    return spec, {"target": target.to_json(), "spp": spp, "designs": rows}
+
+
 def render_lightfield(
     spec: StoreSpec,
     out,
@@ -178,13 +190,7 @@ def render_lightfield(
     from ..scenes import load_scene
 
     out = Path(out)
-    planned = None
-    if target is not None:
-        from .target import target_spp
-
-        spp, rows = target_spp(render_lightfield, spec, target, progress, description, QUANTUM)
-        spec = replace(spec, capture=replace(spec.capture, spp=spp))
-        planned = {"target": target.to_json(), "spp": spp, "designs": rows}
+    spec, planned = _planned(spec, target, progress, description)
     cap = replace(spec.capture, mode="coded", diffraction="off", relative_illumination="off")
     plan = plan_capture(cap)
     designs = proposal_designs(spec, plan)
