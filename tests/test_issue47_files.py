@@ -136,3 +136,30 @@ def test_a_pattern_count_is_bounded_and_a_mask_bomb_refused_before_it_inflates()
     small = {**bomb, "shape": [2, 4, 4], "digest": None}
     with pytest.raises(ParameterError, match="digest is missing"):
         MaskStack.from_json(small)
+
+
+def test_optimize_keeps_a_design_files_pattern_count(tmp_path):
+    """Issue 47 medium 8: `optimize --design fast.toml` (32 patterns in 30 ms) wrote a
+    16-pattern design.toml with no note."""
+    from pacam_render.model.design_file import read_design
+
+    assert main(["design", "--max-velocity", "2", "--n-patterns", "32", "--exposure", "30",
+                 "--lcos-rate", "1100", "--write", str(tmp_path / "fast.toml")]) == 0  # fmt: skip
+    out = tmp_path / "opt"
+    args = [
+        "optimize",
+        "--max-velocity",
+        "2",
+        "--design",
+        str(tmp_path / "fast.toml"),
+        "--quick",
+        "--starts",
+        "1",
+        "--iterations",
+        "2",
+        "--quiet",
+        "--out",
+        str(out),
+    ]
+    assert main(args) == 0
+    assert read_design(out / "design.toml").n_patterns == 32

@@ -32,7 +32,9 @@ def add(sub) -> None:
         default="grasshopper-icx285",
         help="sensor noise preset (default grasshopper-icx285; paper: sigma 0.01)",
     )
-    p.add_argument("--n-patterns", type=int, metavar="N", help="default 16")
+    p.add_argument(
+        "--n-patterns", type=int, metavar="N", help="default: the design's (the preset's: 16)"
+    )
     p.add_argument(
         "--free-radius",
         action="store_true",
@@ -123,7 +125,7 @@ def run(args: argparse.Namespace) -> int:
     problem = Problem(
         max_velocity_px_per_ms=args.max_velocity,
         depth_range_mm=_depth_range(args.depth_range, args.preset, args.design),
-        n_patterns=16 if args.n_patterns is None else args.n_patterns,
+        n_patterns=_n_patterns(args.n_patterns, args.preset, args.design),
         sensor=args.sensor,
         light_level=args.light_level,
         preset=args.preset,
@@ -153,6 +155,18 @@ def run(args: argparse.Namespace) -> int:
         f"schedule.json, report.md, 4 plots, lcos/ ({doc['n_patterns']} PNG)"
     )
     return 0
+
+
+def _n_patterns(n: int | None, preset_name: str, design: str | None) -> int:
+    """--n-patterns, else the design file's (or the preset's) own count: a 32-pattern design
+    was optimised as 16 patterns, with no word."""
+    if n is not None:
+        return n
+    if design is not None:
+        from ..model.design_file import resolve_design
+
+        return resolve_design(design).n_patterns
+    return preset(preset_name).n_patterns
 
 
 def _depth_range(text: str | None, preset_name: str, design: str | None) -> tuple[float, float]:
