@@ -16,7 +16,7 @@ the base design's: they decide the film points and the windows.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -56,20 +56,6 @@ class CentreBasis:
         if self.contrast is not None:
             out = out * (1.0 - 1.0 / self.contrast) + self.full.sum(axis=0) / self.contrast
         return out
-
-    def design_spec(self, index):
-        """The :class:`~pacam_render.exposure.capture_spec.CaptureSpec` of that design."""
-        return centres_spec(self.spec, self.positions_mm[np.asarray(index)])
-
-
-def centres_spec(spec, centres_x_mm):
-    """``spec`` with its design's schedule replaced by openings at ``centres_x_mm`` (y = 0)."""
-    from ..exposure.plan import plan_capture
-
-    design = plan_capture(spec).design
-    centres = tuple((float(x), 0.0) for x in centres_x_mm)
-    return replace(spec, design=design.with_(pattern_centres_mm=centres, pattern_masks=None),
-                   preset=None, cover_px_per_ms=None, f_number=None, r_px=None)  # fmt: skip
 
 
 def plugin_sign(spec) -> float:

@@ -125,6 +125,25 @@ def plan_store_steps(spec: StoreSpec, desc, design, max_steps: int) -> list[tupl
     return [(a, b, n) for (_, a, b), n in zip(windows, shares)]
 
 
+def _store_camera_and_proposal(spec: StoreSpec, plan) -> dict:
+    """The store's camera (focus and margin for its designs) with its lens proposal."""
+    designs = proposal_designs(spec, plan)
+    focus, margin = store_geometry(spec, plan, designs)
+    cam = store_camera(spec, plan, focus, margin)
+    discs = disc_plans([(a, o) for _, a, o in designs])
+    cam["proposal"] = Proposal(plan.design.R_max_mm, spec.alpha, discs)
+    return cam
+
+
+def _check_store_budget(cam: dict, steps, cap, desc, out: Path, max_disk: int) -> None:
+    """Disk and memory for the store's samples, refused with the numbers before any work."""
+    window = cam["sensor"]["film"]
+    pixels = window["crop_width"] * window["crop_height"]
+    total, largest = planned_samples([steps] * cap.passes, pixels)
+    per = bytes_per_sample(1 if cap.grey else 3, desc.is_static)
+    check_budget(total, largest, per, out, max_disk)
+
+
 def _planned(spec: StoreSpec, target, progress: bool, description):
     """``spec`` at the spp a noise target plans (:func:`~.target.target_spp`), and the plan
     for the manifest; ``spec`` and None without a target."""
@@ -193,20 +212,10 @@ def render_lightfield(
     spec, planned = _planned(spec, target, progress, description)
     cap = replace(spec.capture, mode="coded", diffraction="off", relative_illumination="off")
     plan = plan_capture(cap)
-    designs = proposal_designs(spec, plan)
-    focus, margin = store_geometry(spec, plan, designs)
-    cam = store_camera(spec, plan, focus, margin)
-    proposal = Proposal(
-        plan.design.R_max_mm, spec.alpha, disc_plans([(a, o) for _, a, o in designs])
-    )
-    cam["proposal"] = proposal
+    cam = _store_camera_and_proposal(spec, plan)
     desc = description if description is not None else load_scene(cap.scene)
     steps = plan_store_steps(spec, desc, plan.design, max_steps)
-    window = cam["sensor"]["film"]
-    pixels = window["crop_width"] * window["crop_height"]
-    total, largest = planned_samples([steps] * cap.passes, pixels)
-    per = bytes_per_sample(1 if cap.grey else 3, desc.is_static)
-    check_budget(total, largest, per, out, max_disk)
+    _check_store_budget(cam, steps, cap, desc, out, max_disk)
     out.mkdir(parents=True, exist_ok=True)
     with output_lock(out), deferred_signals() as flag:
         manifest = _manifest(spec, plan, cam, steps, out, desc.digest())
