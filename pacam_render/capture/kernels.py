@@ -8,8 +8,9 @@ from .record import CaptureRecord
 
 def capture_diffraction(record: CaptureRecord) -> dict | None:
     """The diffraction a capture includes, for its analytic kernels: ``wavelength_nm`` (the
-    green channel's, or grey's) and ``pixel_pitch_mm``; None when it has none (or an older
-    capture, which had none)."""
+    green channel's, or grey's), ``pixel_pitch_mm`` and ``psf``, the PSF its rays drew
+    (``exact`` or ``fraunhofer``: geometric x Airy, as captures before the exact rays, a leaky
+    LCoS's and bitmaps'); None when it has none (or an older capture, which had none)."""
     block = record.optics_error or {}
     info = block.get("diffraction") or {}
     included = (block.get("effects") or {}).get("diffraction", {}).get("included")
@@ -19,22 +20,26 @@ def capture_diffraction(record: CaptureRecord) -> dict | None:
     return {
         "wavelength_nm": float(waves[1] if len(waves) == 3 else waves[0]),
         "pixel_pitch_mm": info.get("pixel_pitch_mm"),
+        "psf": info.get("ray_psf", "fraunhofer"),
     }
 
 
-def _diffracted(k, record: CaptureRecord, cam, size, build):
-    """``k`` with the capture's diffraction (:func:`capture_diffraction`), when it has one:
+def _diffracted(k, record: CaptureRecord, cam, s, size, build, psf: str | None = None):
+    """``k`` (speed s px/ms) with the capture's diffraction (:func:`capture_diffraction`), when
+    it has one, as its rays drew it (:func:`~pacam_render.psf.exact_defocus.ray_kernel`):
     ``build(cam, f, shape)`` makes ``k``'s kernel on pixels f times finer, so that the pixel's
-    box is counted once (:func:`~pacam_render.psf.diffraction.diffracted_kernel`); without
-    ``size``, the far rings' last 1 % are left out (``DECONVOLUTION_MAX_LOST``)."""
+    box is counted once; without ``size``, the far rings' last 1 % are left out
+    (``DECONVOLUTION_MAX_LOST``). ``psf`` overrides the record's kind of PSF."""
     d = capture_diffraction(record)
     if d is None or record.mode == "reference":
         return k
-    from ..psf.diffraction import DECONVOLUTION_MAX_LOST, diffracted_kernel
+    from ..psf.diffraction import DECONVOLUTION_MAX_LOST
+    from ..psf.exact_defocus import ray_kernel
 
     wl, pitch = d["wavelength_nm"], d["pixel_pitch_mm"]
     lost = DECONVOLUTION_MAX_LOST if size is None else None
-    return diffracted_kernel(build, cam, record.mode, wl, k.shape, pitch, lost)
+    kind = psf or d["psf"]
+    return ray_kernel(build, cam, record.mode, s, "pinhole", wl, k.shape, pitch, lost, kind)
 
 
 def analytic_psf(record: CaptureRecord, s: float = 0.0, size=None):
@@ -55,7 +60,7 @@ def analytic_psf(record: CaptureRecord, s: float = 0.0, size=None):
         k = design_psf(cam, record.mode, s, size, origin="pinhole")
     else:
         k = leaky_psf(cam, record.mode, s, size, contrast)
-    return _diffracted(k, record, cam, size, build)
+    return _diffracted(k, record, cam, s, size, build)
 
 
 def leaky_psf(cam, mode: str, s: float, size, contrast: float | None):
@@ -87,7 +92,9 @@ def leaky_psf(cam, mode: str, s: float, size, contrast: float | None):
 def robust_psf(record: CaptureRecord, size=None):
     """The speed-robust analytic PSF of a recorded capture: averaged over the design's invariant
     range (:func:`~pacam_render.psf.robust.speed_robust_psf`), registered as :func:`analytic_psf`,
-    with the capture's diffraction as there.
+    with the capture's diffraction as the geometric kernel convolved with the Airy pattern
+    (the speed average of the exact defocused kernels is not built: for a capture whose rays
+    drew the exact PSF this kernel is that model's, L1 0.25 from it at r = 2 px).
     """
     from ..model.camera import CameraDesign
     from ..psf.robust import speed_robust_psf
@@ -98,4 +105,4 @@ def robust_psf(record: CaptureRecord, size=None):
     def build(c, f, fine):
         return speed_robust_psf(c, record.mode, size=fine, origin="pinhole")
 
-    return _diffracted(k, record, cam, size, build)
+    return _diffracted(k, record, cam, 0.0, size, build, psf="fraunhofer")

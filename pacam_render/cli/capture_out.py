@@ -88,7 +88,8 @@ def optics_lines(block: dict | None) -> list[str]:
     waves = "/".join(f"{w:g}" for w in info.get("wavelengths_nm", []))
     if "lambda_n_px" in info:
         ln = "/".join(f"{x:.3g}" for x in info["lambda_n_px"])
-        head += f"; in the rays at {waves} nm (lambda N = {ln} px)"
+        psf = "exact defocused PSF" if info.get("ray_psf") == "exact" else "Airy draw"
+        head += f"; in the rays ({psf}) at {waves} nm (lambda N = {ln} px)"
     elif "kernel_px" in info:
         head += f" ({info['kernel_px']} px kernels at {waves} nm)"
     return [head] + ([line] if line else [])

@@ -130,17 +130,18 @@ def run(args: argparse.Namespace) -> int:
     diffraction = _diffraction(args, cam)
     out = prepare_out_dir(args.out, args.force, PSF_FILES)  # a capture's folder is fine
     k = geometric = _checked_psf(cam, args)
-    if diffraction is not None:  # the pixel's box counted once, as in the rays
+    if diffraction is not None:  # as the rays draw it, the pixel's box counted once
         from ..psf.analytic import design_psf
-        from ..psf.diffraction import DECONVOLUTION_MAX_LOST, diffracted_kernel
+        from ..psf.diffraction import DECONVOLUTION_MAX_LOST
+        from ..psf.exact_defocus import ray_kernel
 
         wl, pitch = diffraction["wavelength_nm"], diffraction["pixel_pitch_mm"]
 
         def build(c, f, fine):
             return design_psf(c, args.mode, args.velocity * f, fine, origin=args.origin)
 
-        lost = DECONVOLUTION_MAX_LOST
-        k = diffracted_kernel(build, cam, args.mode, wl, k.shape, pitch, lost)
+        k = ray_kernel(build, cam, args.mode, args.velocity, args.origin, wl, k.shape, pitch,
+                       DECONVOLUTION_MAX_LOST, diffraction["psf"])  # fmt: skip
     r = _rendered_psf(cam, geometric, seed, args, diffraction) if args.render else None
     # nothing is written before the render ends: an interrupt leaves no half set of files
     write_exr(out / "psf_analytic.exr", {"psf": k}, force=args.force)
@@ -205,6 +206,7 @@ def _diffraction(args: argparse.Namespace, cam: CameraDesign) -> dict | None:
     return {  # a binned sensor's pixels are larger than the preset's
         "wavelength_nm": 550.0 if args.grey else 549.0,
         "pixel_pitch_mm": binned_pitch_mm(full, cam.width_px),
+        "psf": "exact",  # as a capture's disc rays draw it (psf.exact_defocus.ray_kernel)
     }
 
 

@@ -325,7 +325,7 @@ def _render(plan: CapturePlan, description, run: Run, truth: bool, target, keep:
     if ri_map is not None:
         layers["relative_illumination"] = ri_map
     ctx = {"record": record, "target": target, "lcos_contrast": params.get("lcos_contrast"),
-           "sharp": layers.get("sharp")}  # fmt: skip
+           "sharp": layers.get("sharp"), "depth": layers.get("depth")}  # fmt: skip
     ctx["lcos_switching_ms"] = params.get("lcos_switching")
     ctx["diffraction_on"], ctx["diffraction_decision"] = plan.diffraction
     optics = _optics(plan, desc, image, prog, ctx)

@@ -8,6 +8,7 @@ effect's measured size, :mod:`.capture_diffraction`), and writes the record's
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -69,17 +70,33 @@ def _diffraction(spec, cam, image, patterns, variance, ctx):
     return (d if on else None), on, {**head, **d.record}
 
 
+def exact_in_rays(spec) -> bool:
+    """Whether a disc capture's rays take the exact defocused PSF
+    (:mod:`pacam_render.render.defocus_draw`): not with a leaky LCoS or a pixel grid, whose
+    rays keep the geometric lens point and the Airy draw."""
+    contrast = spec.lcos_contrast
+    return spec.lcos_fill_factor is None and (contrast is None or math.isinf(contrast))
+
+
 def rays_record(spec, cam, pitch_mm: float) -> dict:
-    """How the rays diffract (:mod:`pacam_render.render.ray_diffraction`)."""
+    """How the rays diffract (:mod:`pacam_render.render.ray_diffraction`,
+    :mod:`pacam_render.render.defocus_draw`)."""
     from ..render.ray_diffraction import MAX_LOST, RayDiffractionSpec, inverse_table, radial_table
 
     params = diffraction_params(spec, cam, True, pitch_mm)
     rays = RayDiffractionSpec(params["diffraction_wavelengths"], params["pupil_distance"], pitch_mm)
     lost = radial_table(MAX_LOST)[2]
     l1 = inverse_table(MAX_LOST)[1]
+    how = (
+        "in the rays: the opening's exact defocused (Fresnel) PSF at the depth each camera "
+        "ray's probe meets, per colour channel (beyond 4 waves of defocus: the Airy draw)"
+        if exact_in_rays(spec)
+        else "in the rays: each film position moved by a draw from the opening's Airy "
+        "pattern, per colour channel"
+    )
     return {
-        "how": "in the rays: each film position moved by a draw from the opening's Airy "
-        "pattern, per colour channel",
+        "how": how,
+        "ray_psf": "exact" if exact_in_rays(spec) else "fraunhofer",
         "wavelengths_nm": list(rays.wavelengths_nm),
         "lambda_n_px": rays.lambda_n_px(cam.R_mm),
         "pixel_pitch_mm": pitch_mm,
@@ -88,17 +105,32 @@ def rays_record(spec, cam, pitch_mm: float) -> dict:
     }
 
 
-def _diffraction_entry(info: dict, included: bool, residual: float | None = None) -> dict:
-    approx = (
-        "geometric defocus x Fraunhofer (L1 to the exact defocused PSF: 0 in focus, 0.25 at "
-        "r = 2 px, 0.20 at 8 px; tests/render/test_exact_defocus.py)"
-    )
+_AIRY_RAYS = (
+    "geometric defocus x Fraunhofer (L1 to the exact defocused PSF: 0 in focus, 0.25 at "
+    "r = 2 px, 0.20 at 8 px; tests/render/test_exact_defocus.py)"
+)
+_EXACT_RAYS = (
+    "exact paraxial PSF over surfaces at one depth (L1 <= 0.004 to an independent Fresnel "
+    "computation; tests/render/test_exact_defocus.py); at an occluding edge the drawn ray may "
+    "meet another surface than the probe, and no ray method is exact there"
+)
+_HOW_SIZED = {
+    _AIRY_RAYS: "measured: (exact paraxial - rays' kernel) * sharp, RMS over the window "
+    "(exposure/wave_residual.py)",
+    _EXACT_RAYS: "scale: the whole wave effect, (exact - geometric kernel) * sharp, within the "
+    "kernel's reach of a depth jump, RMS over the window (what an occluder's edge can change; "
+    "not a strict bound; exposure/wave_residual.py)",
+}
+
+
+def _diffraction_entry(
+    info: dict, included: bool, residual: float | None = None, approx: str = _AIRY_RAYS
+) -> dict:
     if "effect_rms" not in info and not included:
         return oe.entry(False, info["decision"], 0.0)
-    if included and residual is not None:  # what the rays' approximation leaves out
-        return oe.entry(True, info["how"], residual, "measured: (exact paraxial - rays' "
-                        "kernel) * sharp, RMS over the window (exposure/wave_residual.py)",
-                        approximation=approx, residual=True)  # fmt: skip
+    if included and residual is not None:  # what the rays' method leaves out
+        return oe.entry(True, info["how"], residual, _HOW_SIZED[approx], approximation=approx,
+                        residual=True)  # fmt: skip
     if included:
         return oe.entry(True, info["how"], approximation=approx)
     return oe.entry(
@@ -123,14 +155,9 @@ def finish_optics(spec, design, cam, desc, image, patterns, variance, ctx) -> Op
     if d is not None:
         image, patterns, variance = d.image, d.patterns or patterns, d.variance
         info["mc_sigma_after"] = rms(variance)
-    residual = None
-    if included and not shows_bitmaps(cam, spec.mode):
-        from .wave_residual import residual_rms
-
-        residual = residual_rms(ctx.get("sharp"), cam, spec.mode, ctx["pitch_mm"],
-                                rec.light_factor)  # fmt: skip
+    residual, approx = _rays_residual(spec, cam, included, ctx)
     effects = {
-        "diffraction": _diffraction_entry(info, included, residual),
+        "diffraction": _diffraction_entry(info, included, residual, approx),
         "relative_illumination": oe.relative_illumination_entry(
             image, ctx["cos4_map"], ctx["ri_record"]
         ),
@@ -145,6 +172,19 @@ def finish_optics(spec, design, cam, desc, image, patterns, variance, ctx) -> Op
     noise, where = reference_noise(spec, design, rec, image, ctx["target"])
     oe.add_ratios(block, noise, where)
     return Optics(image, patterns, variance, block)
+
+
+def _rays_residual(spec, cam, included: bool, ctx) -> tuple[float | None, str]:
+    """What the rays' diffraction leaves out (RMS, :mod:`.wave_residual`) and the method's
+    approximation in words."""
+    from .wave_residual import occlusion_rms, residual_rms
+
+    if not included or shows_bitmaps(cam, spec.mode):
+        return None, _AIRY_RAYS
+    args = (cam, spec.mode, ctx["pitch_mm"], ctx["record"].light_factor)
+    if exact_in_rays(spec):
+        return occlusion_rms(ctx.get("sharp"), ctx.get("depth"), *args), _EXACT_RAYS
+    return residual_rms(ctx.get("sharp"), *args), _AIRY_RAYS
 
 
 def diffraction_params(spec, cam, on: bool, pitch_mm: float | None = None) -> dict:

@@ -70,9 +70,13 @@ def psf_mismatch(meta: dict, record: CaptureRecord) -> tuple[str, ...]:
         from ..capture.kernels import capture_diffraction
 
         words = {True: "diffraction included", False: "no diffraction"}
-        a, b = meta["diffraction"] is not None, capture_diffraction(record) is not None
+        pd, cd = meta["diffraction"], capture_diffraction(record)
+        a, b = pd is not None, cd is not None
         if a != b:
             out.append(f"{words[a]} (PSF) against {words[b]} (capture)")
+        elif a and isinstance(pd, dict) and pd.get("psf", "fraunhofer") != cd["psf"]:
+            out.append(f"{pd.get('psf', 'fraunhofer')} defocused PSF (PSF) against "
+                       f"{cd['psf']} (capture)")  # fmt: skip
     digest = meta.get("design_digest")
     if not out and digest is not None and digest != mine["design_digest"]:
         out.append(f"design digest {digest} (PSF) against {mine['design_digest']} (capture)")

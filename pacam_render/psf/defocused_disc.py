@@ -19,6 +19,11 @@ import math
 
 import numpy as np
 
+PSI_MAX = 8.0 * math.pi
+"""The largest edge phase the exact PSF is used at (the rays' table holds it,
+:mod:`pacam_render.render.ray_defocus`): W020 = 4 waves (r = 16 lambda N px); beyond, the
+geometric disc convolved with the Airy pattern is used, where the two meet."""
+
 NODES = 640
 """Gauss-Legendre nodes over the pupil radius."""
 

@@ -119,3 +119,30 @@ def _capture_camera(design, mode: str):
     from ..model.modes import capture_camera
 
     return capture_camera(design, mode)
+
+
+def ray_kernel(build, design, mode: str, s: float, origin: str, wavelength_nm: float, shape,
+               pixel_pitch_mm=None, max_lost=None, psf: str = "exact") -> np.ndarray:  # fmt: skip
+    """The kernel with the opening's diffraction as the rays make it (issue 45, item 2).
+
+    ``psf`` ``exact``: the exact defocused PSF (:func:`exact_defocus_kernel`), as disc
+    openings' rays draw it (:mod:`pacam_render.render.defocus_draw`), where the opening's
+    defocus is within the rays' table (:data:`~pacam_render.render.ray_defocus.PSI_MAX`);
+    beyond it, or with ``psf`` ``fraunhofer`` (a leaky LCoS's or a pixel grid's rays, an older
+    capture, a bitmap), the geometric kernel convolved with the Airy pattern, the pixel's box
+    once (:func:`~.diffraction.diffracted_kernel`, which ``build`` and ``max_lost`` are for).
+    With ``max_lost``, the exact kernel takes the shape that leaves out that share of the Airy
+    pattern's light (:func:`~.diffraction.full_shape`).
+    """
+    from .defocused_disc import PSI_MAX
+    from .diffraction import diffracted_kernel, full_shape
+
+    pitch = float(pixel_pitch_mm or design.pixel_pitch_mm)
+    exact = (psf == "exact" and design.pattern_masks is None
+             and mode_edge_phase(design, mode, wavelength_nm, pitch)[0] <= PSI_MAX)  # fmt: skip
+    if not exact:
+        return diffracted_kernel(build, design, mode, wavelength_nm, shape, pixel_pitch_mm,
+                                 max_lost)  # fmt: skip
+    if max_lost is not None:
+        shape = full_shape(shape, design, mode, wavelength_nm, pitch, max_lost)
+    return exact_defocus_kernel(design, mode, s, origin, wavelength_nm, shape, pitch)

@@ -264,11 +264,18 @@ class ProgrammableApertureCamera(mi.Sensor):
     _diffraction_text = LCoSOptics._diffraction_text
     _diffraction_draw = LCoSOptics._diffraction_draw
     _grid_draw = LCoSOptics._grid_draw
-    # The exact defocused PSF in the particle tracer (:mod:`.defocus_draw`).
+    # The exact defocused PSF in the rays (:mod:`.defocus_draw`).
     _set_defocus = ExactDefocus._set_defocus
     _exact_defocus_on = ExactDefocus._exact_defocus_on
     _landing = ExactDefocus._landing
     _defocus_landing = ExactDefocus._defocus_landing
+    set_probe_scene = ExactDefocus.set_probe_scene
+    _exact_ray_on = ExactDefocus._exact_ray_on
+    _blur_radius_px = ExactDefocus._blur_radius_px
+    _probe_depth = ExactDefocus._probe_depth
+    _exact_jitter = ExactDefocus._exact_jitter
+    _hashed = ExactDefocus._hashed
+    _defocus_radius = ExactDefocus._defocus_radius
     _defocus_draw = ExactDefocus._defocus_draw
     _row = ExactDefocus._row
     _defocus_quantile = ExactDefocus._defocus_quantile
@@ -549,6 +556,8 @@ class ProgrammableApertureCamera(mi.Sensor):
 
     # ---------------------------------------------------------------- kernels
     def _ray_setup(self, time, position_sample, aperture_sample, active):
+        """The ray's time, weight, film point (camera frame, jittered by diffraction), lens
+        point and origin."""
         time, k = self._time_and_pattern(time, active)
         if self._switch is not None:
             seeds = (position_sample.x, aperture_sample.y, time)
@@ -557,11 +566,6 @@ class ProgrammableApertureCamera(mi.Sensor):
         near_p = self._sample_to_camera @ Point3f(position_sample.x, position_sample.y, 0.0)
         if self._ri.kind != "off":  # off: the kernel is thinlens', untouched
             weight = weight * self._illumination(near_p)  # the pixel's, where the light lands
-        if self._diff is not None:  # the film position moves by a draw from the Airy pattern
-            seeds = (position_sample.x, position_sample.y, aperture_sample.x, aperture_sample.y)
-            off, w_diff = self._diffraction_draw(seeds, active)
-            near_p = near_p + self._dx * off.x + self._dy * off.y  # the near plane is affine
-            weight = weight * w_diff
         if self._leak is None:
             a, _ = self._aperture(k, time, aperture_sample, active)
         else:  # light through the "off" pixels too
@@ -569,6 +573,17 @@ class ProgrammableApertureCamera(mi.Sensor):
             weight = weight * factor
         aperture_p = Point3f(a.x, a.y, 0.0)
         origin = Point3f(a.x + self._camera_x(k, time, active), a.y, 0.0)
+        if self._diff is not None:  # the film position moves by a draw from the Airy pattern
+            seeds = (position_sample.x, position_sample.y, aperture_sample.x, aperture_sample.y)
+            off, w_diff = self._diffraction_draw(seeds, active)
+            if self._exact_ray_on():  # or by the exact PSF's jitter at the probed depth
+                jitter, w_exact, use = self._exact_jitter(
+                    k, time, position_sample, aperture_p, origin, seeds, active
+                )
+                off = Point2f(dr.select(use, jitter.x, off.x), dr.select(use, jitter.y, off.y))
+                w_diff = dr.select(use, w_exact, w_diff)
+            near_p = near_p + self._dx * off.x + self._dy * off.y  # the near plane is affine
+            weight = weight * w_diff
         return time, weight, near_p, aperture_p, origin
 
     def _finish(self, ray, d, origin):

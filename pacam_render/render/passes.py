@@ -105,20 +105,28 @@ def render_passes(
     film = sensor.film()
     w, h = (int(v) for v in film.crop_size())
     passes = split_spp(spp, w * h, sampler_name(sensor.sampler()))
-    acc = 0.0
     integ = scene.integrator() if integrator is None else integrator
-    for i, n in enumerate(passes):
-        s = seed if i == 0 else pass_seed(seed, i)
-        image = np.array(
-            mi.render(scene, sensor=sensor, integrator=integrator, spp=n, seed=s), dtype=np.float64
-        )
-        if image.ndim == 3 and image.shape[2] == 1:  # a grey film: (H, W), as EXR reads it back
-            image = image[..., 0]
-        if integ.should_stop():  # Mitsuba took a SIGINT: this chunk is partial
-            if on_cut is not None:
-                on_cut()
-            return None
-        if stop is not None and stop():
-            return None
-        acc = image if len(passes) == 1 else acc + n * image
+    attach = getattr(sensor, "set_probe_scene", None)  # the exact PSF's depth probe
+    if attach is not None:
+        attach(scene)
+    try:
+        acc = 0.0
+        for i, n in enumerate(passes):
+            s = seed if i == 0 else pass_seed(seed, i)
+            image = np.array(
+                mi.render(scene, sensor=sensor, integrator=integrator, spp=n, seed=s),
+                dtype=np.float64,
+            )
+            if image.ndim == 3 and image.shape[2] == 1:  # a grey film: (H, W), as EXR reads it
+                image = image[..., 0]
+            if integ.should_stop():  # Mitsuba took a SIGINT: this chunk is partial
+                if on_cut is not None:
+                    on_cut()
+                return None
+            if stop is not None and stop():
+                return None
+            acc = image if len(passes) == 1 else acc + n * image
+    finally:
+        if attach is not None:
+            attach(None)  # no scene -> sensor -> scene cycle outlives the render
     return acc if len(passes) == 1 else acc / spp

@@ -20,16 +20,13 @@ rendered kernel by less than its Monte Carlo floor).
 
 from __future__ import annotations
 
-import math
 from functools import lru_cache
 
 import numpy as np
 
-from ..psf.defocused_disc import NODES
+from ..psf.defocused_disc import NODES, PSI_MAX
 from .ray_diffraction import MAX_LOST, v_max_for
 
-PSI_MAX = 8.0 * math.pi
-"""The largest edge phase the table holds: W020 = 4 waves (r = 16 lambda N px)."""
 PSI_STEP = 0.25
 """Row spacing in psi (0.04 waves)."""
 V_STEP = 0.025

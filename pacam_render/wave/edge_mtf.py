@@ -96,3 +96,32 @@ def edge_mtf(
     pos = (np.arange(esf.size) + lo) / m  # px
     nu = np.asarray(nu_cycles_per_px, dtype=float)
     return np.abs(np.exp(-2j * np.pi * np.outer(nu, pos)) @ lsf) / float(contrast)
+
+
+def fit_edge(image) -> tuple[float, float]:
+    """(angle deg, offset px) of a straight edge: its 50 % crossing in each row that crosses
+    once, linearly interpolated, and a line fitted over the rows (the ``angle_deg`` and
+    ``offset_px`` of :func:`edge_mtf`).
+
+    Examples
+    --------
+    >>> y, x = np.mgrid[0:64, 0:64] + 0.0
+    >>> img = np.clip(x + 0.5 - 20 - y / 16, 0, 1)
+    >>> [round(v, 1) for v in fit_edge(img)]  # atan(1/16) = 3.58 deg
+    [3.5, 20.0]
+    """
+    img = np.asarray(image, dtype=float)
+    half = 0.5 * (img.max() + img.min())
+    ys, xs = [], []
+    for y, row in enumerate(img):
+        bright = row > half
+        j = np.flatnonzero(bright[1:] != bright[:-1])
+        if j.size != 1:
+            continue
+        j = int(j[0])
+        xs.append(j + (half - row[j]) / (row[j + 1] - row[j]))
+        ys.append(y)
+    if len(ys) < 2:
+        raise ParameterError("image: fewer than two rows cross the edge once")
+    slope, offset = np.polyfit(ys, xs, 1)
+    return float(np.degrees(np.arctan(slope))), float(offset)

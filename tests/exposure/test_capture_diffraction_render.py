@@ -20,10 +20,10 @@ from pacam_render.errors import ParameterError
 from pacam_render.exposure.capture import render_capture
 from pacam_render.exposure.capture_camera import capture_design, mode_camera
 from pacam_render.exposure.capture_spec import CaptureSpec
-from pacam_render.scenes.description import SceneDescription
-from pacam_render.wave.edge_mtf import edge_mtf
+from pacam_render.wave.edge_mtf import edge_mtf, fit_edge
 from pacam_render.wave.reference import airy_kernel_quadrature, circular_mtf
 from pacam_render.wave.scale import scale_for
+from tests.edge_scenes import edge_scene, render_edge
 
 pytestmark = pytest.mark.render
 
@@ -35,54 +35,15 @@ def _lambda_n(spec: CaptureSpec, wavelength_nm: float) -> float:
     return scale_for(cam, wavelength_nm).lambda_n_px(cam.R_mm)
 
 
-def _edge_scene(z_mm: float, tilt_deg: float) -> SceneDescription:
-    """A half-plane emitter of radiance 1 at depth z, its edge through the axis, tilted."""
-    c, s = np.cos(np.radians(tilt_deg)), np.sin(np.radians(tilt_deg))
-    big = 400.0
-    # local [-1, 1]^2 -> x' in [-2 big, 0], emitting side (+z) turned to -z (the camera)
-    local = np.array([[-big, 0, 0, -big], [0, big, 0, 0], [0, 0, -1.0, 0], [0, 0, 0, 1.0]])
-    turn = np.array([[c, -s, 0, 0], [s, c, 0, 0], [0, 0, 1.0, z_mm], [0, 0, 0, 1.0]])
-    plane = {
-        "type": "rectangle",
-        "to_world": turn @ local,
-        "emitter": {"type": "area", "radiance": {"type": "rgb", "value": [1.0] * 3}},
-    }
-    return SceneDescription("edge", {"type": "scene", "edge": plane}, {})
-
-
-def _fit_edge(img: np.ndarray) -> tuple[float, float]:
-    """(angle deg, offset px) of the 50 % crossing, a line fitted over the rows."""
-    half = 0.5 * (img.max() + img.min())
-    ys, xs = [], []
-    for y, row in enumerate(img):
-        bright = row > half
-        j = np.flatnonzero(bright[1:] != bright[:-1])
-        if j.size != 1:
-            continue
-        j = int(j[0])
-        xs.append(j + (half - row[j]) / (row[j + 1] - row[j]))
-        ys.append(y)
-    slope, offset = np.polyfit(ys, xs, 1)
-    return float(np.degrees(np.arctan(slope))), float(offset)
-
-
-def _capture(spec_kw: dict, desc, **kw):
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        return render_capture(
-            CaptureSpec(**spec_kw, **kw), progress=False, description=desc, truth=False
-        )
-
-
 def test_an_in_focus_edge_takes_the_circular_pupils_mtf():
     """Normal mode at F9.85, the edge at the focus distance: MTF(on) / MTF(off) in green is the
     circular pupil's diffraction-limited MTF within 0.03 from 0.05 to 0.45 cycles/px."""
     kw = {"scene": "edge", "mode": "normal", **FULL, "crop": (592, 432, 96, 96), "spp": 2048}
     spec = CaptureSpec(**kw)
-    desc = _edge_scene(mode_camera(capture_design(spec), "normal")[0].focus_distance_mm, 5.0)
-    off = _capture(kw, desc, diffraction="off")
-    on = _capture(kw, desc, diffraction="on")
-    angle, offset = _fit_edge(off.image[..., 1])
+    desc = edge_scene(mode_camera(capture_design(spec), "normal")[0].focus_distance_mm, 5.0)
+    off = render_edge(kw, desc, diffraction="off")
+    on = render_edge(kw, desc, diffraction="on")
+    angle, offset = fit_edge(off.image[..., 1])
     assert 4.0 < abs(angle) < 6.0  # the tilted edge, seen
     nu = np.linspace(0.05, 0.45, 9)
     lf = off.record.light_factor
@@ -206,7 +167,7 @@ def test_a_uniform_emitter_stays_uniform_even_through_one_lcos_pixel(tmp_path):
     kw = {"scene": "wall", "mode": "normal", **FULL, "crop": (600, 440, 24, 16), "spp": 64}
     one = capture_design(CaptureSpec(**kw)).with_(R_mm=0.01362)  # the smallest opening
     write_design(tmp_path / "one.toml", one)
-    cap = _capture(kw, _glowing_wall(False), diffraction="on", design=str(tmp_path / "one.toml"))
+    cap = render_edge(kw, _glowing_wall(False), diffraction="on", design=str(tmp_path / "one.toml"))
     assert 120 < 1.22 * cap.record.optics_error["diffraction"]["lambda_n_px"][1] < 200
     assert np.isfinite(cap.image).all()
     lf = cap.record.light_factor
@@ -233,7 +194,7 @@ def test_cli_render_reports_diffraction_and_the_budget(tmp_path, capsys):
     )  # fmt: skip
     assert code == 0
     text = capsys.readouterr().out
-    assert "diffraction on, as asked; in the rays at 611/549/464 nm" in text
+    assert "diffraction on, as asked; in the rays (exact defocused PSF) at 611/549/464 nm" in text
     assert "optics left out: largest is" in text
     rec = json.loads((out / "capture.json").read_text())
     effects = rec["optics_error"]["effects"]
@@ -263,9 +224,10 @@ def test_auto_includes_diffraction_for_the_coded_prototype_at_the_crossovers_tar
 
 
 def test_psf_like_and_deconvolve_follow_the_captures_diffraction(tmp_path, capsys):
-    """psf --like convolves the kernel with the capture's Airy pattern (checked against the
-    pixel-integrated Airy pattern by quadrature, over the kernel's window, which holds all
-    but the far rings' last 1 %); deconvolve refuses a kernel without it."""
+    """psf --like gives the kernel the capture's diffraction: in focus, the Airy pattern
+    (checked against the pixel-integrated Airy pattern by quadrature, over the kernel's window,
+    which holds all but the far rings' last 1 %); deconvolve refuses a kernel without it, and
+    one whose rays' PSF (exact or geometric x Airy) is not the capture's."""
     from pacam_render.capture.files import read_record
     from pacam_render.capture.kernels import analytic_psf
     from pacam_render.psf.diffraction import convolve_kernels
@@ -290,7 +252,16 @@ def test_psf_like_and_deconvolve_follow_the_captures_diffraction(tmp_path, capsy
     assert main(["psf", "--like", str(cap / "capture.exr"), "--velocity", "0",
                  "--out", str(tmp_path / "p")]) == 0  # fmt: skip
     meta = json.loads((tmp_path / "p" / "psf.json").read_text())
-    assert meta["diffraction"] == {"wavelength_nm": 549.0, "pixel_pitch_mm": 0.00645}
+    assert meta["diffraction"] == {"wavelength_nm": 549.0, "pixel_pitch_mm": 0.00645,
+                                   "psf": "exact"}  # fmt: skip
+    older = tmp_path / "p" / "psf.json"  # a kernel of the rays before: geometric x Airy
+    meta["diffraction"].pop("psf")
+    older.write_text(json.dumps(meta))
+    kernel = str(tmp_path / "p" / "psf_analytic.exr")
+    code = main(["deconvolve", str(cap / "capture.exr"), "--psf", kernel,
+                 "--out", str(tmp_path / "o")])  # fmt: skip
+    assert code == 2
+    assert "fraunhofer defocused PSF (PSF) against exact (capture)" in capsys.readouterr().err
     assert main(["psf", "--like", str(cap / "capture.exr"), "--velocity", "0",
                  "--diffraction", "off", "--out", str(tmp_path / "q")]) == 0  # fmt: skip
     kernel = str(tmp_path / "q" / "psf_analytic.exr")
