@@ -19,7 +19,8 @@ from ..io.outputs import check_writable, prepare_out_dir, write_json
 from ..io.preview import srgb8, write_png
 from ..limits import PacamWarning, gib, note
 from ..psf.origin import to_pinhole
-from ..restore.capture_noise import check_noise_sigma, deblur_layer, deblur_noise, sparse_options
+from ..restore.capture_deblur import deblur_input
+from ..restore.capture_noise import check_noise_sigma, deblur_layer, sparse_options
 from ..restore.cost import check_deconvolve
 from ..restore.deconvolve import (
     BM3D_LICENCE,
@@ -28,7 +29,6 @@ from ..restore.deconvolve import (
     nonnegative_for,
     require_method,
 )
-from ..restore.flat_field import flat_field_for_deblur
 from .common import add_force, add_out
 
 _FILE_SUFFIXES = {".txt", ".json", ".npy", ".tif", ".tiff", ".jpg", ".jpeg", ".hdr", ".pfm"}
@@ -65,8 +65,23 @@ def add(sub) -> None:
     p.add_argument(
         "--noise-sigma",
         type=float,
-        help="noise std in the layer's units (default: the sensor's, recorded in the capture's "
-        "JSON, for the noisy layer; otherwise estimated)",
+        help="the whole noise std told the deconvolver, in the layer's units (default: the "
+        "sensor's, recorded in the capture's JSON, for the noisy layer, plus the render's Monte "
+        "Carlo sigma; otherwise estimated)",
+    )
+    p.add_argument(
+        "--model-sigma",
+        type=float,
+        metavar="S",
+        help="a model error (white = 1) to tell the deconvolver besides the sensor's and the "
+        "render's noise: the capture's departure from the convolution model, calibrated on "
+        "another capture of the same camera (default: none)",
+    )
+    p.add_argument(
+        "--model-sigma-from",
+        metavar="CAL.exr",
+        help="measure that model error on another capture of the same camera, from its own "
+        "truth layers (a calibration capture), and tell the deconvolver it",
     )
     p.add_argument(
         "--allow-psf-mismatch",
@@ -99,16 +114,15 @@ def run(args: argparse.Namespace) -> int:
     check_noise_sigma(args.noise_sigma, image)
     record = read_record(capture, required=psf_file is None)
     check_layers_fit(layers, record, capture, capture.with_suffix(".json"))
-    kw, how = sparse_options(args.method, layer, record, args.colour, args.noise_sigma)
+    model = _model_sigma(args)
     psf = load_capture_psf(args.psf, capture, record, args.allow_psf_mismatch)
+    d = deblur_input({**layers, layer: image}, layer, record, args.method, args.colour,
+                     args.noise_sigma, model)  # fmt: skip
+    kw, how, noise, image = d.kw, d.how, d.noise, d.image  # irradiance -> radiance
     if cost is None:  # an input the checks above refuse came first; else still before the work
         cost = _check_cost(shapes, layer, psf.kernel.shape, args.method, kw)
-    noise = deblur_noise(args.method, kw, how, image, layer, layers, record, args.noise_sigma)
     if noise["source"] == "noise_sigma":
         noise["source"] = "--noise-sigma"
-    image, noise = flat_field_for_deblur(image, layer, layers, kw, noise)  # irradiance -> radiance
-    if noise.get("flat_field") and how:
-        how += ", flat-fielded per pixel"
     if args.method == "bm3d":
         print(f"note: {BM3D_LICENCE}", file=sys.stderr)
     image, clipped = nonnegative_for(args.method, image)
@@ -143,6 +157,41 @@ def run(args: argparse.Namespace) -> int:
     if sc:
         print(_score_line(sc))
     return 0
+
+
+def _model_sigma(args: argparse.Namespace) -> float | None:
+    """--model-sigma, or the model error measured on --model-sigma-from's capture
+    (:func:`~pacam_render.restore.model_error.capture_model_sigma`); None for neither."""
+    if args.model_sigma is not None and args.model_sigma_from is not None:
+        raise ParameterError("give --model-sigma or --model-sigma-from, not both")
+    if args.noise_sigma is not None and (args.model_sigma, args.model_sigma_from) != (None, None):
+        raise ParameterError(
+            "--noise-sigma is the whole noise told the deconvolver: give --model-sigma "
+            "(or --model-sigma-from) without it"
+        )
+    if args.model_sigma is not None:
+        return check_model_sigma(args.model_sigma)
+    if args.model_sigma_from is None:
+        return None
+    from ..restore.model_error import capture_model_sigma
+
+    cal = Path(args.model_sigma_from)
+    cal = cal / "capture.exr" if cal.is_dir() else cal
+    layers, record = read_exr(cal), read_record(cal)
+    missing = {"capture", "sharp", "object_id", "velocity"} - set(layers)
+    if missing:
+        raise ParameterError(
+            f"--model-sigma-from {cal}: a calibration capture needs its truth layers; it lacks "
+            f"{', '.join(sorted(missing))} (render it without --no-truth)"
+        )
+    return capture_model_sigma(layers, record)
+
+
+def check_model_sigma(value: float) -> float:
+    """A model sigma in [0, 10] (white = 1), or a ParameterError naming --model-sigma."""
+    if not 0.0 <= float(value) <= 10.0:  # also NaN
+        raise ParameterError(f"--model-sigma must be in [0, 10] (white = 1), got {value!r}")
+    return float(value)
 
 
 NOTE_SECONDS = 10.0
@@ -274,6 +323,8 @@ def _write_deconvolved(out: Path, est, record, info: dict, noise: dict) -> None:
         **info,
         "noise_sigma": noise["sigma"],
         "noise_sigma_source": noise["source"],
+        "render_noise_sigma": noise.get("render_sigma", 0.0),
+        "model_sigma": noise.get("model_sigma", 0.0),
         "light_factor": lf,
         "units": {"deconvolved": layer_unit(info["layer"])},
     }

@@ -186,7 +186,9 @@ def _tasks(spec: StudySpec, done: set[int], out: Path, keep: bool) -> list:
         if todo:
             where = str(out / "images" / f"render_{k:04d}") if keep else None
             partial = str(out / ".renders" / f"render_{k:04d}" / ".partial")
-            tasks.append(Task(spec.render, todo, where, partial, spec.decompose, group))
+            tasks.append(
+                Task(spec.render, todo, where, partial, spec.decompose, group, spec.model_error)
+            )
     return tasks
 
 

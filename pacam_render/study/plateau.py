@@ -1,8 +1,9 @@
 """What sets a deblurred capture's score: the same point restored three more ways.
 
-A study's point is restored with the mode's kernel and told every noise the capture has: the
-sensor's, the render's and the measured model error (:mod:`.model_error`). Three more
-restorations of the moving objects, each changing one thing, say what each part costs:
+A study's point is restored with the mode's kernel and told the sensor's and the render's
+noise, and a model error where the study asks (:mod:`~pacam_render.restore.model_error`).
+Three more restorations of the moving objects, each changing one thing, say what each part
+costs:
 
 * ``psnr_moving_no_model_sigma_db``: the deconvolver is not told the model error (sensor and
   render noise only): what measuring it buys;
@@ -19,7 +20,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .model_error import convolve
+from ..restore.model_error import convolve
 
 OLD_FLOOR = 0.02
 """The fixed model-error floor (white = 1) the studies told the deconvolver before issue 25."""

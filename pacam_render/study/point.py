@@ -15,13 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..restore.capture_score import (
-    deconvolve_capture,
-    edge_px_of,
-    flat_sigma,
-    kernel,
-    radiance,
-)
+from ..restore.capture_score import edge_px_of, flat_sigma, kernel, radiance
 from .spec import Point, parse_design, target_sensors
 
 COLUMNS = (
@@ -31,8 +25,9 @@ COLUMNS = (
     "psnr_by_object",
     "r_px", "a_i_px_per_ms2", "velocity_range_px_per_ms", "exposure_ms", "light_factor",
     "noise_sigma", "render_noise_sigma", "render_noise_ratio", "sharp_noise_sigma",
-    "model_sigma", "deconv_sigma", "render_spp", "psnr_moving_no_model_sigma_db",
-    "psnr_moving_floor_db", "psnr_moving_exact_model_db", "render_s", "total_s", "status",
+    "model_sigma", "deconv_sigma", "model_error", "render_spp", "psnr_moving_no_model_sigma_db",
+    "psnr_moving_floor_db", "psnr_moving_exact_model_db", "psnr_moving_oracle_db",
+    "render_s", "total_s", "status",
     "diffraction", "diffraction_sigma", "optics_left_out", "optics_left_out_sigma",
     "point_key", "row_digest",
 )  # fmt: skip
@@ -41,17 +36,27 @@ the full sensor); r, a_i and the invariant range are the capture camera's at the
 resolution. Noise, white = 1: ``noise_sigma`` is the sensor's, ``render_noise_sigma`` the
 render's measured Monte Carlo sigma (``render_error.mc_sigma``) and ``render_noise_ratio``
 the one over the other, ``sharp_noise_sigma`` the truth's own, ``model_sigma`` the capture's
-measured departure from its deconvolver's model (:mod:`.model_error`), and ``deconv_sigma``
-the root sum of squares of the three that the deconvolver is told. ``render_spp`` and
+measured departure from its deconvolver's model (:mod:`~pacam_render.restore.model_error`),
+and ``deconv_sigma``
+the root sum of squares of what the deconvolver is told: the sensor's and the render's noise,
+and the model error only where ``model_error`` says (``none``, the default: what a real user
+knows; ``oracle``: the scored capture's own ``model_sigma``, measured against its ``sharp``
+layer; ``given S``: a model sigma calibrated on another capture; a row without it was written
+before the choice, with the oracle; :mod:`~pacam_render.restore.capture_deblur`). Restored as
+``pacam deconvolve`` restores (the sensor's noise per pixel for ``hl`` and ``tv``).
+``render_spp`` and
 ``render_s`` are the shared render of the point's group. The ``psnr_moving_*_db`` columns
-after it decompose the score (:mod:`.plateau`; with ``[study] decompose = true``).
+after it decompose the score (:mod:`.plateau`; with ``[study] decompose = true``), the last,
+``psnr_moving_oracle_db``, told the capture's own model error (the oracle's upper bound).
 The optics (``capture.json``'s ``optics_error``, white = 1): ``diffraction`` is ``in`` or
 ``out`` of the capture, ``diffraction_sigma`` its measured effect where it is left out, and
 ``optics_left_out`` / ``optics_left_out_sigma`` the largest left-out effect and its size
-(:data:`OPTICS_COLUMNS`: rows written before them lack them, and stay intact).
+(:data:`LATE_COLUMNS`: rows written before them lack them, and stay intact).
 ``point_key`` is the point's :meth:`~pacam_render.study.spec.StudySpec.point_keys`: a resume
 keeps a row whose key a point of the new spec has."""
 OPTICS_COLUMNS = ("diffraction", "diffraction_sigma", "optics_left_out", "optics_left_out_sigma")
+"""The optics columns (:func:`optics_columns`)."""
+LATE_COLUMNS = (*OPTICS_COLUMNS, "model_error", "psnr_moving_oracle_db")
 """Columns that older results.csv files lack (:func:`~.results.row_digest` skips them there)."""
 
 
@@ -68,6 +73,9 @@ class Task:
     partial_dir: str | None = None
     decompose: bool = False
     group: tuple[Point, ...] = ()
+    model_error: str | float = "none"
+    """What the deconvolver is told of the model error (:data:`~pacam_render.restore.
+    capture_deblur.MODEL_ERRORS`, or a calibrated sigma)."""
 
 
 def run_task(task: Task) -> list[dict]:
@@ -243,9 +251,10 @@ def render_target(render: dict, points):
 
 
 def _model_sigma(cap, desc) -> float:
-    """The capture's departure from its deconvolver's model, white = 1 (:mod:`.model_error`)."""
+    """The capture's departure from its deconvolver's model, white = 1
+    (:mod:`~pacam_render.restore.model_error`)."""
     from ..restore.metrics import shift_search_px
-    from .model_error import model_sigma
+    from ..restore.model_error import model_sigma
 
     layers = cap.extra_layers
     sharp_var = (cap.record.render_error.get("sharp_mc_sigma") or 0.0) ** 2
@@ -263,7 +272,8 @@ def _model_sigma(cap, desc) -> float:
 
 
 def _evaluate(cap, desc, p: Point, task: Task, info: dict) -> dict:
-    """Sensor, deconvolution and scores of one point on the rendered capture."""
+    """Sensor, deconvolution and scores of one point on the rendered capture, restored as
+    ``pacam deconvolve`` restores it (:func:`_restore`)."""
     from ..restore.metrics import shift_search_px
     from ..restore.object_score import score
     from ..sensor.apply import add_sensor_layers
@@ -271,13 +281,8 @@ def _evaluate(cap, desc, p: Point, task: Task, info: dict) -> dict:
     from .plateau import decompose
 
     add_sensor_layers(cap, SensorModel.from_preset(p.sensor), p.sensor, p.light_level, p.seed)
-    noisy = radiance(cap, cap.extra_layers["noisy"])  # white reads ~ its reflectance
-    sigma = flat_sigma(cap, cap.record.noise_sigma_white_units)
-    # the deconvolver is told every noise the capture has: the sensor's, the render's, and its
-    # measured departure from the model
-    parts = (sigma, info["render_noise_sigma"], info["model_sigma"])
-    total = float(np.sqrt(sum(x * x for x in parts)))
-    est = noisy if p.method == "none" else deconvolve_capture(cap, noisy, total, p.method)
+    told = told_model_sigma(task.model_error, info["model_sigma"])
+    est = _restore(cap, p.method, told)
     if task.keep_dir is not None:
         _keep(cap, est, p, Path(task.keep_dir))
     shift = shift_search_px(cap.record.spec["width"])
@@ -287,11 +292,61 @@ def _evaluate(cap, desc, p: Point, task: Task, info: dict) -> dict:
         return score(image, cap.extra_layers, cap.record.objects, set(desc.moving_ids), shift, edge)
 
     out = scorer(est)
+    sigma = flat_sigma(cap, cap.record.noise_sigma_white_units)
+    parts = (sigma, info["render_noise_sigma"], told or 0.0)
     if task.decompose:
+        noisy = radiance(cap, cap.extra_layers["noisy"])  # white reads ~ its reflectance
         clean = radiance(cap, cap.image)
         out.update(decompose(cap, kernel(cap), p.method, noisy, parts, scorer, clean))
+    out.update(_model_error_scores(cap, p.method, task, info["model_sigma"], told, scorer, out))
     ratio = info["render_noise_sigma"] / sigma if sigma > 0 else float("inf")
-    return {**out, "noise_sigma": sigma, "render_noise_ratio": ratio, "deconv_sigma": total}
+    total = float(np.sqrt(sum(x * x for x in parts)))
+    return {**out, "noise_sigma": sigma, "render_noise_ratio": ratio, "deconv_sigma": total,
+            "model_error": model_error_label(task.model_error)}  # fmt: skip
+
+
+def _model_error_scores(cap, method, task, measured, told, scorer, out) -> dict:
+    """The moving objects' PSNR told no model error (``psnr_moving_no_model_sigma_db``), and
+    told the capture's own measured one (``psnr_moving_oracle_db``, the oracle's upper bound:
+    with ``decompose``, or when the study is the oracle's); each restored afresh only when
+    the study's own restoration is not already it."""
+
+    def moving(sigma):
+        return scorer(_restore(cap, method, sigma))["psnr_moving_db"]
+
+    extra = {"psnr_moving_no_model_sigma_db": moving(None) if told else out["psnr_moving_db"]}
+    if task.model_error == "oracle":
+        extra["psnr_moving_oracle_db"] = out["psnr_moving_db"]
+    elif task.decompose and measured > 0:
+        extra["psnr_moving_oracle_db"] = moving(measured)
+    return extra
+
+
+def told_model_sigma(model_error, measured: float) -> float | None:
+    """The model sigma the deconvolver is told (white = 1): None for ``none``, the scored
+    capture's own ``measured`` one for ``oracle``, else the calibrated value given."""
+    if model_error == "none":
+        return None
+    return float(measured) if model_error == "oracle" else float(model_error)
+
+
+def model_error_label(model_error) -> str:
+    """The ``model_error`` column: ``none``, ``oracle`` or ``given S``."""
+    return model_error if isinstance(model_error, str) else f"given {float(model_error):.4g}"
+
+
+def _restore(cap, method: str, model_sigma: float | None) -> np.ndarray:
+    """The sensor layer ``noisy`` restored as ``pacam deconvolve`` does (the deconvolver told
+    the sensor's and the render's noise, and ``model_sigma`` when given:
+    :func:`~pacam_render.restore.capture_deblur.deblur_input`), white = 1."""
+    from ..restore.capture_deblur import deblur_input
+    from ..restore.deconvolve import deconvolve, nonnegative_for
+
+    layers = {**cap.extra_layers, "capture": cap.image}
+    d = deblur_input(layers, "noisy", cap.record, method, model_sigma=model_sigma)
+    if method != "none":
+        d.image = deconvolve(nonnegative_for(method, d.image)[0], kernel(cap), method, **d.kw)
+    return d.image / cap.record.light_factor
 
 
 def _keep(cap, est, p: Point, folder: Path) -> None:

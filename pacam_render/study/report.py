@@ -34,7 +34,7 @@ NUMERIC = (
     "velocity_range_px_per_ms", "exposure_ms", "noise_sigma", "render_noise_sigma",
     "render_noise_ratio", "sharp_noise_sigma", "model_sigma", "deconv_sigma", "render_spp",
     "render_s", "total_s", "psnr_moving_no_model_sigma_db", "psnr_moving_floor_db",
-    "psnr_moving_exact_model_db",
+    "psnr_moving_exact_model_db", "psnr_moving_oracle_db",
 )  # fmt: skip
 LIGHT = "light_level_photons_per_px_per_ms"
 
@@ -135,7 +135,9 @@ def write_report(spec: StudySpec, out: Path) -> list[str]:
     """
     rows = load_rows(out)
     ok = [r for r in rows if r["status"] == "ok"]
-    files, text = [], [f"# Study `{spec.name}`" + (" (quick)" if spec.quick else ""), ""]
+    oracle = ORACLE_TITLE if spec.model_error == "oracle" else ""
+    head = f"# Study `{spec.name}`" + (" (quick)" if spec.quick else "") + oracle
+    files, text = [], [head, ""]
     if spec.quick:
         text += [
             f"**A quick run** (`pacam study {spec.source or spec.name} --quick`): the study's "
@@ -204,10 +206,32 @@ def _setup(spec: StudySpec, rows: list[dict], ok: list[dict]) -> str:
         "95 % confidence interval. Scores are against each capture's own `sharp` layer; the "
         "moving objects' PSNR takes each object at its best horizontal shift (a "
         "motion-invariant PSF moves it by -s^2 / (2 a_i)). Speeds are in the preset's own "
-        "pixels (px/ms of the full sensor). The deconvolver is told the root sum of squares of "
-        "the sensor's noise, the render's measured Monte Carlo noise, and the capture's "
-        "measured departure from the convolution model it assumes (`model_sigma`, "
-        "`pacam_render/study/model_error.py`)."
+        "pixels (px/ms of the full sensor). " + told_text(spec.model_error)
+    )
+
+
+ORACLE_TITLE = " (oracle: told each capture's model error)"
+"""Added to an oracle study's report heading and plot titles."""
+
+
+def told_text(model_error) -> str:
+    """What the deconvolver is told, in words, for the report (``[study] model_error``)."""
+    base = (
+        "The deconvolver is told what a real user knows, as `pacam deconvolve` tells it: the "
+        "sensor's noise (per pixel for hl and tv) and the render's measured Monte Carlo noise"
+    )
+    if model_error == "none":
+        return base + ' (`model_error = "none"`).'
+    if model_error == "oracle":
+        return (
+            base + ', and, **oracle** (`model_error = "oracle"`), each capture\'s own departure '
+            "from the convolution model measured against its `sharp` layer (`model_sigma`, "
+            "`pacam_render/restore/model_error.py`): no real camera knows its sharp image, so "
+            "these scores are an upper bound."
+        )
+    return (
+        base + f", and a model error of {float(model_error):.4g} (white = 1) calibrated on "
+        "another capture (`model_error`)."
     )
 
 
@@ -268,15 +292,16 @@ def plot_title(spec: StudySpec) -> str:
         ``study NAME``; for a ``--quick`` spec also that it is the quick run, its window,
         sensor size and seed count, and that it is not the full study.
     """
+    oracle = ORACLE_TITLE if spec.model_error == "oracle" else ""
     if not spec.quick:
-        return f"study {spec.name}"
+        return f"study {spec.name}{oracle}"
     r = spec.render
     sensor = f"{r['width']}x{r['height']} sensor"
     where = f"{r['crop'][2]}x{r['crop'][3]} px window of a {sensor}" if r["crop"] else sensor
     seeds = len({p.seed for p in spec.points})
     return (
         f"study {spec.name}, QUICK run (--quick): {where}, {seeds} "
-        f"seed{'s' if seeds != 1 else ''}; not the full study"
+        f"seed{'s' if seeds != 1 else ''}; not the full study{oracle}"
     )
 
 
@@ -288,9 +313,10 @@ def _error_text(ok: list[dict]) -> list[str]:
         "## Error budget",
         "",
         "White = 1. The render's Monte Carlo sigma over the sensor's (`render_noise_ratio`: "
-        "the render adds its square to the point's noise variance), and the model error the "
-        "deconvolver is told (`model_sigma`), by mode and light level (median over the "
-        "points; largest ratio in brackets).",
+        "the render adds its square to the point's noise variance), and the capture's measured "
+        "model error (`model_sigma`; told the deconvolver only with `model_error = "
+        '"oracle"`), by mode and light level (median over the points; largest ratio in '
+        "brackets).",
         "",
         "| mode | light | sensor sigma | render sigma | ratio (max) | model sigma | render spp |",
         "|---|---|---|---|---|---|---|",
@@ -321,16 +347,18 @@ def _plateau_text(ok: list[dict]) -> list[str]:
         "## What sets the high-light plateau",
         "",
         "The moving objects' PSNR (dB, mean over seeds) as the study restores them (told the "
-        "sensor's, the render's and the measured model error), told no model error, told the "
-        "old fixed floor of 0.02, and with the capture replaced by the convolution model's "
-        "prediction k * sharp under the same sensor noise, restored as the study restores it "
-        "(`pacam_render/study/plateau.py`). Diffraction: `in` the capture, or `out` with its "
-        "measured size (RMS, white = 1), next to the model sigma it would otherwise join; "
-        "blank for rows written before the optics columns.",
+        "sensor's and the render's noise, and the model error only as `model_error` says), "
+        "told no model error, told the old fixed floor of 0.02, with the capture replaced by "
+        "the convolution model's prediction k * sharp under the same sensor noise, restored as "
+        "the study restores it (`pacam_render/study/plateau.py`), and told each capture's own "
+        "measured model error (**oracle**, an upper bound no real camera reaches; blank for "
+        "rows written before it). Diffraction: `in` the capture, or `out` with its measured "
+        "size (RMS, white = 1), next to the model sigma it would otherwise join; blank for "
+        "rows written before the optics columns.",
         "",
         "| mode | design | speed | method | light | study | no model sigma | floor 0.02 | "
-        "exact model | model sigma | diffraction |",
-        "|---|---|---|---|---|---|---|---|---|---|---|",
+        "exact model | oracle | model sigma | diffraction |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     groups = defaultdict(list)
     for r in rows:
@@ -339,10 +367,12 @@ def _plateau_text(ok: list[dict]) -> list[str]:
             groups[key].append(r)
     for (mode, design, speed, method, light), rs in sorted(groups.items()):
         m = {k: np.mean([r[k] for r in rs]) for k in ("psnr_moving_db", *_PLATEAU)}
+        oracle = np.mean([r.get(ORACLE_COLUMN, math.nan) for r in rs])
         lines.append(
             f"| {mode} | {design} | {speed:.3g} | {method} | {light:.4g} | "
             f"{m['psnr_moving_db']:.2f} | {m[_PLATEAU[0]]:.2f} | {m[_PLATEAU[1]]:.2f} | "
-            f"{m[_PLATEAU[2]]:.2f} | {m['model_sigma']:.4f} | {diffraction_cell(rs)} |"
+            f"{m[_PLATEAU[2]]:.2f} | {'' if math.isnan(oracle) else f'{oracle:.2f}'} | "
+            f"{m['model_sigma']:.4f} | {diffraction_cell(rs)} |"
         )
     return lines + [""]
 
@@ -366,6 +396,8 @@ def _float(v) -> float:
         return math.nan
 
 
+ORACLE_COLUMN = "psnr_moving_oracle_db"
+"""The moving objects' PSNR told each capture's own model error (with ``decompose``)."""
 _PLATEAU = (
     "psnr_moving_no_model_sigma_db",
     "psnr_moving_floor_db",

@@ -34,7 +34,7 @@ from pathlib import Path
 from ..errors import ParameterError
 from ..io.outputs import write_json, write_text
 from ..limits import PacamWarning
-from .point import COLUMNS, OPTICS_COLUMNS
+from .point import COLUMNS, LATE_COLUMNS
 from .spec import StudySpec
 
 RESULTS, STUDY = "results.csv", "study.json"
@@ -161,7 +161,7 @@ def row_digest(row: dict) -> str:
     # an optics cell counts only when it holds a value: rows from before those columns match
     cols = [
         c for c in COLUMNS
-        if c != "row_digest" and (c not in OPTICS_COLUMNS or row.get(c) not in (None, ""))
+        if c != "row_digest" and (c not in LATE_COLUMNS or row.get(c) not in (None, ""))
     ]  # fmt: skip
     cells = ["" if row.get(c) is None else str(row.get(c)) for c in cols]
     return hashlib.sha256(json.dumps(cells).encode()).hexdigest()[:16]

@@ -131,6 +131,9 @@ class StudySpec:
     axes: tuple[str, ...] = field(default=())
     decompose: bool = False
     """Score kernel-restored points three more ways (:mod:`.plateau`)."""
+    model_error: str | float = "none"
+    """What the deconvolver is told of the model error: ``none`` (default), ``oracle``, or a
+    sigma calibrated on another capture (:mod:`~pacam_render.restore.capture_deblur`)."""
     quick: bool = False
     """Parsed for ``--quick``: the ``[quick]`` overrides (or :data:`QUICK_RENDER`) are in
     ``render`` and ``points``, and ``description`` still describes the full study."""
@@ -142,6 +145,7 @@ class StudySpec:
         blob = {"render": self.render, "points": [asdict(p) for p in self.points]}
         if self.decompose:
             blob["decompose"] = True
+        blob.update(self._model_error_key())
         blob["files"] = input_digests(self.points)
         return _digest(blob)
 
@@ -170,10 +174,16 @@ class StudySpec:
                 del blob["point"]["index"]
                 if self.decompose:
                     blob["decompose"] = True
+                blob.update(self._model_error_key())
                 named = [*_named_files(p), design_file_path(p.design)]  # the design file too
                 blob["files"] = {n: files[n] for n in named if n in files}
                 out[p.index] = _digest(blob)
         return out
+
+    def _model_error_key(self) -> dict:
+        """``model_error`` in the keys, except ``oracle``: rows written before the choice were
+        the oracle's, and keep their keys."""
+        return {} if self.model_error == "oracle" else {"model_error": self.model_error}
 
     def groups(self) -> list[tuple[Point, ...]]:
         """The points grouped by render, in order of their first point."""
@@ -293,9 +303,10 @@ def parse_study(doc: dict, quick: bool = False, source: str = "", grey: bool = F
 def _parse(doc: dict, quick: bool, source: str, grey: bool = False) -> StudySpec:
     _keys(doc, "the study file", {"study", "render", "grid", "points", "quick"})
     head = _table(doc, "study")
-    _keys(head, "[study]", {"name", "report", "description", "decompose"})
+    _keys(head, "[study]", {"name", "report", "description", "decompose", "model_error"})
     if not isinstance(head.get("decompose", False), bool):
         raise ParameterError(f"[study] decompose must be true or false, got {head['decompose']!r}")
+    model_error = check_model_error(head.get("model_error", "none"))
     report = head.get("report", "table")
     if report not in REPORTS:
         raise ParameterError(f"[study] report must be one of {', '.join(REPORTS)}, got {report!r}")
@@ -330,8 +341,26 @@ def _parse(doc: dict, quick: bool, source: str, grey: bool = False) -> StudySpec
         source=source,
         axes=tuple(k for k in AXES if len({getattr(p, k) for p in pts}) > 1),
         decompose=head.get("decompose", False),
+        model_error=model_error,
         quick=bool(quick),
     )
+
+
+def check_model_error(value) -> str | float:
+    """``[study] model_error``: ``none``, ``oracle`` or a model sigma in [0, 10] (white = 1,
+    calibrated on another capture of the camera, e.g. by ``pacam deconvolve
+    --model-sigma-from``)."""
+    from ..restore.capture_deblur import MODEL_ERRORS
+
+    if isinstance(value, str) and value in MODEL_ERRORS:
+        return value
+    ok = isinstance(value, (int, float)) and not isinstance(value, bool)
+    if not ok or not 0.0 <= float(value) <= 10.0:  # also NaN
+        raise ParameterError(
+            f"[study] model_error must be {' or '.join(MODEL_ERRORS)} or a model sigma in "
+            f"[0, 10] (white = 1), got {value!r}"
+        )
+    return float(value)
 
 
 def _check_lightfield(render: dict, points) -> None:

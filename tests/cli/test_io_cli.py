@@ -159,7 +159,10 @@ def test_cli_deconvolve_uses_the_noise_a_sensor_capture_recorded(tmp_path, capsy
     cmd = ["deconvolve", str(cap / "capture.exr"), "--method", "wiener", "--out", str(out)]
     assert main(cmd) == 0
     said = capsys.readouterr().out
-    assert "layer noisy" in said and f"noise sigma {meta['noise_sigma']:.4g}" in said
+    # the sensor's sigma and the render's Monte Carlo sigma, in quadrature (issue 46)
+    mc = meta["render_error"]["mc_sigma_white_units"] * meta["light_factor"]
+    told = np.hypot(meta["noise_sigma"], mc)
+    assert "layer noisy" in said and f"noise sigma {told:.4g}" in said
     assert np.isfinite(exrio.read_exr(out)["deconvolved"]).all()
     # the default (hl) weights the data by the sensor's own noise model, which at the paper
     # preset is white with the same sigma

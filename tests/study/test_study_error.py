@@ -13,7 +13,7 @@ from scipy.stats import t as student
 
 from pacam_render.errors import ParameterError
 from pacam_render.study import load_study, run_study
-from pacam_render.study.model_error import convolve, model_sigma
+from pacam_render.restore.model_error import convolve, model_sigma
 from pacam_render.study.report import curves_ci
 
 TINY = """
@@ -96,8 +96,11 @@ def test_every_point_meets_its_noise_target_and_states_the_error_budget(tmp_path
     for r in rows:
         assert r["status"] == "ok"
         assert float(r["render_noise_ratio"]) <= 0.2 * 1.0001
-        parts = [float(r[k]) for k in ("noise_sigma", "render_noise_sigma", "model_sigma")]
+        # by default the deconvolver is told the sensor's and the render's noise, no oracle
+        parts = [float(r[k]) for k in ("noise_sigma", "render_noise_sigma")]
         assert float(r["deconv_sigma"]) == pytest.approx(math.sqrt(sum(p * p for p in parts)))
+        assert r["model_error"] == "none"
+        assert r["psnr_moving_no_model_sigma_db"] == r["psnr_moving_db"]
         kernel_mode = r["mode"] == "coded"
         assert (float(r["model_sigma"]) > 0) == kernel_mode
         assert (r["psnr_moving_exact_model_db"] != "") == kernel_mode
@@ -109,9 +112,11 @@ def test_every_point_meets_its_noise_target_and_states_the_error_budget(tmp_path
     report = (tmp_path / "out" / "report.md").read_text()
     assert "## Error budget" in report and "## What sets the high-light plateau" in report
     plateau = report.split("## What sets the high-light plateau")[1]
-    assert "| exact model | model sigma | diffraction |" in plateau
+    assert "| exact model | oracle | model sigma | diffraction |" in plateau
     coded_row = next(line for line in plateau.splitlines() if line.startswith("| coded |"))
     assert coded_row.split("|")[-2].strip().startswith("out")  # geometric: left out, sized
+    float(coded_row.split("|")[-4])  # the oracle's upper bound, beside the honest score
+    assert all((r["psnr_moving_oracle_db"] != "") == (r["mode"] == "coded") for r in rows)
     assert not any((tmp_path / "out" / ".renders").glob("*/.partial"))
 
 
