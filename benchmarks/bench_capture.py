@@ -28,7 +28,7 @@ def timed(fn):
 
 
 def cost_rows(width: int, height: int, spp: int, repeat: int) -> list[dict]:
-    spec = CaptureSpec(scene="train", mode="coded", width=width, height=height, spp=spp)
+    spec = CaptureSpec.geometric(scene="train", mode="coded", width=width, height=height, spp=spp)
     moving_desc = load_scene("train")
     static_desc = dataclasses.replace(moving_desc, motions={})
     render_capture(

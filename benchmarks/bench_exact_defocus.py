@@ -110,7 +110,7 @@ def _train(diffraction: str, seed: int) -> tuple[np.ndarray, float]:
     from pacam_render.exposure.capture import render_capture
     from pacam_render.exposure.capture_spec import CaptureSpec
 
-    spec = CaptureSpec(scene="train", mode="coded", width=1280, height=960,
+    spec = CaptureSpec.geometric(scene="train", mode="coded", width=1280, height=960,
                        crop=(384, 544, 256, 192), spp=512,
                        diffraction=diffraction, seed=seed)  # fmt: skip
     t0 = time.perf_counter()

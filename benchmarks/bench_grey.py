@@ -39,8 +39,8 @@ VARIANTS = {"llvm_ad_rgb": False, "llvm_ad_mono": True}
 
 def capture(spp: int, crop, grey: bool, seed: int):
     """One coded capture of the train, no ground truth, notes silenced."""
-    spec = CaptureSpec(scene="train", mode="coded", width=1280, height=960, crop=crop, spp=spp,
-                       seed=seed, grey=grey)  # fmt: skip
+    spec = CaptureSpec.geometric(scene="train", mode="coded", width=1280, height=960, crop=crop,
+                                 spp=spp, seed=seed, grey=grey)  # fmt: skip
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", PacamWarning)
         return render_capture(spec, progress=False, truth=False)

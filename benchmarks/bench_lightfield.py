@@ -64,7 +64,7 @@ def _sigma(cap) -> float:
 def cost_table(window: dict, n_designs: tuple, spp: int, direct_subset: int, root: Path):
     covers = np.linspace(0.6, 1.6, max(n_designs))
     specs = [
-        CaptureSpec(**window, mode="coded", cover_px_per_ms=float(c), spp=spp, passes=4)
+        CaptureSpec.geometric(**window, mode="coded", cover_px_per_ms=float(c), spp=spp, passes=4)
         for c in covers
     ]
     picks = np.linspace(0, len(specs) - 1, direct_subset).round().astype(int)
@@ -122,7 +122,7 @@ def paired_table(window: dict, seeds: int, spp: int, root: Path):
     }
     rows = []
     for name, other in pairs.items():
-        a = CaptureSpec(**window, mode="coded", spp=spp, passes=4)
+        a = CaptureSpec.geometric(**window, mode="coded", spp=spp, passes=4)
         b = replace(a, **other)
         d_store, d_direct, sig_s, sig_d = [], [], [], []
         for seed in range(seeds):
@@ -157,7 +157,7 @@ def paired_table(window: dict, seeds: int, spp: int, root: Path):
 def synthesis_table(spp: int, root: Path) -> list[dict]:
     """Seconds per synthesis of a 400x160 window (the issue's size), against its samples."""
     window = {"scene": "train", "width": 1280, "height": 960, "crop": (440, 400, 400, 160)}
-    base = CaptureSpec(**window, spp=spp, passes=4, seed=3)
+    base = CaptureSpec.geometric(**window, spp=spp, passes=4, seed=3)
     store, t_store = _timed(render_lightfield, StoreSpec(base), root / "big", progress=False,
                             truth=False)  # fmt: skip
     rows = []
@@ -176,7 +176,7 @@ def alpha_table(window: dict, spp: int, root: Path) -> list[dict]:
     """The proposal's uniform share against the MC sigma of designs in it and not in it."""
     proto = preset("prototype")
     write_design(root / "wider13.toml", proto.with_(R_mm=1.3 * proto.R_mm, name="w"), force=True)
-    base = CaptureSpec(**window, mode="coded", spp=spp, passes=4, seed=1)
+    base = CaptureSpec.geometric(**window, mode="coded", spp=spp, passes=4, seed=1)
     listed = (base, replace(base, cover_px_per_ms=1.4))
     designs = {
         "prototype (listed)": base,
@@ -219,7 +219,7 @@ def optimize_table(root: Path, quick: bool) -> tuple[list[dict], str]:
     stores = []
     t0 = time.perf_counter()
     for scene, crop in OPT_WINDOWS.values():
-        spec = CaptureSpec(scene=scene, crop=crop, spp=spp, passes=passes, seed=7, **base)
+        spec = CaptureSpec.geometric(scene=scene, crop=crop, spp=spp, passes=passes, seed=7, **base)
         folder = root / f"opt_store_{len(stores)}"
         _timed(render_lightfield, StoreSpec(spec, alpha=1.0), folder, progress=False)
         stores.append(str(folder))
@@ -242,7 +242,9 @@ def optimize_table(root: Path, quick: bool) -> tuple[list[dict], str]:
         for j in range(seeds):
             for d, fields in designs.items():
                 kw = {**base, **({"cover_px_per_ms": None, **fields} if fields else {})}
-                spec = CaptureSpec(scene=scene, crop=crop, spp=spp * 4, seed=100 + j, **kw)
+                spec = CaptureSpec.geometric(
+                    scene=scene, crop=crop, spp=spp * 4, seed=100 + j, **kw
+                )
                 cap, _ = _timed(render_capture, spec, progress=False, truth=True)
                 scorer = CaptureScorer(cap, OPT_SENSOR, 300.0, (500 + j,))
                 psnr[d][i, j] = scorer.psnr_db(cap)

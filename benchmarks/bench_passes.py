@@ -27,7 +27,7 @@ from pacam_render.scenes import load_scene
 
 
 def scene_for(width: int, height: int):
-    spec = CaptureSpec(scene="train", mode="coded", width=width, height=height)
+    spec = CaptureSpec.geometric(scene="train", mode="coded", width=width, height=height)
     cam, params = mode_camera(capture_design(spec), "coded")
     return load_scene("train").load(sensor=sensor_entry(spec, cam, params, cam.exposure_ms))
 

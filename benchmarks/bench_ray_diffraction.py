@@ -34,7 +34,7 @@ from pacam_render.exposure.capture_spec import CaptureSpec
 
 
 def capture(crop, spp: int, diffraction: str, seed: int, grey: bool = False):
-    spec = CaptureSpec(
+    spec = CaptureSpec.geometric(
         scene="train", mode="coded", width=1280, height=960, crop=crop, spp=spp,
         seed=seed, diffraction=diffraction, grey=grey,
     )  # fmt: skip

@@ -73,7 +73,7 @@ def two_seeds(spec: CaptureSpec, desc=None) -> tuple[float, float, float, float,
     wall seconds do not."""
     cpu0 = time.process_time()
     a = capture(spec, desc)
-    b = capture(CaptureSpec(**{**spec.__dict__, "seed": spec.seed + 1}), desc)
+    b = capture(CaptureSpec.geometric(**{**spec.__dict__, "seed": spec.seed + 1}), desc)
     cpu = 0.5 * (time.process_time() - cpu0)
     sigma = float(np.sqrt(np.mean((a.image - b.image) ** 2) / 2))
     recorded = 0.5 * (a.record.render_error["mc_sigma"] + b.record.render_error["mc_sigma"])
@@ -86,7 +86,9 @@ def sampler_rows(spps, samplers=SAMPLERS) -> list[dict]:
     for spp in spps:
         base = None
         for name in samplers:
-            spec = CaptureSpec(scene="train", mode="coded", spp=spp, sampler=name, **WINDOW)
+            spec = CaptureSpec.geometric(
+                scene="train", mode="coded", spp=spp, sampler=name, **WINDOW
+            )
             sigma, recorded, t, cpu, mean = two_seeds(spec)
             eff, eff_cpu = 1.0 / (sigma**2 * t), 1.0 / (sigma**2 * cpu)
             if base is None:
@@ -123,7 +125,7 @@ def midpoint_rule():
 
 
 def _streak(step_px: float, spp: int, seed: int, passes: int = 4):
-    spec = CaptureSpec(
+    spec = CaptureSpec.geometric(
         scene="psf", mode="normal", width=80, height=8, spp=spp, seed=seed,
         max_step_px=step_px, passes=passes, sampler="independent",
     )  # fmt: skip
@@ -132,7 +134,7 @@ def _streak(step_px: float, spp: int, seed: int, passes: int = 4):
 
 
 def _train(step_px: float, spp: int, seed: int, passes: int = 2):
-    spec = CaptureSpec(
+    spec = CaptureSpec.geometric(
         scene="train", mode="coded", spp=spp, seed=seed, max_step_px=step_px, passes=passes,
         **WINDOW,
     )  # fmt: skip
@@ -247,7 +249,7 @@ def bounce_rows(full: bool) -> list[dict]:
             desc.integrator = {"type": "path", "max_depth": depth}
             pair = []
             for seed in (0, 1):
-                spec = CaptureSpec(
+                spec = CaptureSpec.geometric(
                     scene=scene, mode="reference", width=1280, height=960, crop=crop,
                     spp=spp, seed=seed,
                 )  # fmt: skip
@@ -291,7 +293,9 @@ def seconds_rows(ref_spp: int, spps: tuple[int, ...]) -> list[dict]:
         ("independent, midpoint rule", "independent", "midpoint"),
     ):
         for spp in spps:
-            spec = CaptureSpec(scene="train", mode="coded", spp=spp, sampler=sampler, **WINDOW)
+            spec = CaptureSpec.geometric(
+                scene="train", mode="coded", spp=spp, sampler=sampler, **WINDOW
+            )
             cpu0 = time.process_time()
             with midpoint_rule() if rule == "midpoint" else contextlib.nullcontext():
                 cap = capture(spec)
@@ -350,7 +354,7 @@ def overhead_rows() -> list[dict]:
         ("few", "short", 512, 2),
         ("many", "short", 512, 32),
     ):
-        spec = CaptureSpec(scene="train", mode=mode, spp=spp, passes=passes, **WINDOW)
+        spec = CaptureSpec.geometric(scene="train", mode=mode, spp=spp, passes=passes, **WINDOW)
         cpu0 = time.process_time()
         cap = capture(spec)
         runs[key] = (cap, {"wall": cap.record.render_seconds, "CPU": time.process_time() - cpu0})
@@ -399,7 +403,7 @@ def planner_rows() -> list[dict]:
     rows = []
     for mode in ("short", "normal", "coded"):
         for planner in ("re-plan (default)", "one size"):
-            spec = CaptureSpec(scene="train", mode=mode, **WINDOW)
+            spec = CaptureSpec.geometric(scene="train", mode=mode, **WINDOW)
             cpu0 = time.process_time()
             with one_size_planner() if planner == "one size" else contextlib.nullcontext():
                 cap = render_capture(spec, progress=False, truth=False, target=target)

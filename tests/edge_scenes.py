@@ -42,5 +42,5 @@ def render_edge(spec_kw: dict, desc: SceneDescription, **kw):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         return render_capture(
-            CaptureSpec(**spec_kw, **kw), progress=False, description=desc, truth=False
+            CaptureSpec.geometric(**spec_kw, **kw), progress=False, description=desc, truth=False
         )

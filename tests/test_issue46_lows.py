@@ -11,7 +11,7 @@ def test_write_capture_takes_a_str_folder_and_refuses_by_default(tmp_path):
     from pacam_render.exposure.capture import render_capture, write_capture
     from pacam_render.exposure.capture_spec import CaptureSpec
 
-    spec = CaptureSpec(scene="train", width=32, height=24, mode="reference", spp=4)
+    spec = CaptureSpec.geometric(scene="train", width=32, height=24, mode="reference", spp=4)
     cap = render_capture(spec, progress=False, truth=False)
     paths = write_capture(cap, str(tmp_path / "dir"))  # a str, no force: as a user writes it
     assert [p.name for p in paths] == ["capture.exr", "capture.png", "capture.json"]

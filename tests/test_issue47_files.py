@@ -62,7 +62,7 @@ def test_a_capture_record_nested_too_deep_is_one_line(tmp_path, capsys):
     from pacam_render.exposure.capture_spec import CaptureSpec
 
     folder = tmp_path / "cap"
-    spec = CaptureSpec(scene="train", width=32, height=24, mode="reference", spp=4)
+    spec = CaptureSpec.geometric(scene="train", width=32, height=24, mode="reference", spp=4)
     write_capture(render_capture(spec, progress=False, truth=False), folder)
     (folder / "capture.json").write_text("[" * 1_000_000 + "]" * 1_000_000)
     assert main(["deconvolve", str(folder / "capture.exr"), "--psf", "analytic", "--out",
@@ -97,7 +97,7 @@ def _capture_folder(tmp_path):
     from pacam_render.exposure.capture_spec import CaptureSpec
 
     folder = tmp_path / "cap"
-    spec = CaptureSpec(scene="train", width=32, height=24, mode="coded", spp=4)
+    spec = CaptureSpec.geometric(scene="train", width=32, height=24, mode="coded", spp=4)
     write_capture(render_capture(spec, progress=False, truth=False), folder)
     return folder
 
@@ -163,3 +163,67 @@ def test_optimize_keeps_a_design_files_pattern_count(tmp_path):
     ]
     assert main(args) == 0
     assert read_design(out / "design.toml").n_patterns == 32
+
+
+def test_a_scene_that_names_a_device_or_a_huge_mesh_is_refused_before_it_loads(tmp_path, capsys):
+    """High 10: a ply at /dev/zero read 99 s up to 17 GB; a sparse 5 GiB file stands for a
+    mesh past the bound (nothing of it is read)."""
+    zero = tmp_path / "zero.xml"
+    zero.write_text('<scene version="3.0.0"><shape type="ply"><string name="filename" '
+                    'value="/dev/zero"/></shape></scene>')  # fmt: skip
+    args = ["render", str(zero), "--width", "32", "--height", "24", "--spp", "4", "--quiet"]
+    assert main([*args, "--out", str(tmp_path / "a")]) == 2
+    assert "'/dev/zero' (/dev/zero), which is not a regular file" in capsys.readouterr().err
+    huge = tmp_path / "huge.ply"
+    with open(huge, "wb") as f:
+        f.truncate(5 * 2**30)
+    big = tmp_path / "big.xml"
+    big.write_text('<scene version="3.0.0"><shape type="ply"><string name="filename" '
+                   'value="huge.ply"/></shape></scene>')  # fmt: skip
+    args[1] = str(big)
+    assert main([*args, "--out", str(tmp_path / "b")]) == 2
+    err = capsys.readouterr().err
+    assert "'huge.ply'" in err and "5.0 GiB, over the 4 GiB" in err
+
+
+def test_a_full_disk_ends_in_one_line_and_the_capture_is_rescued(tmp_path, capsys, monkeypatch):
+    """High 9: OpenEXR reports a full disk as a RuntimeError; the capture's write becomes one
+    line naming the path, and the capture is written to a temporary folder instead."""
+    import sys
+
+    import OpenEXR
+
+    out = tmp_path / "cap"
+
+    class FullDisk:  # OpenEXR.File, whose writes into `out` fail as a full disk does
+        def __init__(self, *a):
+            self.file = OpenEXR.File(*a)
+
+        def __enter__(self):
+            return self
+
+        def __exit__(self, *exc):
+            return self.file.__exit__(*exc)
+
+        def write(self, path):
+            if str(out) in str(path):
+                raise RuntimeError(
+                    f'Failed to write pixel data to "{path}". No space left on device.'
+                )
+            self.file.write(path)
+
+    fake = type(sys)("OpenEXR")
+    fake.__dict__.update(OpenEXR.__dict__)
+    fake.File = FullDisk
+    monkeypatch.setitem(sys.modules, "OpenEXR", fake)
+    args = ["render", "train", "--width", "48", "--height", "36", "--spp", "4", "--diffraction",
+            "off", "--quiet", "--out", str(out)]  # fmt: skip
+    assert main(args) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    line = err[-1]
+    assert line.startswith("pacam render: error: writing the capture to") and "Traceback" not in err
+    assert "no space left on device" in line and str(out / "capture.exr") in line
+    rescue = line.split("the capture was written to ")[1].split(":")[0]
+    from pathlib import Path
+
+    assert (Path(rescue) / "capture.exr").is_file()

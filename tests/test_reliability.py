@@ -52,7 +52,7 @@ def _scene_files(folder, velocity: float, z: float = 500.0):
 @pytest.mark.render
 def test_resume_starts_afresh_when_the_motion_or_the_scene_changed(tmp_path):
     xml = _scene_files(tmp_path, -0.3)
-    spec = CaptureSpec(scene=str(xml), mode="coded", width=32, height=24, spp=64)
+    spec = CaptureSpec.geometric(scene=str(xml), mode="coded", width=32, height=24, spp=64)
     part = tmp_path / "out" / ".partial"
     with pytest.raises(CaptureInterrupted):
         render_capture(spec, partial_dir=part, progress=False, stop_after_steps=8)
@@ -134,7 +134,7 @@ def test_split_spp_is_powers_of_two_within_the_limits():
 def test_multi_step_same_seed_renders_are_bit_identical():
     """300 spp over 16 steps (18 or 19 each): one mi.render per step differed by an ulp in a
     few pixels from run to run; power-of-two passes do not."""
-    spec = CaptureSpec(scene="train", mode="coded", width=96, height=72, spp=300, seed=5)
+    spec = CaptureSpec.geometric(scene="train", mode="coded", width=96, height=72, spp=300, seed=5)
     images = [render_capture(spec, progress=False).image for _ in range(3)]
     assert images[0].any()
     assert all(np.array_equal(images[0], im) for im in images[1:])
@@ -200,7 +200,9 @@ def test_sigterm_and_sigint_save_the_finished_steps_and_resume(tmp_path):
     assert done.returncode == 0, done.stderr
     meta = json.loads((out / "capture.json").read_text())
     assert meta["resumed_from_step"] > 0 and not (out / ".partial").exists()
-    spec = CaptureSpec(scene="train", mode="coded", width=64, height=48, spp=64, max_step_px=0.05)
+    spec = CaptureSpec.geometric(
+        scene="train", mode="coded", width=64, height=48, spp=64, max_step_px=0.05
+    )
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", PacamWarning)
         whole = render_capture(spec, progress=False).image
@@ -244,16 +246,19 @@ def test_deconvolve_checks_its_output_before_reading(tmp_path, capsys):
 
 # --- 9. bounded work -----------------------------------------------------------------------------
 def test_a_plan_of_too_many_steps_is_refused_at_once():
-    spec = CaptureSpec(max_step_px=1e-6)
+    spec = CaptureSpec.geometric(max_step_px=1e-6)
     t0 = time.perf_counter()
     with pytest.raises(ParameterError, match=r"max_steps.*raise max_step_px"):
         plan_steps(np.linspace(0, 45, 17), np.ones(16, bool), 1.0, spec)
     with pytest.raises(ParameterError, match="max_steps"):  # a motion of 1e6 mm/ms
-        plan_steps(np.linspace(0, 45, 17), np.ones(16, bool), 1e12, CaptureSpec())
+        plan_steps(np.linspace(0, 45, 17), np.ones(16, bool), 1e12, CaptureSpec.geometric())
     with pytest.raises(ParameterError, match="max_steps"):
-        plan_steps(np.linspace(0, 45, 17), np.ones(16, bool), np.inf, CaptureSpec())
+        plan_steps(np.linspace(0, 45, 17), np.ones(16, bool), np.inf, CaptureSpec.geometric())
     assert time.perf_counter() - t0 < 1.0
-    assert len(plan_steps(np.linspace(0, 45, 17), np.ones(16, bool), 1.0, CaptureSpec())) == 96
+    assert (
+        len(plan_steps(np.linspace(0, 45, 17), np.ones(16, bool), 1.0, CaptureSpec.geometric()))
+        == 96
+    )
 
 
 @pytest.mark.parametrize(
@@ -282,12 +287,12 @@ def test_limit_flags_reject_impossible_values(flag, value, tmp_path, capsys):
 
 
 def test_budget_counts_samples_and_memory():
-    check_budget(CaptureSpec(width=1280, height=960, spp=1024))
+    check_budget(CaptureSpec.geometric(width=1280, height=960, spp=1024))
     with pytest.raises(ParameterError, match="max_samples"):  # the CLI says --max-samples
-        check_budget(CaptureSpec(width=1280, height=960, spp=1024), max_samples=10**6)
+        check_budget(CaptureSpec.geometric(width=1280, height=960, spp=1024), max_samples=10**6)
     with pytest.raises(ParameterError, match="the pilot of this noise target"):  # issue 37
-        check_budget(CaptureSpec(width=1280, height=960, spp=1024), 10**6, targeted=True)
-    check_budget(CaptureSpec(width=1280, height=960, spp=1024), 10**7, targeted=True)
+        check_budget(CaptureSpec.geometric(width=1280, height=960, spp=1024), 10**6, targeted=True)
+    check_budget(CaptureSpec.geometric(width=1280, height=960, spp=1024), 10**7, targeted=True)
 
 
 # --- 10. spp inflation ---------------------------------------------------------------------------
@@ -401,15 +406,18 @@ def test_ignored_options_get_a_note(tmp_path):
     tiny = {"width": 32, "height": 24, "spp": 4}
     with pytest.warns(PacamWarning, match="cover_px_per_ms has no effect in normal mode"):
         cap = render_capture(
-            CaptureSpec(mode="normal", cover_px_per_ms=1.0, **tiny), progress=False
+            CaptureSpec.geometric(mode="normal", cover_px_per_ms=1.0, **tiny), progress=False
         )
     assert "cover_px_per_ms" in cap.record.notes[0]
     with pytest.warns(PacamWarning, match="per_pattern keeps nothing"):
-        render_capture(CaptureSpec(mode="reference", per_pattern=True, **tiny), progress=False)
+        render_capture(
+            CaptureSpec.geometric(mode="reference", per_pattern=True, **tiny), progress=False
+        )
     with warnings.catch_warnings(record=True) as caught:  # coded uses the cover: no note on it
         warnings.simplefilter("always", PacamWarning)
         render_capture(
-            CaptureSpec(mode="coded", cover_px_per_ms=1.0, **{**tiny, "spp": 16}), progress=False
+            CaptureSpec.geometric(mode="coded", cover_px_per_ms=1.0, **{**tiny, "spp": 16}),
+            progress=False,
         )
     assert caught and not any("cover_px_per_ms" in str(w.message) for w in caught)
     xml = tmp_path / "s.xml"

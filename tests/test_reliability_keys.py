@@ -40,7 +40,7 @@ def _xml(folder, extra: str = ""):
 def test_an_xml_attribute_that_traverse_misses_starts_afresh(tmp_path):
     """flip_normals is not among mi.traverse's parameters: the scene's own text is keyed."""
     xml = _xml(tmp_path)
-    spec = CaptureSpec(scene=str(xml), mode="coded", width=32, height=24, spp=16)
+    spec = CaptureSpec.geometric(scene=str(xml), mode="coded", width=32, height=24, spp=16)
     part = tmp_path / "out" / ".partial"
     with pytest.raises(CaptureInterrupted):
         render_capture(spec, partial_dir=part, progress=False, stop_after_steps=6, truth=False)
@@ -65,7 +65,9 @@ def _schedule(path, centre_mm: float):
 @pytest.mark.render
 def test_a_schedule_rewritten_in_place_starts_afresh(tmp_path):
     sched = _schedule(tmp_path / "schedule.json", 3.0)
-    spec = CaptureSpec(scene="train", mode="coded", width=40, height=30, spp=8, schedule=str(sched))
+    spec = CaptureSpec.geometric(
+        scene="train", mode="coded", width=40, height=30, spp=8, schedule=str(sched)
+    )
     part = tmp_path / "out" / ".partial"
     with pytest.raises(CaptureInterrupted):
         render_capture(spec, partial_dir=part, progress=False, stop_after_steps=5, truth=False)
@@ -88,7 +90,7 @@ def test_a_study_keys_on_the_contents_of_the_files_it_names(tmp_path):
 @pytest.mark.render
 @pytest.mark.parametrize("steps_done", [999, -3, "x"])
 def test_a_tampered_checkpoint_is_never_trusted(tmp_path, steps_done):
-    spec = CaptureSpec(scene="train", mode="coded", width=32, height=24, spp=8, seed=1)
+    spec = CaptureSpec.geometric(scene="train", mode="coded", width=32, height=24, spp=8, seed=1)
     part = tmp_path / "out" / ".partial"
     with pytest.raises(CaptureInterrupted):
         render_capture(spec, partial_dir=part, progress=False, stop_after_steps=4, truth=False)
@@ -141,7 +143,7 @@ def test_a_checkpoint_that_cannot_be_saved_does_not_stop_the_capture(tmp_path, m
         raise OSError(errno.ENOSPC, "No space left on device")
 
     monkeypatch.setattr("pacam_render.exposure.checkpoint.atomic_save", full)
-    spec = CaptureSpec(scene="train", mode="coded", width=32, height=24, spp=8)
+    spec = CaptureSpec.geometric(scene="train", mode="coded", width=32, height=24, spp=8)
     with pytest.warns(PacamWarning, match="could not save the finished work"):
         cap = render_capture(
             spec, partial_dir=tmp_path / "c" / ".partial", progress=False, save_every_s=0

@@ -226,7 +226,9 @@ def test_a_schedule_the_mode_does_not_show_is_noted_and_recorded_unused(mode, ma
     from pacam_render.exposure.capture import render_capture
     from pacam_render.exposure.capture_spec import CaptureSpec
 
-    spec = CaptureSpec(mode=mode, width=32, height=24, spp=4, schedule=_schedule(tmp_path / "s"))
+    spec = CaptureSpec.geometric(
+        mode=mode, width=32, height=24, spp=4, schedule=_schedule(tmp_path / "s")
+    )
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", PacamWarning)
         rec = render_capture(spec, progress=False, truth=False).record.to_json()

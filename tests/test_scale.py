@@ -20,9 +20,9 @@ def test_a_crop_equals_the_same_window_of_the_whole_frame():
     """Mitsuba's film crop: the window's pixels, the same camera, Monte Carlo apart."""
     base = {"scene": "train", "mode": "coded", "width": 256, "height": 192, "spp": 256}
     window = (40, 100, 64, 48)
-    whole = render_capture(CaptureSpec(**base), progress=False).image
+    whole = render_capture(CaptureSpec.geometric(**base), progress=False).image
     crops = [
-        render_capture(CaptureSpec(**base, crop=window, seed=s), progress=False).image
+        render_capture(CaptureSpec.geometric(**base, crop=window, seed=s), progress=False).image
         for s in (1, 2)
     ]
     x, y, w, h = window
@@ -38,8 +38,11 @@ def test_a_crop_equals_the_same_window_of_the_whole_frame():
 def test_crop_must_lie_inside_the_sensor():
     for crop in ((0, 0, 1281, 10), (-1, 0, 10, 10), (0, 0, 1, 10), (0.5, 0, 10, 10)):
         with pytest.raises(ParameterError, match="`crop` must be X,Y,W,H"):
-            CaptureSpec(width=1280, height=960, crop=crop)
-    assert CaptureSpec(width=1280, height=960, crop=(1270, 950, 10, 10)).image_size == (10, 10)
+            CaptureSpec.geometric(width=1280, height=960, crop=crop)
+    assert CaptureSpec.geometric(width=1280, height=960, crop=(1270, 950, 10, 10)).image_size == (
+        10,
+        10,
+    )
 
 
 @pytest.mark.render

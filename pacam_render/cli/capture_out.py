@@ -17,16 +17,18 @@ def write_or_rescue(cap, out: Path, force: bool, error_layer: bool = False) -> l
         paths = write_capture(cap, out, force=force, error_layer=error_layer)
     except OSError as exc:
         kept = out / ".partial"
-        where = f"the rendered passes are kept in {kept}" if kept.is_dir() else "nothing was kept"
+        saved = kept.is_dir() and any(kept.iterdir())
+        where = f"the rendered passes are kept in {kept}" if saved else "no passes could be kept"
         try:
             rescue = Path(tempfile.mkdtemp(prefix="pacam-rescue-"))
             write_capture(cap, rescue, force=True, error_layer=error_layer)
             where += f", and the capture was written to {rescue}"
         except OSError:
             pass
+        again = "which resumes without rendering" if saved else "which renders it again"
         raise OSError(
             f"writing the capture to {out} failed ({exc}); {where}: free the space and run the "
-            "same command again, which resumes without rendering"
+            f"same command again, {again}"
         ) from None
     shutil.rmtree(out / ".partial", ignore_errors=True)
     return paths

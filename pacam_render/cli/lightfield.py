@@ -120,7 +120,7 @@ def _spec(args: argparse.Namespace):
         grey=bool(args.grey),
         object_depth_mm=args.depth,
     )
-    capture = CaptureSpec(
+    capture = CaptureSpec.geometric(  # a store is geometric (lightfield/render.py)
         **base,
         **design_spec_fields(args),
         spp=DEFAULT_STORE_SPP if args.spp is None else args.spp,
@@ -128,7 +128,7 @@ def _spec(args: argparse.Namespace):
         seed=args.seed,
         max_step_px=args.max_step_px,
     )
-    designs = tuple(CaptureSpec(**base, design=d) for d in args.designs)
+    designs = tuple(CaptureSpec.geometric(**base, design=d) for d in args.designs)
     return StoreSpec(capture, margin_px=args.margin_px, designs=designs, alpha=args.uniform_share)
 
 

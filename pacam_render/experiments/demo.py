@@ -160,7 +160,7 @@ def run_train(
     size = {"width": width, "height": height, "spp": spp, "seed": seed, "crop": crop}
     lens = {**size, **CAMERA_OPTICS}  # a camera's optics; the pinhole reference has none
     runs = {
-        "reference": CaptureSpec(mode="reference", **size),
+        "reference": CaptureSpec.geometric(mode="reference", **size),
         "normal": CaptureSpec(mode="normal", **lens),
         **{
             f"coded_{i}": CaptureSpec(mode="coded", cover_px_per_ms=c.cover, **lens)

@@ -47,8 +47,8 @@ CASES = {
     f"train_{m}": CaptureSpec(scene="train", mode=m, **SIZE)
     for m in ("normal", "coded", "short", "levin", "flutter")
 }
-CASES["train_reference"] = CaptureSpec(scene="train", mode="reference", width=120, height=90,
-                                       spp=64)  # fmt: skip  # the pinhole: radiance, no opening
+CASES["train_reference"] = CaptureSpec.geometric(scene="train", mode="reference", width=120,
+                                                 height=90, spp=64)  # fmt: skip  # the pinhole
 CASES["psf_coded"] = CaptureSpec(  # 16 passes of 72 steps x 4 spp: what was blessed
     scene="psf", mode="coded", width=64, height=24, spp=4608, passes=16, **CAMERA_OPTICS
 )

@@ -22,17 +22,16 @@ from .capture_diffraction import check_diffraction
 from .estimate import check_passes
 
 GEOMETRIC_OPTICS = {"relative_illumination": "off", "diffraction": "off"}
-"""A :class:`CaptureSpec`'s own optics defaults: geometric radiance through an ideal opening,
-what the closed-form checks and the studies' ``[render]`` tables assume (a study reads them
-from here). This module owns both sets of optics defaults; the CLI reads
-:data:`CAMERA_OPTICS`."""
+"""Geometric radiance through an ideal opening: what the closed-form checks and the studies'
+``[render]`` tables assume (a study reads them from here), and
+:meth:`CaptureSpec.geometric`'s."""
 
 CAMERA_OPTICS = {"relative_illumination": "cos4", "diffraction": "auto"}
 """The optics of a camera's capture, as a sensor measures it: irradiance (the thin lens's
 natural vignetting) and the opening's diffraction wherever a preview measures it at the
-capture's noise target (issue 36). ``pacam render``'s defaults, and the regression
-images'. A :class:`CaptureSpec` left at its own defaults is geometric radiance
-(``off`` and ``off``), what closed-form checks and the studies assume."""
+capture's noise target (issue 36). A :class:`CaptureSpec`'s defaults, which ``pacam render``
+reads (issue 46: the API and the command line render one camera alike), and the regression
+images'. This module owns both sets of optics."""
 
 
 @dataclass(frozen=True)
@@ -76,14 +75,15 @@ class CaptureSpec:
     PSF JSON, or a legacy schedule.json (:func:`~pacam_render.model.design_file.resolve_design`)."""
     grey: bool = False
     """Render one channel (luminance) with a mono variant; see the class docstring."""
-    relative_illumination: str = GEOMETRIC_OPTICS["relative_illumination"]
-    """The sensor's relative illumination: ``off`` (default: radiance, as ``thinlens``),
-    ``cos4`` (:data:`CAMERA_OPTICS`) or a curve file
+    relative_illumination: str = CAMERA_OPTICS["relative_illumination"]
+    """The sensor's relative illumination: ``cos4`` (default, :data:`CAMERA_OPTICS`), ``off``
+    (radiance, as ``thinlens``; :meth:`geometric`) or a curve file
     (:mod:`~pacam_render.model.illumination`). Not ``off``: the capture records its map as the
     ``relative_illumination`` layer, and readers flat-field with it."""
-    diffraction: str = GEOMETRIC_OPTICS["diffraction"]
-    """The openings' diffraction: ``off`` (default), ``on`` or ``auto`` (:data:`CAMERA_OPTICS`:
-    on unless its effect is below the noise target; :mod:`~.capture_diffraction`). Disc
+    diffraction: str = CAMERA_OPTICS["diffraction"]
+    """The openings' diffraction: ``auto`` (default, :data:`CAMERA_OPTICS`: on unless its
+    effect is below the noise target; :mod:`~.capture_diffraction`), ``on`` or ``off``
+    (:meth:`geometric`). Disc
     openings diffract in the rays, a bitmap schedule's patterns after the render; it is in the
     key, since the passes differ."""
 
@@ -101,6 +101,20 @@ class CaptureSpec:
     """The LCoS's switching time, ms (None: 0, instant): in the first t of each pattern's
     window the pixels turn linearly from the previous pattern (coded captures of discrete disc
     schedules)."""
+
+    @classmethod
+    def geometric(cls, **fields) -> CaptureSpec:
+        """A spec with geometric radiance through an ideal opening (:data:`GEOMETRIC_OPTICS`)
+        unless ``fields`` give the optics: what closed-form checks and Mitsuba's ``thinlens``
+        see.
+
+        Examples
+        --------
+        >>> s = CaptureSpec.geometric(scene="train", mode="coded")
+        >>> (s.relative_illumination, s.diffraction), CaptureSpec().diffraction
+        (('off', 'off'), 'auto')
+        """
+        return cls(**{**GEOMETRIC_OPTICS, **fields})
 
     def __post_init__(self) -> None:
         if not isinstance(self.grey, (bool, np.bool_)):

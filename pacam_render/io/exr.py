@@ -49,9 +49,23 @@ def write_exr(path: str | os.PathLike, layers: dict[str, np.ndarray], force: boo
 
     def save(tmp: str) -> None:
         with OpenEXR.File(header, dict(chans)) as f:  # OpenEXR replaces the dict's arrays: copy
-            f.write(tmp)
+            try:
+                f.write(tmp)
+            except RuntimeError as exc:  # OpenEXR reports a full disk so: say it as the OS does
+                raise write_error(path, exc) from None
 
     return atomic_save(path, save, force)
+
+
+def write_error(path, exc: Exception) -> OSError:
+    """A library's failed write (OpenEXR's or Mitsuba's ``RuntimeError``) as the ``OSError``
+    the OS would raise, ``ENOSPC`` when its words say the disk is full, naming ``path``: the
+    callers that keep a capture's passes on a failed write then see it as one."""
+    import errno
+
+    full = "no space left" in str(exc).lower()
+    code = errno.ENOSPC if full else errno.EIO
+    return OSError(code, f"{'no space left on device' if full else exc}", str(path))
 
 
 def read_exr(path: str | os.PathLike) -> dict[str, np.ndarray]:

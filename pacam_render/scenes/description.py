@@ -27,6 +27,7 @@ from ..limits import PacamWarning
 from ..model.camera import CameraDesign
 from . import assets as sa
 from .motion import Motion, _bbox_corners, _mi, check_keys, project_px
+from .scene_files import check_scene_files, check_scene_xml_size
 
 
 @dataclass
@@ -166,6 +167,7 @@ def load_scene_file(
     path = Path(path)
     if not path.is_file():
         raise ParameterError(f"scene file not found: {str(path)!r}")
+    check_scene_xml_size(path)
     try:
         text = path.read_text()
     except (OSError, UnicodeDecodeError) as exc:
@@ -173,6 +175,7 @@ def load_scene_file(
     kwargs = {k: str(v) for k, v in (params or {}).items()}
     if "$assets" in text and "assets" not in kwargs:  # our exported scenes use the cache
         kwargs["assets"] = str(sa.ensure_assets(cache_dir))
+    check_scene_files(path, text, kwargs)  # before Mitsuba reads any of them
     try:
         loaded = mi.load_file(str(path), optimize=False, **kwargs)
     except Exception as exc:  # Mitsuba raises RuntimeError (parse) or others (plugins)

@@ -47,7 +47,7 @@ before the choice, with the oracle; :mod:`~pacam_render.restore.capture_deblur`)
 ``render_spp`` and
 ``render_s`` are the shared render of the point's group. The ``psnr_moving_*_db`` columns
 after it decompose the score (:mod:`.plateau`; with ``[study] decompose = true``), the last,
-``psnr_moving_oracle_db``, told the capture's own model error (the oracle's upper bound).
+``psnr_moving_oracle_db``, told the capture's own model error (the oracle's score).
 The optics (``capture.json``'s ``optics_error``, white = 1): ``diffraction`` is ``in`` or
 ``out`` of the capture, ``diffraction_sigma`` its measured effect where it is left out, and
 ``optics_left_out`` / ``optics_left_out_sigma`` the largest left-out effect and its size
@@ -307,7 +307,7 @@ def _evaluate(cap, desc, p: Point, task: Task, info: dict) -> dict:
 
 def _model_error_scores(cap, method, task, measured, told, scorer, out) -> dict:
     """The moving objects' PSNR told no model error (``psnr_moving_no_model_sigma_db``), and
-    told the capture's own measured one (``psnr_moving_oracle_db``, the oracle's upper bound:
+    told the capture's own measured one (``psnr_moving_oracle_db``, the oracle's score:
     with ``decompose``, or when the study is the oracle's); each restored afresh only when
     the study's own restoration is not already it."""
 

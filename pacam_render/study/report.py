@@ -226,8 +226,10 @@ def told_text(model_error) -> str:
         return (
             base + ', and, **oracle** (`model_error = "oracle"`), each capture\'s own departure '
             "from the convolution model measured against its `sharp` layer (`model_sigma`, "
-            "`pacam_render/restore/model_error.py`): no real camera knows its sharp image, so "
-            "these scores are an upper bound."
+            "`pacam_render/restore/model_error.py`): no real camera knows its sharp image. "
+            "Nor is it an upper bound: a larger sigma regularises the whole image, and on the "
+            "train's moving edges it scored up to 1 dB below the default (the "
+            "`crossover_optics` re-run)."
         )
     return (
         base + f", and a model error of {float(model_error):.4g} (white = 1) calibrated on "
@@ -351,10 +353,10 @@ def _plateau_text(ok: list[dict]) -> list[str]:
         "told no model error, told the old fixed floor of 0.02, with the capture replaced by "
         "the convolution model's prediction k * sharp under the same sensor noise, restored as "
         "the study restores it (`pacam_render/study/plateau.py`), and told each capture's own "
-        "measured model error (**oracle**, an upper bound no real camera reaches; blank for "
-        "rows written before it). Diffraction: `in` the capture, or `out` with its measured "
-        "size (RMS, white = 1), next to the model sigma it would otherwise join; blank for "
-        "rows written before the optics columns.",
+        "measured model error (**oracle**: no real camera knows it, and it is not an upper "
+        "bound; blank for rows written before it). Diffraction: `in` the capture, or `out` "
+        "with its measured size (RMS, white = 1), next to the model sigma it would otherwise "
+        "join; blank for rows written before the optics columns.",
         "",
         "| mode | design | speed | method | light | study | no model sigma | floor 0.02 | "
         "exact model | oracle | model sigma | diffraction |",

@@ -21,7 +21,7 @@ TINY = {"width": 48, "height": 36, "spp": 4}
 @pytest.mark.parametrize("scene", ["train", "soccer", "walker"])
 @pytest.mark.parametrize("mode", MODES)
 def test_every_scene_every_mode(scene, mode):
-    cap = render_capture(CaptureSpec(scene=scene, mode=mode, **TINY), progress=False)
+    cap = render_capture(CaptureSpec.geometric(scene=scene, mode=mode, **TINY), progress=False)
     img = cap.image
     assert img.shape == (36, 48, 3) and np.all(np.isfinite(img)) and img.min() >= 0
     assert img.mean() > 0
@@ -33,12 +33,14 @@ def test_modes_collect_light_in_proportion():
     """Normalised by the light factor, normal, coded and short agree with the reference."""
     means = {}
     for mode in ("reference", "normal", "coded", "short"):
-        cap = render_capture(CaptureSpec(mode=mode, width=64, height=48, spp=16), progress=False)
+        cap = render_capture(
+            CaptureSpec.geometric(mode=mode, width=64, height=48, spp=16), progress=False
+        )
         means[mode] = cap.image.mean() / cap.meta["light_factor"]
     for mode in ("normal", "coded", "short"):
         assert means[mode] == pytest.approx(means["reference"], rel=0.03)
     # short: F2.8 for 0.679 ms vs F9.85 for 45 ms: (9.85/2.8)^2 x 0.679/45 = 0.187 of the light
-    short = capture_design(CaptureSpec())
+    short = capture_design(CaptureSpec.geometric())
     assert short.R_max_mm**2 * 0.679 / (short.R_mm**2 * 45) == pytest.approx(0.1868, abs=1e-3)
 
 
@@ -52,7 +54,7 @@ def streak_length_px(row: np.ndarray) -> float:
 
 
 def test_moving_emitter_streak_matches_velocity_times_exposure():
-    spec = CaptureSpec(scene="psf", mode="normal", width=96, height=16, spp=1024)
+    spec = CaptureSpec.geometric(scene="psf", mode="normal", width=96, height=16, spp=1024)
     cam = capture_design(spec)
     v = 1.2  # px/ms in this film's pixels
     desc = psf_scene(500.0, v, camera=cam.with_(focus_distance_mm=500.0), radius_mm=0.05)
@@ -63,14 +65,14 @@ def test_moving_emitter_streak_matches_velocity_times_exposure():
 
 
 def test_static_scene_is_one_pass_without_geometry_updates():
-    spec = CaptureSpec(scene="psf", mode="coded", width=64, height=32, spp=16)
+    spec = CaptureSpec.geometric(scene="psf", mode="coded", width=64, height=32, spp=16)
     desc = psf_scene(500.0, 0.0, camera=capture_design(spec))
     cap = render_capture(spec, progress=False, description=desc)
     assert cap.meta["n_steps"] == 1 and cap.meta["n_geometry_updates"] == 0
 
 
 def test_plan_steps_respects_step_size_and_spp_budget():
-    spec = CaptureSpec(spp=64, max_step_px=0.5)
+    spec = CaptureSpec.geometric(spp=64, max_step_px=0.5)
     edges = np.linspace(0, 45, 17)
     steps = plan_steps(edges, np.ones(16, bool), 1.4, spec)
     assert all((s.t1 - s.t0) * 1.4 <= 0.5 + 1e-9 for s in steps)
@@ -81,11 +83,13 @@ def test_plan_steps_respects_step_size_and_spp_budget():
 
 
 def test_same_seed_is_bit_identical_and_resume_matches(tmp_path):
-    spec = CaptureSpec(scene="train", mode="coded", width=64, height=48, spp=32, seed=7)
+    spec = CaptureSpec.geometric(scene="train", mode="coded", width=64, height=48, spp=32, seed=7)
     full = render_capture(spec, progress=False).image
     again = render_capture(spec, progress=False).image
     assert np.array_equal(full, again)
-    other = render_capture(CaptureSpec(**{**spec.__dict__, "seed": 8}), progress=False).image
+    other = render_capture(
+        CaptureSpec.geometric(**{**spec.__dict__, "seed": 8}), progress=False
+    ).image
     assert not np.array_equal(full, other)
     part = tmp_path / ".partial"
     with pytest.raises(CaptureInterrupted):
@@ -159,7 +163,7 @@ def test_cli_render_with_sensor_layers(tmp_path):
 )
 def test_bad_input_errors(kw, match):
     with pytest.raises(ParameterError, match=match):
-        render_capture(CaptureSpec(**{**TINY, **kw}), progress=False)
+        render_capture(CaptureSpec.geometric(**{**TINY, **kw}), progress=False)
 
 
 def test_unparsable_scene_file(tmp_path, capsys):

@@ -39,7 +39,7 @@ def test_an_in_focus_edge_takes_the_circular_pupils_mtf():
     """Normal mode at F9.85, the edge at the focus distance: MTF(on) / MTF(off) in green is the
     circular pupil's diffraction-limited MTF within 0.03 from 0.05 to 0.45 cycles/px."""
     kw = {"scene": "edge", "mode": "normal", **FULL, "crop": (592, 432, 96, 96), "spp": 2048}
-    spec = CaptureSpec(**kw)
+    spec = CaptureSpec.geometric(**kw)
     desc = edge_scene(mode_camera(capture_design(spec), "normal")[0].focus_distance_mm, 5.0)
     off = render_edge(kw, desc, diffraction="off")
     on = render_edge(kw, desc, diffraction="on")
@@ -165,7 +165,7 @@ def test_a_uniform_emitter_stays_uniform_even_through_one_lcos_pixel(tmp_path):
     from tests.exposure.test_render_error import _glowing_wall
 
     kw = {"scene": "wall", "mode": "normal", **FULL, "crop": (600, 440, 24, 16), "spp": 64}
-    one = capture_design(CaptureSpec(**kw)).with_(R_mm=0.01362)  # the smallest opening
+    one = capture_design(CaptureSpec.geometric(**kw)).with_(R_mm=0.01362)  # the smallest opening
     write_design(tmp_path / "one.toml", one)
     cap = render_edge(kw, _glowing_wall(False), diffraction="on", design=str(tmp_path / "one.toml"))
     assert 120 < 1.22 * cap.record.optics_error["diffraction"]["lambda_n_px"][1] < 200
@@ -317,7 +317,9 @@ def test_the_lcos_grid_puts_its_orders_where_and_as_bright_as_the_grating_says()
 
 def test_fill_factor_needs_diffraction_and_is_checked():
     with pytest.raises(ParameterError, match="lcos_fill_factor: the grid's orders are diffraction"):
-        CaptureSpec(lcos_fill_factor=0.9)
+        CaptureSpec.geometric(lcos_fill_factor=0.9)
     with pytest.raises(ParameterError, match=r"lcos_fill_factor must be in \(0, 1\]"):
         CaptureSpec(lcos_fill_factor=1.5, diffraction="on")
-    assert CaptureSpec(lcos_fill_factor=0.9, diffraction="on").key() != CaptureSpec().key()
+    assert (
+        CaptureSpec(lcos_fill_factor=0.9, diffraction="on").key() != CaptureSpec.geometric().key()
+    )

@@ -30,7 +30,7 @@ TINY = {"scene": "train", "mode": "normal", "width": 48, "height": 36, "spp": 8,
 
 
 def test_spec_default_is_off_and_keeps_the_key():
-    spec = CaptureSpec(**TINY)
+    spec = CaptureSpec.geometric(**TINY)
     assert spec.relative_illumination == "off"
     fields = asdict(spec)
     del fields["grey"], fields["relative_illumination"]  # the key as it was before the field
@@ -55,7 +55,7 @@ def test_spec_checks_the_setting_and_hashes_a_curve(tmp_path):
 
 
 def test_sensor_parameters(tmp_path):
-    assert illumination_params(CaptureSpec(**TINY)) == {}
+    assert illumination_params(CaptureSpec.geometric(**TINY)) == {}
     assert illumination_params(CaptureSpec(**TINY, relative_illumination="cos4")) == {
         "relative_illumination": "cos4"
     }
@@ -71,7 +71,7 @@ def test_sensor_parameters(tmp_path):
 
 @pytest.fixture(scope="module")
 def pair():
-    off = render_capture(CaptureSpec(**TINY), progress=False)
+    off = render_capture(CaptureSpec.geometric(**TINY), progress=False)
     cos4 = render_capture(CaptureSpec(**TINY, relative_illumination="cos4"), progress=False)
     return off, cos4
 

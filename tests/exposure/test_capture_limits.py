@@ -40,7 +40,7 @@ def test_the_limit_counts_the_spp_the_time_steps_round_to(monkeypatch):
     """--spp 1 rendered 128 spp (2 passes x 16 steps x 4 spp) under a limit of 64 spp with rc 0;
     now it is refused once the steps are planned, before any render."""
     _no_render(monkeypatch)
-    spec = CaptureSpec(**SMALL, spp=1)
+    spec = CaptureSpec.geometric(**SMALL, spp=1)
     with pytest.raises(ParameterError) as err:
         render_capture(spec, progress=False, truth=False, max_samples=64 * 48 * 32)
     words = str(err.value)
@@ -51,7 +51,7 @@ def test_the_limit_counts_the_spp_the_time_steps_round_to(monkeypatch):
 
 def test_a_noise_targets_pilot_is_counted_before_it_renders(monkeypatch):
     _no_render(monkeypatch)
-    spec = CaptureSpec(**SMALL)
+    spec = CaptureSpec.geometric(**SMALL)
     with pytest.raises(
         ParameterError,
         match=r"the pilot of this noise target \(2 passes of at "
@@ -85,7 +85,7 @@ def test_a_target_out_of_reach_is_refused_after_the_pilot_and_resumes_with_a_lar
     """After the pilot, a target that the pilot predicts beyond max_samples is refused at once,
     naming max_samples, the samples and the seconds it would take; the pilot is kept, and the
     same capture with a larger limit resumes from it."""
-    spec = CaptureSpec(scene="train", mode="coded", seed=3, **TRAIN_WINDOW)
+    spec = CaptureSpec.geometric(scene="train", mode="coded", seed=3, **TRAIN_WINDOW)
     goal = AbsoluteTarget(2.5e-4)
     part = tmp_path / "c" / ".partial"
     pilot_spp = 2 * 4 * 32  # two passes of one 4 spp render per step, 32 steps
@@ -137,7 +137,7 @@ def test_a_resumed_captures_seconds_count_every_session(tmp_path, monkeypatch):
         time.sleep(0.5)
         return real(*args, **kwargs)
 
-    spec = CaptureSpec(scene="train", mode="coded", width=40, height=30, spp=16, seed=2)
+    spec = CaptureSpec.geometric(scene="train", mode="coded", width=40, height=30, spp=16, seed=2)
     part = tmp_path / "c" / ".partial"
     monkeypatch.setattr(passes, "render_passes", slow)
     with pytest.raises(CaptureInterrupted):

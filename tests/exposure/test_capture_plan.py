@@ -79,7 +79,7 @@ def test_the_plan_agrees_with_the_spec_resolved_the_long_way():
 def test_a_design_files_key_is_its_digest(tmp_path):
     path = tmp_path / "d.toml"
     write_design(path, prototype().with_(R_mm=2.5))
-    spec = CaptureSpec(**TINY, design=str(path), object_depth_mm=700.0)
+    spec = CaptureSpec.geometric(**TINY, design=str(path), object_depth_mm=700.0)
     plan = plan_capture(spec)
     assert plan.key() == spec.key()  # the digest of the file as read, not of the depth's
     assert plan.full.object_depth_mm == 700.0
@@ -101,7 +101,7 @@ def test_the_optics_defaults_have_one_owner():
     from pacam_render.experiments.validate_scene import SceneCheck
     from pacam_render.exposure.capture_spec import CAMERA_OPTICS, GEOMETRIC_OPTICS
 
-    spec = CaptureSpec()
+    spec = CaptureSpec.geometric()
     assert {k: getattr(spec, k) for k in GEOMETRIC_OPTICS} == GEOMETRIC_OPTICS
     args = build_parser().parse_args(["render", "train", "--out", "x"])
     assert {k: getattr(args, k) for k in CAMERA_OPTICS} == CAMERA_OPTICS

@@ -95,7 +95,9 @@ def test_grey_flag_is_the_mono_variant_and_the_luminance_of_rgb(mono_capture, tm
 def test_grey_capture_resumes_from_its_checkpoint(tmp_path):
     """The checkpoint's image shape is the grey (H, W): a stopped grey capture resumes."""
     _needs_llvm()
-    spec = CaptureSpec(scene="train", mode="coded", width=32, height=24, spp=8, seed=7, grey=True)
+    spec = CaptureSpec.geometric(
+        scene="train", mode="coded", width=32, height=24, spp=8, seed=7, grey=True
+    )
     full = render_capture(spec, progress=False, truth=False)
     part = tmp_path / ".partial"
     with pytest.raises(CaptureInterrupted):
@@ -103,7 +105,7 @@ def test_grey_capture_resumes_from_its_checkpoint(tmp_path):
     resumed = render_capture(spec, partial_dir=part, progress=False, truth=False)
     assert resumed.meta["resumed_from_step"] == 3 and resumed.image.shape == (24, 32)
     assert np.array_equal(resumed.image, full.image)
-    assert spec.key() != CaptureSpec(**{**spec.__dict__, "grey": False}).key()
+    assert spec.key() != CaptureSpec.geometric(**{**spec.__dict__, "grey": False}).key()
 
 
 def test_grey_with_an_rgb_variant_is_refused_before_any_work(tmp_path, monkeypatch, capsys):

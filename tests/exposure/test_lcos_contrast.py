@@ -26,7 +26,9 @@ pytestmark = pytest.mark.render
 def _capture(desc=None, **kw):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        return render_capture(CaptureSpec(**kw), progress=False, description=desc, truth=False)
+        return render_capture(
+            CaptureSpec.geometric(**kw), progress=False, description=desc, truth=False
+        )
 
 
 @pytest.mark.parametrize("contrast", [2.0, 50.0])
@@ -49,7 +51,7 @@ def test_contrast_one_is_the_full_aperture(tmp_path):
     """C = 1: no coding at all; the normal capture equals one through a full-aperture design,
     within the two captures' Monte Carlo error (pooled over the window)."""
     kw = {"scene": "train", "mode": "normal", "width": 64, "height": 48, "spp": 64}
-    full = capture_design(CaptureSpec(**kw))
+    full = capture_design(CaptureSpec.geometric(**kw))
     write_design(tmp_path / "full.toml", full.with_(R_mm=full.R_max_mm))
     leak = _capture(**kw, lcos_contrast=1.0)
     wide = _capture(**{**kw, "seed": 1}, design=str(tmp_path / "full.toml"))  # independent
@@ -69,16 +71,18 @@ def test_an_ideal_display_is_the_capture_it_was():
 
 def test_contrast_is_checked_and_named():
     with pytest.raises(ParameterError, match="lcos_contrast must be >= 1"):
-        CaptureSpec(lcos_contrast=0.5)
+        CaptureSpec.geometric(lcos_contrast=0.5)
     with pytest.raises(ParameterError, match="lcos_contrast"):
-        CaptureSpec(lcos_contrast=float("nan"))
-    assert CaptureSpec(lcos_contrast=100.0).key() != CaptureSpec().key()
+        CaptureSpec.geometric(lcos_contrast=float("nan"))
+    assert CaptureSpec.geometric(lcos_contrast=100.0).key() != CaptureSpec.geometric().key()
 
 
 def test_levin_has_no_lcos_to_leak():
     kw = {"scene": "train", "mode": "levin", "width": 32, "height": 24, "spp": 8}
     with pytest.warns(Warning, match="lcos_contrast has no effect in levin mode"):
-        cap = render_capture(CaptureSpec(**kw, lcos_contrast=10.0), progress=False, truth=False)
+        cap = render_capture(
+            CaptureSpec.geometric(**kw, lcos_contrast=10.0), progress=False, truth=False
+        )
     assert any("lcos_contrast has no effect" in n for n in cap.record.notes)
     assert not cap.record.optics_error["effects"]["lcos_leakage"]["included"]
     assert np.array_equal(cap.image, _capture(**kw).image)  # the capture without it

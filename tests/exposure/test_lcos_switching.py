@@ -72,7 +72,7 @@ def test_switching_is_checked_and_named():
     with pytest.raises(bad, match="lcos_switching .30 ms. must be at most a pattern's time"):
         _scene("-3 0; 3 0", 30.0)
     with pytest.raises(ParameterError, match="lcos_switching_ms must be >= 0"):
-        CaptureSpec(lcos_switching_ms=-1.0)
+        CaptureSpec.geometric(lcos_switching_ms=-1.0)
     import mitsuba as mi
 
     film = {"type": "hdrfilm", "width": 8, "height": 8}

@@ -26,12 +26,12 @@ def _mono_design(tmp_path):
 
 
 def test_a_mono_design_file_plans_a_grey_capture_in_the_api(tmp_path):
-    spec = CaptureSpec(scene="train", width=1280, height=960, crop=(456, 410, 48, 32),
+    spec = CaptureSpec.geometric(scene="train", width=1280, height=960, crop=(456, 410, 48, 32),
                        design=_mono_design(tmp_path))  # fmt: skip
     plan = plan_capture(spec)  # its notes are kept, and said again by the capture
     assert plan.spec.grey and "mono" in plan.variant
     assert any("monochrome: the capture renders one channel" in n for n in plan.notes)
-    colour = plan_capture(CaptureSpec(scene="train", width=1280, height=960))
+    colour = plan_capture(CaptureSpec.geometric(scene="train", width=1280, height=960))
     assert not colour.spec.grey  # a preset without a sensor stays RGB
 
 

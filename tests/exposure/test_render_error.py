@@ -195,7 +195,7 @@ def test_sampler_chunks_are_sizes_mitsuba_renders_exactly():
 def test_recorded_sigma_agrees_with_two_seed_measurement(sampler):
     caps = [
         render_capture(
-            CaptureSpec(
+            CaptureSpec.geometric(
                 scene="train", mode="coded", spp=128, seed=s, sampler=sampler, **TRAIN_WINDOW
             ),
             progress=False,
@@ -216,9 +216,11 @@ def test_recorded_sigma_agrees_with_two_seed_measurement(sampler):
 def test_ldsampler_agrees_with_independent_at_high_spp():
     """No bias: the default sampler's mean is independent's within their stated errors."""
     spec = {"scene": "train", "mode": "coded", "spp": 1024, **TRAIN_WINDOW}
-    a = render_capture(CaptureSpec(sampler="independent", **spec), progress=False, truth=False)
+    a = render_capture(
+        CaptureSpec.geometric(sampler="independent", **spec), progress=False, truth=False
+    )
     b = render_capture(
-        CaptureSpec(sampler="ldsampler", seed=3, **spec), progress=False, truth=False
+        CaptureSpec.geometric(sampler="ldsampler", seed=3, **spec), progress=False, truth=False
     )
     diff, var = a.image - b.image, a.mc_sigma**2 + b.mc_sigma**2
     # pooled over the window (a per-pixel sigma from two passes has one degree of freedom)
@@ -252,7 +254,7 @@ def _glowing_wall(moving: bool) -> SceneDescription:
 def test_flat_emitter_reads_its_radiance_times_the_light_factor(mode, moving):
     """Every ray sees radiance 0.8, so every pixel is exactly 0.8 x light_factor, with a
     Monte Carlo sigma of 0, through every pass, step and sampler chunk."""
-    spec = CaptureSpec(scene="wall", mode=mode, width=24, height=16, spp=8, passes=3)
+    spec = CaptureSpec.geometric(scene="wall", mode=mode, width=24, height=16, spp=8, passes=3)
     cap = render_capture(spec, progress=False, description=_glowing_wall(moving), truth=False)
     lf = cap.record.light_factor
     np.testing.assert_allclose(cap.image, 0.8 * lf, rtol=2e-6)
@@ -263,7 +265,7 @@ def test_flat_emitter_reads_its_radiance_times_the_light_factor(mode, moving):
 @pytest.mark.render
 def test_a_black_frame_has_no_error_and_meets_any_target():
     black = SceneDescription("black", {"type": "scene"}, {})
-    spec = CaptureSpec(scene="black", mode="coded", width=16, height=12)
+    spec = CaptureSpec.geometric(scene="black", mode="coded", width=16, height=12)
     cap = render_capture(spec, progress=False, description=black, target=AbsoluteTarget(1e-9))
     assert not cap.image.any() and np.isfinite(cap.mc_sigma).all() and not cap.mc_sigma.any()
     err = cap.record.render_error
@@ -273,7 +275,7 @@ def test_a_black_frame_has_no_error_and_meets_any_target():
 # --- the time steps ------------------------------------------------------------------------------
 def _streak(max_step_px: float, spp: int, passes: int, seed: int = 0):
     """A point moving 1.3 px/ms under the normal exposure: a 58 px streak."""
-    spec = CaptureSpec(
+    spec = CaptureSpec.geometric(
         scene="psf", mode="normal", width=80, height=8, spp=spp, seed=seed,
         max_step_px=max_step_px, passes=passes, sampler="independent",
     )  # fmt: skip
@@ -335,7 +337,7 @@ def test_merged_windows_keep_patterns_and_cover_the_exposure():
 # --- targets -------------------------------------------------------------------------------------
 @pytest.mark.render
 def test_target_is_met_and_stated():
-    spec = CaptureSpec(scene="train", mode="coded", **TRAIN_WINDOW)
+    spec = CaptureSpec.geometric(scene="train", mode="coded", **TRAIN_WINDOW)
     loose = render_capture(spec, progress=False, truth=False)
     goal = loose.record.render_error["mc_sigma"] / 2
     cap = render_capture(spec, progress=False, target=AbsoluteTarget(goal))
@@ -352,7 +354,7 @@ def test_a_target_beyond_max_samples_stops_with_a_note(monkeypatch):
     capture with a note. A target the pilot already predicts beyond the limit is refused at
     once (tests/exposure/test_capture_limits.py)."""
     monkeypatch.setattr(integ, "out_of_reach", lambda *args: None)
-    spec = CaptureSpec(scene="train", mode="coded", **TRAIN_WINDOW)
+    spec = CaptureSpec.geometric(scene="train", mode="coded", **TRAIN_WINDOW)
     limit = 48 * 32 * 2000
     with pytest.warns(PacamWarning, match="noise target was not met"):
         cap = render_capture(
@@ -367,7 +369,7 @@ def test_a_target_beyond_max_samples_stops_with_a_note(monkeypatch):
 @pytest.mark.render
 def test_a_single_bright_pixel_keeps_a_finite_error_map():
     """A tiny static emitter on black: the error sits on a few pixels, zero elsewhere."""
-    spec = CaptureSpec(scene="psf", mode="coded", width=32, height=32, spp=64)
+    spec = CaptureSpec.geometric(scene="psf", mode="coded", width=32, height=32, spp=64)
     desc = psf_scene(500.0, 0.0, camera=capture_design(spec), radiance=1e6)
     cap = render_capture(spec, progress=False, description=desc, truth=False)
     assert np.isfinite(cap.mc_sigma).all() and cap.mc_sigma.max() > 0
@@ -421,7 +423,7 @@ def test_cli_refuses_contradictory_targets(tmp_path, capsys):
 def test_a_targeted_capture_resumes_to_the_same_bits(tmp_path):
     """Stopped in its pilot and again in its main passes, a capture rendered to a target
     resumes from disk to exactly the uninterrupted image and error."""
-    spec = CaptureSpec(scene="train", mode="coded", seed=3, **TRAIN_WINDOW)
+    spec = CaptureSpec.geometric(scene="train", mode="coded", seed=3, **TRAIN_WINDOW)
     goal = AbsoluteTarget(2.5e-4)
     whole = render_capture(spec, progress=False, truth=False, target=goal)
     assert whole.record.render_error["passes"] > 2  # it went past the pilot
@@ -443,7 +445,7 @@ def test_a_targeted_capture_resumes_to_the_same_bits(tmp_path):
 def test_a_pilot_resumed_past_its_pilot_renders_nothing(tmp_path):
     """A study's pilot stage on a render interrupted in its main passes (a re-run after Ctrl-C)
     only predicts the rest: it must not render a main pass before the budget check."""
-    spec = CaptureSpec(scene="train", mode="coded", seed=3, **TRAIN_WINDOW)
+    spec = CaptureSpec.geometric(scene="train", mode="coded", seed=3, **TRAIN_WINDOW)
     goal = AbsoluteTarget(2.5e-4)
     part = tmp_path / "c" / ".partial"
     with pytest.raises(integ.CaptureInterrupted):
@@ -466,7 +468,7 @@ def test_a_render_that_mitsuba_cut_short_is_never_used(tmp_path, monkeypatch):
     the capture stops as on Ctrl-C, keeps only whole steps, and resumes to the same bits."""
     import mitsuba as mi
 
-    spec = CaptureSpec(scene="train", mode="coded", width=40, height=30, spp=16, seed=2)
+    spec = CaptureSpec.geometric(scene="train", mode="coded", width=40, height=30, spp=16, seed=2)
     whole = render_capture(spec, progress=False, truth=False)
     real, calls = mi.render, []
 

@@ -32,7 +32,7 @@ def _square(half: float, z: float, x: float = 0.0) -> dict:
 
 
 def _scene() -> SceneDescription:
-    design = capture_design(CaptureSpec(width=W, height=H))
+    design = capture_design(CaptureSpec.geometric(width=W, height=H))
     v = image_to_scene_velocity(V_IMG, FRONT_Z, design)
     box = (
         np.array([-FRONT_HALF, -FRONT_HALF, FRONT_Z]),
@@ -54,7 +54,7 @@ def _scene() -> SceneDescription:
 
 @pytest.fixture(scope="module")
 def coded():
-    spec = CaptureSpec(mode="normal", width=W, height=H, spp=16, seed=3)
+    spec = CaptureSpec.geometric(mode="normal", width=W, height=H, spp=16, seed=3)
     return spec, render_capture(spec, progress=False, description=_scene())
 
 
@@ -102,7 +102,7 @@ def test_velocity_is_the_shapes_image_speed(coded):
 
 def test_sharp_is_the_reference_capture_bit_for_bit(coded):
     spec, cap = coded
-    ref = CaptureSpec(mode="reference", width=W, height=H, spp=16, seed=3)
+    ref = CaptureSpec.geometric(mode="reference", width=W, height=H, spp=16, seed=3)
     image = render_capture(ref, progress=False, description=_scene(), truth=False).image
     assert np.array_equal(cap.extra_layers["sharp"], image)
     assert not np.array_equal(cap.image, image)  # the capture itself is blurred
@@ -111,7 +111,9 @@ def test_sharp_is_the_reference_capture_bit_for_bit(coded):
 def test_a_crop_holds_the_same_window_of_every_layer(coded):
     spec, cap = coded
     x, y, w, h = 20, 10, 24, 20
-    spec_c = CaptureSpec(mode="normal", width=W, height=H, spp=16, seed=3, crop=(x, y, w, h))
+    spec_c = CaptureSpec.geometric(
+        mode="normal", width=W, height=H, spp=16, seed=3, crop=(x, y, w, h)
+    )
     cropped = render_capture(spec_c, progress=False, description=_scene())
     for name in ("depth", "object_id", "velocity"):
         np.testing.assert_allclose(

@@ -49,7 +49,7 @@ def test_the_refocus_map_is_the_plugins_ray_for_ray():
 
     from pacam_render.render.registry import sensor_entry
 
-    spec = CaptureSpec(mode="normal", **WINDOW)
+    spec = CaptureSpec.geometric(mode="normal", **WINDOW)
     plan = plan_capture(spec)
     cam = plan.cam
     d1, d2 = plan.design.focus_distance_mm, cam.object_depth_mm
@@ -75,7 +75,7 @@ def test_the_refocus_map_is_the_plugins_ray_for_ray():
 
 
 def test_the_proposal_is_a_density_that_its_samples_follow():
-    spec = CaptureSpec(mode="coded", width=320, height=240)
+    spec = CaptureSpec.geometric(mode="coded", width=320, height=240)
     plans = []
     for s in (spec, dataclasses.replace(spec, cover_px_per_ms=1.4)):
         plan = plan_capture(s)
@@ -112,7 +112,7 @@ def test_transmission_is_one_where_the_plugin_samples_its_opening(extra, tmp_pat
 
     if extra.get("design"):
         extra = {"design": _bitmaps(tmp_path / "b.toml")}
-    plan = plan_capture(CaptureSpec(mode="coded", width=320, height=240, **extra))
+    plan = plan_capture(CaptureSpec.geometric(mode="coded", width=320, height=240, **extra))
     params = plan.sensor_params()
     sensor = mi.load_dict(sensor_entry(plan.spec, plan.cam, params, 45.0))
     ap = design_aperture(plan, params)
@@ -137,7 +137,7 @@ def store(tmp_path_factory):
     bitmaps = _bitmaps(root / "bitmaps.toml")
     proto = preset("prototype")
     write_design(root / "wider.toml", proto.with_(R_mm=1.1 * proto.R_mm, name="wider"))
-    base = CaptureSpec(**WINDOW, spp=16, passes=4, seed=1)
+    base = CaptureSpec.geometric(**WINDOW, spp=16, passes=4, seed=1)
     designs = tuple(
         dataclasses.replace(base, **x)
         for x in (
@@ -161,7 +161,7 @@ def test_a_synthesised_capture_is_a_direct_render(store, mode, extra):
     capture equals a direct render of another seed within their Monte Carlo sigmas."""
     lf, bitmaps = store
     extra = {"design": bitmaps} if extra == "bitmaps" else extra
-    spec = CaptureSpec(**WINDOW, mode=mode, spp=16, passes=4, seed=7, **extra)
+    spec = CaptureSpec.geometric(**WINDOW, mode=mode, spp=16, passes=4, seed=7, **extra)
     syn = synthesize(lf, spec, progress=False)
     direct = render_capture(spec, progress=False, truth=False)
     assert 0.8 <= _pooled(syn, direct) <= 1.25
@@ -180,7 +180,7 @@ def test_designs_from_one_store_share_their_noise(store, other, limit):
     lf, bitmaps = store
     if other == "wider":
         other = {"design": str(Path(bitmaps).with_name("wider.toml"))}
-    a = CaptureSpec(**WINDOW, mode="coded")
+    a = CaptureSpec.geometric(**WINDOW, mode="coded")
     b = dataclasses.replace(a, **other)
     diff, sigma = paired_difference(lf, a, b)
     sa, sb = (synthesize(lf, s, progress=False) for s in (a, b))
@@ -200,9 +200,10 @@ def test_a_full_aperture_synthesis_of_a_still_scene_is_thinlens(tmp_path):
     full = full.with_(R_mm=full.R_max_mm)
     write_design(tmp_path / "full.toml", full)
     kw = {**FULL, "crop": (440, 400, 32, 24), "spp": 64, "passes": 4}
-    lf = render_lightfield(StoreSpec(CaptureSpec(**kw, seed=2)), tmp_path / "s", progress=False,
-                           description=desc, truth=False)  # fmt: skip
-    spec = CaptureSpec(**kw, mode="normal", design=str(tmp_path / "full.toml"))
+    store = StoreSpec(CaptureSpec.geometric(**kw, seed=2))
+    lf = render_lightfield(store, tmp_path / "s", progress=False, description=desc,
+                           truth=False)  # fmt: skip
+    spec = CaptureSpec.geometric(**kw, mode="normal", design=str(tmp_path / "full.toml"))
     syn = synthesize(lf, spec, progress=False, description=desc)
     x, y, w, h = kw["crop"]
     film = {"type": "hdrfilm", "width": 1280, "height": 960, "crop_offset_x": x,
@@ -222,24 +223,26 @@ def test_a_full_aperture_synthesis_of_a_still_scene_is_thinlens(tmp_path):
 def test_what_a_store_cannot_serve_is_refused_naming_why(store):
     lf, _ = store
     with pytest.raises(ParameterError, match="Levin"):
-        synthesize(lf, CaptureSpec(**WINDOW, mode="levin"), progress=False)
+        synthesize(lf, CaptureSpec.geometric(**WINDOW, mode="levin"), progress=False)
     with pytest.raises(ParameterError, match="crop"):
-        synthesize(lf, CaptureSpec(**FULL, crop=(0, 0, 48, 32)), progress=False)
+        synthesize(lf, CaptureSpec.geometric(**FULL, crop=(0, 0, 48, 32)), progress=False)
     with pytest.raises(ParameterError, match="diffraction on"):
         synthesize(lf, CaptureSpec(**WINDOW, diffraction="on"), progress=False)
     with pytest.raises(ParameterError, match="margin"):  # a refocus beyond the store's margin
-        synthesize(lf, CaptureSpec(**WINDOW, mode="normal", object_depth_mm=300.0),
+        synthesize(lf, CaptureSpec.geometric(**WINDOW, mode="normal", object_depth_mm=300.0),
                    progress=False)  # fmt: skip
     with pytest.raises(ParameterError, match="black"):  # a closed opening
         stack = MaskStack(np.zeros((2, 64, 64), np.float32))
-        plan = plan_capture(CaptureSpec(**WINDOW))
+        plan = plan_capture(CaptureSpec.geometric(**WINDOW))
         design_aperture(plan, {**plan.sensor_params(), "schedule": "bitmap",
                                "masks": stack.array})  # fmt: skip
 
 
 @pytest.mark.render
 def test_an_interrupted_store_resumes_bit_for_bit(tmp_path):
-    spec = StoreSpec(CaptureSpec(**{**WINDOW, "crop": (456, 410, 16, 12)}, spp=16, passes=2))
+    spec = StoreSpec(
+        CaptureSpec.geometric(**{**WINDOW, "crop": (456, 410, 16, 12)}, spp=16, passes=2)
+    )
     whole = render_lightfield(spec, tmp_path / "a", progress=False, truth=False)
     with pytest.raises(StoreInterrupted, match="resume"):
         render_lightfield(spec, tmp_path / "b", progress=False, truth=False, stop_after=3)
@@ -276,7 +279,9 @@ def test_the_command_line_renders_a_store_and_a_capture_from_it(tmp_path, capsys
 
 
 def test_a_store_beyond_its_disk_budget_is_refused_before_any_work(tmp_path):
-    spec = StoreSpec(CaptureSpec(**{**WINDOW, "crop": (0, 0, 1280, 960)}, spp=256, passes=4))
+    spec = StoreSpec(
+        CaptureSpec.geometric(**{**WINDOW, "crop": (0, 0, 1280, 960)}, spp=256, passes=4)
+    )
     with pytest.raises(ParameterError, match=r"GiB on disk .* max_disk"):
         render_lightfield(spec, tmp_path / "s", progress=False, max_disk=2**30)
     assert not (tmp_path / "s").exists()
@@ -297,7 +302,7 @@ def test_a_noise_target_plans_the_stores_samples_for_each_of_its_designs(tmp_pat
     variance falls as 1/spp: the plan needs no margin beyond the sigma's own scatter)."""
     from pacam_render.exposure.estimate import AbsoluteTarget
 
-    spec = CaptureSpec(mode="coded", spp=16, passes=2, seed=5, **WINDOW)
+    spec = CaptureSpec.geometric(mode="coded", spp=16, passes=2, seed=5, **WINDOW)
     target = AbsoluteTarget(0.0015)
     store = render_lightfield(StoreSpec(spec), tmp_path / "s", progress=False, target=target)
     plan = store.manifest["noise_target"]

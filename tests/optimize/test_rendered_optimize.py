@@ -21,8 +21,8 @@ from pacam_render.optimize.rendered import CaptureScorer, StoreObjective, coordi
 from pacam_render.optimize.rendered_run import candidate_positions, found_design
 from pacam_render.restore.object_score import moving_shapes, psnr_moving_db, score
 
-SPEC = CaptureSpec(scene="train", width=1280, height=960, crop=(440, 400, 96, 64), mode="coded",
-                   spp=4, passes=2, seed=3)  # fmt: skip
+SPEC = CaptureSpec.geometric(scene="train", width=1280, height=960, crop=(440, 400, 96, 64),
+                             mode="coded", spp=4, passes=2, seed=3)  # fmt: skip
 
 
 @pytest.fixture(scope="module")

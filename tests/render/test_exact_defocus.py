@@ -139,7 +139,7 @@ def _defocused_edge(r_px: float, spp: int, **kw):
 
     spec_kw = {"scene": "edge", "mode": "normal", "width": 1280, "height": 960,
                "crop": (592, 432, 96, 96), "spp": spp}  # fmt: skip
-    cam = mode_camera(capture_design(CaptureSpec(**spec_kw)), "normal")[0]
+    cam = mode_camera(capture_design(CaptureSpec.geometric(**spec_kw)), "normal")[0]
     z_focus, big_r = cam.focus_distance_mm, cam.R_mm * cam.focal_length_px
     z = z_focus / (1.0 - r_px * z_focus / big_r)  # r = R f_px (z - Z_f) / (z Z_f)
     cap = render_edge(spec_kw, edge_scene(z, 5.0, dark_half=kw.pop("dark_half", True)), **kw)

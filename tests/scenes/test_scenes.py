@@ -352,7 +352,7 @@ def test_units_check_spares_scenes_in_mm(tmp_path, cache, mi):
     from pacam_render.exposure.capture_spec import CaptureSpec
     from pacam_render.scenes.units import units_note
 
-    design = capture_design(CaptureSpec(width=W, height=H))
+    design = capture_design(CaptureSpec.geometric(width=W, height=H))
     user = S.load_scene(str(_user_scene(tmp_path, {"shapes": {}}, 1000.0)))
     (tmp_path / "m").mkdir()
     metres = S.load_scene(str(_user_scene(tmp_path / "m", {"shapes": {}})))

@@ -26,7 +26,7 @@ def rendered(tmp_path_factory):
     """A capture written without a sensor, and the same capture through the sensor in memory
     (what ``render --sensor`` writes)."""
     out = tmp_path_factory.mktemp("plain")
-    spec = CaptureSpec(scene="train", mode="coded", width=64, height=48, spp=8, seed=5)
+    spec = CaptureSpec.geometric(scene="train", mode="coded", width=64, height=48, spp=8, seed=5)
     with pytest.warns(PacamWarning):
         cap = render_capture(spec, progress=False)
     write_capture(cap, out, force=False)

@@ -12,8 +12,8 @@ import pytest
 from scipy.stats import t as student
 
 from pacam_render.errors import ParameterError
-from pacam_render.study import load_study, run_study
 from pacam_render.restore.model_error import convolve, model_sigma
+from pacam_render.study import load_study, run_study
 from pacam_render.study.report import curves_ci
 
 TINY = """

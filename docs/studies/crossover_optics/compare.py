@@ -1,6 +1,7 @@
 """The crossover with a camera's optics against the geometric run: writes comparison.md.
 
-Pairs each row of this folder's results.csv (diffraction auto, relative illumination cos4,
+Pairs each row of ``previous/results.csv`` (this study's run before issues 45 and 46: the
+rays' Airy draw, the oracle's model error; diffraction auto, relative illumination cos4,
 flat-fielded) with the ``crossover`` study's row of the same mode, speed, light level, method
 and seed (the prototype's design for ``coded``), rendered with geometric optics in radiance.
 Crossing light levels are found per seed (log-linear between light levels, the report's
@@ -18,6 +19,7 @@ from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
 OLD = HERE.parent / "crossover" / "results.csv"
+OPTICS = HERE / "previous" / "results.csv"  # the run this comparison was written from
 T95_2DOF = 4.303  # Student's t, 97.5 % quantile, 2 degrees of freedom (3 seeds)
 SEEDS = ("0", "1", "2")
 
@@ -52,12 +54,13 @@ def _interval(xs) -> str:
 
 
 def main() -> None:
-    new, old = _rows(HERE / "results.csv", False), _rows(OLD, True)
+    new, old = _rows(OPTICS, False), _rows(OLD, True)
     lights = sorted({k[2] for k in new})
     lines = [
         "# The crossover with a camera's optics against the geometric run",
         "",
-        "Written by `compare.py` from this folder's `results.csv` and `../crossover/results.csv`"
+        "Written by `compare.py` from `previous/results.csv` (this study before issues 45 and "
+        "46: the Airy draw, the oracle) and `../crossover/results.csv`"
         " (0.7 px/ms, hl, the prototype's coded design, seeds 0-2, light levels "
         f"{', '.join(f'{x:g}' for x in lights)} photons/px/ms).",
         "",
