@@ -29,7 +29,6 @@ from ..exposure.capture import render_capture, write_capture
 from ..exposure.capture_spec import CAMERA_OPTICS, CaptureSpec
 from ..io.outputs import prepare_out_dir, write_text
 from ..model import paper
-from ..restore.capture_noise import layer_noise
 from ..restore.deconvolve import deconvolve
 from ..restore.metrics import aligned_psnr, crop, psnr, shift_search_px, ssim
 from ..sensor.apply import add_sensor_layers
@@ -106,25 +105,22 @@ where Wiener loses 1.7 (measured on the demo's own captures)."""
 
 
 def _deconvolve(cap, rendered_psf: bool, spp_psf: int, method: str = DEMO_METHOD):
-    """Estimates of a noisy coded capture: analytic PSF, and rendered if asked."""
+    """Estimates of a noisy coded capture (white = 1): analytic PSF, and rendered if asked;
+    restored as ``pacam deconvolve`` restores it (the sensor's noise and the render's told,
+    the layer flat-fielded: :func:`~pacam_render.restore.capture_deblur.deblur_input`)."""
     from ..model.camera import CameraDesign
-    from ..restore.flat_field import flat_field_for_deblur
+    from ..restore.capture_deblur import deblur_input
 
-    if method in ("hl", "tv"):  # the sensor's own Poisson-Gaussian noise, white = 1 units
-        kw = {"noise": layer_noise(cap.record).scaled(1.0 / cap.record.light_factor)}
-    else:
-        kw = {"noise_sigma": cap.record.noise_sigma_white_units}
-    raw = cap.extra_layers["noisy"] / cap.record.light_factor
-    said = {"sigma": None, "source": "the sensor"}  # the noise is flat-fielded with the image
-    noisy, _ = flat_field_for_deblur(raw, "noisy", cap.extra_layers, kw, said)
+    d = deblur_input({**cap.extra_layers, "capture": cap.image}, "noisy", cap.record, method)
+    lf = cap.record.light_factor
     k = analytic_psf(cap.record)
-    out = {"analytic PSF": deconvolve(noisy, k, method, **kw)}
+    out = {"analytic PSF": deconvolve(d.image, k, method, **d.kw) / lf}
     if rendered_psf:
         from ..psf_render.render import render_psf
 
         cam = CameraDesign.from_inputs(cap.record.camera)
         rk = render_psf(cam, "coded", 0.0, size=k.shape, spp=spp_psf, origin="pinhole").kernel
-        out["rendered PSF"] = deconvolve(noisy, rk, method, **kw)
+        out["rendered PSF"] = deconvolve(d.image, rk, method, **d.kw) / lf
     return out
 
 
