@@ -44,6 +44,14 @@ EFFECTS = (
 )
 """The entries of ``optics_error``, in order."""
 
+TYPICAL_LCOS = {"lcos_leakage": 1000.0, "lcos_switching": 0.1}
+"""A typical LCoS microdisplay, against which an ideal one is sized (issue 46, item 5): a
+contrast of 1000:1 and a switching time of 0.1 ms (a ferroelectric panel, as 16 patterns in
+45 ms need; nematic panels take milliseconds). Where such a device's effect would exceed the
+sensor's noise, the ideal entry says so (``size_rms_at_typical``, ``typical_matters``) and
+:func:`largest_left_out` weighs it at that size. The pixel grid is not weighed so: its ghosts
+land ~244 px away as a near-uniform veil, whose closed form, (1 - f) x RMS(image), is an
+upper bound that would name it on nearly every capture."""
 BOUNCE_SHARE = {"train": 8e-4, "soccer": 9e-5, "walker": 1.2e-3}
 """Share of a built-in scene's light that paths past ``max_depth`` 3 add, measured noise-free by
 ``benchmarks/bench_render_error.py`` (part 3; ``benchmarks/RESULTS.md``)."""
@@ -180,7 +188,25 @@ def add_ratios(block: dict, noise_sigma: float | None, where: str) -> None:
         lcos["lcos_grid"]["fill_factor_at_sensor_noise"] = 1 - noise_sigma / per if per else None
         per = lcos["lcos_switching"]["size_rms_per_ms"]
         lcos["lcos_switching"]["switching_ms_at_sensor_noise"] = noise_sigma / per if per else None
+        _typical_lcos(lcos, noise_sigma)
     block["largest_left_out"] = largest_left_out(block)
+
+
+def _typical_lcos(effects: dict, noise_sigma: float) -> None:
+    """Each ideal LCoS entry's size at a typical device (:data:`TYPICAL_LCOS`), and whether it
+    would exceed the sensor's noise there."""
+    per = {
+        "lcos_leakage": effects["lcos_leakage"]["size_rms_per_inverse_contrast"]
+        / TYPICAL_LCOS["lcos_leakage"],
+        "lcos_switching": effects["lcos_switching"]["size_rms_per_ms"]
+        * TYPICAL_LCOS["lcos_switching"],
+    }
+    for k, size in per.items():
+        e = effects[k]
+        if e["included"] or not size:
+            continue
+        e["size_rms_at_typical"] = size
+        e["typical_matters"] = bool(size > noise_sigma)
 
 
 def largest_left_out(block: dict) -> str | None:
@@ -192,6 +218,9 @@ def largest_left_out(block: dict) -> str | None:
         for k, e in block["effects"].items()
         if (not e["included"] or e.get("residual")) and e.get("size_rms")
     }
+    for k, e in block["effects"].items():  # an ideal LCoS that a typical device would not be
+        if e.get("typical_matters"):
+            sizes[k] = max(sizes.get(k, 0.0), e["size_rms_at_typical"])
     return max(sizes, key=sizes.get) if sizes else None
 
 
@@ -201,9 +230,33 @@ def summary_line(block: dict | None) -> str | None:
         return None
     k = block["largest_left_out"]
     e = block["effects"][k]
+    what = k.replace("_", " ")
+    if e.get("typical_matters"):
+        return _typical_line(k, e, block)
     ratio = e.get("ratio_to_sensor")
     vs = f", {ratio:.2g}x the sensor's noise" if ratio is not None else ""
-    what = k.replace("_", " ")
     if e.get("residual"):
         what += " (what its approximation leaves out)"
     return f"optics left out: largest is {what}, RMS {e['size_rms']:.3g}{vs}"
+
+
+_TYPICAL_WORDS = {
+    "lcos_leakage": ("contrast {:g}:1", "lcos_contrast", "contrast_at_sensor_noise"),
+    "lcos_switching": (
+        "switching time {:g} ms",
+        "lcos_switching_ms",
+        "switching_ms_at_sensor_noise",
+    ),
+}
+
+
+def _typical_line(k: str, e: dict, block: dict) -> str:
+    """The summary when an ideal LCoS entry matters at a typical device."""
+    device, flag, at_noise = _TYPICAL_WORDS[k]
+    sigma = block["reference_noise"]["sigma"]
+    return (
+        f"optics left out: largest is an ideal LCoS's {k.removeprefix('lcos_')}: a typical "
+        f"device ({device.format(TYPICAL_LCOS[k])}) would add RMS {e['size_rms_at_typical']:.3g}, "
+        f"{e['size_rms_at_typical'] / sigma:.2g}x the sensor's noise (it equals the noise at "
+        f"{e[at_noise]:.3g}); give the display's value as `{flag}`"
+    )

@@ -81,9 +81,11 @@ def optics_lines(block: dict | None) -> list[str]:
     if not block:
         return []
     from ..capture.optics_error import summary_line
+    from .common import user_words
 
     info = block["diffraction"]
     line = summary_line(block)
+    line = user_words(line) if line else line
     if info.get("setting", "off") == "off":  # the budget's line says what it left out
         return [line] if line else []
     head = f"diffraction {info['decision']}"

@@ -167,7 +167,7 @@ def test_budget_edges():
 def test_study_columns_and_old_rows_stay_intact():
     img = np.full((2, 2), 0.1)
     block = _block(img)
-    oe.add_ratios(block, 0.001, "s")
+    oe.add_ratios(block, 0.01, "s")  # 0.001 would name a typical LCoS's switching (below)
     cols = optics_columns(block, 0.5)
     assert cols["diffraction"] == "out" and cols["diffraction_sigma"] == pytest.approx(0.004)
     assert cols["optics_left_out"] == "diffraction"
@@ -178,3 +178,35 @@ def test_study_columns_and_old_rows_stay_intact():
     new = {**old, **{k: str(v) for k, v in cols.items()}}
     new["row_digest"] = row_digest(new)
     assert row_is_intact(new) and not row_is_intact({**new, "diffraction": "in"})
+
+
+def test_an_ideal_lcos_that_a_typical_device_is_not_is_named_the_largest_left_out():
+    """Issue 46, item 5: 64 patterns in 20 ms switch 63 times; a typical (ferroelectric,
+    0.1 ms) panel blends neighbours for 63 x 0.1 / 20 = 31.5 % of the exposure, far above a
+    bright capture's noise: the budget names switching as the largest left out, and the line
+    says which value to give. 16 patterns in 45 ms at a dim capture's noise stay quiet."""
+    from pacam_render.capture import optics_error as oe
+
+    image = np.full((8, 8), 0.1)
+
+    def block(n, e_ms, sigma):
+        effects = {
+            "diffraction": oe.entry(False, "off", 1e-6),
+            "lcos_leakage": oe.leakage_entry(image, 1.0 / 0.0625),
+            "lcos_grid": oe.grid_entry(image),  # not weighed at a typical device: a veil
+            "lcos_switching": oe.switching_entry(image, n, e_ms),
+        }
+        b = {"effects": effects}
+        oe.add_ratios(b, sigma, "test")
+        return b
+
+    b = block(64, 20.0, 1e-3)
+    sw = b["effects"]["lcos_switching"]
+    assert sw["size_rms_at_typical"] == pytest.approx(63 * 0.1 / 20.0 * 0.1)
+    assert sw["typical_matters"] and b["effects"]["lcos_leakage"]["typical_matters"]
+    assert b["largest_left_out"] == "lcos_switching"
+    line = oe.summary_line(b)
+    assert "ideal LCoS's switching" in line and "`lcos_switching_ms`" in line
+    quiet = block(16, 45.0, 0.5)
+    assert not any(e.get("typical_matters") for e in quiet["effects"].values())
+    assert quiet["largest_left_out"] == "diffraction"
