@@ -24,3 +24,22 @@ def test_a_study_estimate_under_an_hour_is_not_zero_hours():
 
     with pytest.raises(ParameterError, match=r"about 30 s \("):
         _check_budget(30.0, 0.001)
+
+
+def test_a_design_files_errors_name_its_keys_not_the_flags(tmp_path, capsys):
+    """Issue 46, item 7: a hand-edited design file is refused in its own words (exposure_ms,
+    f_number), where the command line's names (--exposure, --f-number) used to appear."""
+    from pacam_render.cli import main
+
+    path = tmp_path / "d.toml"
+    assert main(["design", "--write", str(path)]) == 0
+    text = path.read_text()
+    bad = tmp_path / "bad.toml"
+    bad.write_text(text.replace("n_patterns = 16", "n_patterns = 16\nshutter = 3"))
+    assert main(["design", "--design", str(bad)]) == 2
+    err = capsys.readouterr().err
+    assert "['shutter']; valid: ['exposure_ms', 'n_patterns']" in err and "--exposure" not in err
+    bad.write_text(text.replace("[opening]\n", "[opening]\nf_number = 9\n"))
+    assert main(["render", "train", "--design", str(bad), "--out", str(tmp_path / "c")]) == 2
+    err = capsys.readouterr().err
+    assert "exactly one of R_mm, f_number, r_px" in err and "--f-number" not in err

@@ -53,7 +53,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import ParameterError
+from ..errors import FileKeyError, ParameterError
 from ..io.toml_file import read_toml
 from .camera import CameraDesign, preset
 from .masks import MaskStack, read_mask_source
@@ -247,7 +247,12 @@ def read_design(path) -> CameraDesign:
     """
     path = Path(path)
     d = read_toml(path, "design file")
-    return design_from_dict(d, str(path), path.parent)
+    try:
+        return design_from_dict(d, str(path), path.parent)
+    except FileKeyError:
+        raise
+    except ParameterError as exc:  # a file's keys, not the command line's flags of that name
+        raise FileKeyError(str(exc)) from None
 
 
 def design_to_dict(cam: CameraDesign, masks_name: str | None = None) -> dict:
