@@ -227,3 +227,24 @@ def test_a_full_disk_ends_in_one_line_and_the_capture_is_rescued(tmp_path, capsy
     from pathlib import Path
 
     assert (Path(rescue) / "capture.exr").is_file()
+
+
+def test_a_scene_that_includes_a_non_xml_file_is_refused_and_reading_outside_is_said(
+    tmp_path, capsys
+):
+    """Medium 10: `<include filename="/etc/passwd">` was read (its line count in the error);
+    a mesh named by ../ was read with no word."""
+    inc = tmp_path / "inc.xml"
+    inc.write_text('<scene version="3.0.0"><include filename="/etc/passwd"/></scene>')
+    args = ["render", str(inc), "--width", "32", "--height", "24", "--spp", "4", "--quiet"]
+    assert main([*args, "--out", str(tmp_path / "a")]) == 2
+    assert "includes '/etc/passwd', which is not a .xml scene file" in capsys.readouterr().err
+    (tmp_path / "tri.obj").write_text("v -50 -50 0\nv 50 -50 0\nv 0 50 0\nf 1 2 3\n")
+    (tmp_path / "s").mkdir()
+    scene = tmp_path / "s" / "s.xml"
+    scene.write_text('<scene version="3.0.0"><shape type="obj"><string name="filename" '
+                     'value="../tri.obj"/><transform name="to_world"><translate z="500"/>'
+                     '</transform></shape></scene>')  # fmt: skip
+    args[1] = str(scene)
+    assert main([*args, "--diffraction", "off", "--out", str(tmp_path / "b")]) == 0
+    assert "reads '../tri.obj', outside its folder" in capsys.readouterr().err

@@ -32,9 +32,9 @@ def check_scene_xml_size(path: Path) -> None:
         )
 
 
-def named_files(text: str) -> list[str]:
-    """The file names a scene XML's elements give (``filename`` strings and includes), as
-    written; [] when it does not parse (Mitsuba then reports the error itself)."""
+def named_files(text: str) -> list[tuple[str, bool]]:
+    """The file names a scene XML's elements give, as written, each with whether it is an
+    ``<include>``; [] when it does not parse (Mitsuba then reports the error itself)."""
     import xml.etree.ElementTree as ET
 
     try:
@@ -44,19 +44,30 @@ def named_files(text: str) -> list[str]:
     out = []
     for el in root.iter():
         if el.tag == "string" and el.get("name") == "filename" and el.get("value"):
-            out.append(el.get("value"))
+            out.append((el.get("value"), False))
         elif el.tag == "include" and el.get("filename"):
-            out.append(el.get("filename"))
+            out.append((el.get("filename"), True))
     return out
 
 
 def check_scene_files(path: Path, text: str, params: dict) -> None:
     """Refuse a file the scene ``path`` names that is not a regular file (a device, a pipe,
-    a folder) or is over :data:`MAX_ASSET_BYTES`; ``params`` fill its ``$name`` references."""
-    for written in named_files(text):
+    a folder) or is over :data:`MAX_ASSET_BYTES`, and an ``<include>`` that is not ``.xml``;
+    note one that lies outside the scene's folder (written so, not through a ``$name``
+    parameter). ``params`` fill its ``$name`` references."""
+    from ..limits import note
+
+    for written, include in named_files(text):
         name = re.sub(r"\$(\w+)", lambda m: str(params.get(m.group(1), m.group(0))), written)
         f = Path(name)
         f = f if f.is_absolute() else path.parent / f
+        if include and f.suffix.lower() != ".xml":
+            raise ParameterError(
+                f"scene file {str(path)!r} includes {written!r}, which is not a .xml scene file"
+            )
+        outside = not os.path.abspath(f).startswith(os.path.abspath(path.parent) + os.sep)
+        if outside and "$" not in written:
+            note(f"scene file {path.name} reads {written!r}, outside its folder ({f})")
         try:
             st = os.stat(f)
         except OSError:
