@@ -248,3 +248,22 @@ def test_a_scene_that_includes_a_non_xml_file_is_refused_and_reading_outside_is_
     args[1] = str(scene)
     assert main([*args, "--diffraction", "off", "--out", str(tmp_path / "b")]) == 0
     assert "reads '../tri.obj', outside its folder" in capsys.readouterr().err
+
+
+def test_an_edited_camera_radius_in_a_capture_record_is_refused_by_its_digest(tmp_path, capsys):
+    """Medium 3: camera.R_mm edited from 1.98 to 1.5 was taken by psf --like and deconvolve;
+    the recorded optics.design_digest now refuses it."""
+    import json
+
+    cap = tmp_path / "cap"
+    assert main(["render", "train", "--width", "32", "--height", "24", "--spp", "4",
+                 "--diffraction", "off", "--quiet", "--out", str(cap)]) == 0  # fmt: skip
+    meta = json.loads((cap / "capture.json").read_text())
+    meta["camera"]["R_mm"] = 1.5
+    (cap / "capture.json").write_text(json.dumps(meta))
+    capsys.readouterr()
+    like = ["psf", "--like", str(cap / "capture.exr"), "--velocity", "0"]
+    assert main([*like, "--out", str(tmp_path / "p")]) == 2
+    assert "its 'camera' was edited" in capsys.readouterr().err
+    assert main(["deconvolve", str(cap / "capture.exr"), "--out", str(tmp_path / "d")]) == 2
+    assert "optics.design_digest" in capsys.readouterr().err

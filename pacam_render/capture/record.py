@@ -189,6 +189,7 @@ class CaptureRecord:
         for key in ("camera", "design"):  # every reader rebuilds them: check them here, once
             if isinstance(d.get(key), dict):
                 _check_camera(d[key], f"{where}: {key}")
+        _check_digest(d, where)
         kw: dict[str, Any] = {k: d[k] for k in known if k in d}
         _check_numbers(kw, where)
         kw.setdefault("light_factor", 1.0)
@@ -236,6 +237,24 @@ def _check_camera(inputs: dict, where: str) -> None:
         raise ParameterError(f"{where}: {exc}") from None
     except (TypeError, ValueError, OverflowError, ArithmeticError) as exc:
         raise ParameterError(f"{where}: not a camera's parameters ({exc})") from None
+
+
+def _check_digest(d: dict, where: str) -> None:
+    """Refuse a record whose camera no longer has the digest its ``optics`` recorded (a
+    hand-edited ``camera``, whose kernels would silently be another camera's); records written
+    before the digest pass."""
+    from ..model.camera import CameraDesign
+
+    optics = d.get("optics")
+    recorded = optics.get("design_digest") if isinstance(optics, dict) else None
+    if recorded is None:
+        return
+    now = CameraDesign.from_inputs(d["camera"]).digest()
+    if now != recorded:
+        raise ParameterError(
+            f"{where}: its 'camera' was edited: its digest is {now}, where the capture recorded "
+            f"{recorded} (optics.design_digest); render the capture again rather than edit it"
+        )
 
 
 _POSITIVE = ("light_factor", "exposure_ms", "reference_exposure_ms")
