@@ -267,3 +267,22 @@ def test_an_edited_camera_radius_in_a_capture_record_is_refused_by_its_digest(tm
     assert "its 'camera' was edited" in capsys.readouterr().err
     assert main(["deconvolve", str(cap / "capture.exr"), "--out", str(tmp_path / "d")]) == 2
     assert "optics.design_digest" in capsys.readouterr().err
+
+
+def test_a_curve_whose_axis_value_is_wrong_is_refused_before_the_render(tmp_path, capsys):
+    """Mediums 4-6: a curve starting at 1e-300 ran the whole render, then exited 2 with
+    nothing written; one rising to 5x went by with no word; its messages named the flag for
+    the file's own column."""
+    bad = tmp_path / "bad.csv"
+    bad.write_text("height_px,relative_illumination\n0,1e-300\n400,0.9\n800,0.8\n")
+    args = ["render", "train", "--width", "48", "--height", "36", "--spp", "4", "--quiet",
+            "--diffraction", "off", "--relative-illumination"]  # fmt: skip
+    assert main([*args, str(bad), "--out", str(tmp_path / "a")]) == 2
+    err = capsys.readouterr().err
+    assert "relative_illumination reaches 9e+299x its value on the axis" in err
+    assert not (tmp_path / "a" / ".partial").exists()
+    odd = tmp_path / "odd.csv"
+    odd.write_text("height_px,relative_illumination\n0,1\n400,5\n800,0.8\n")
+    assert main([*args, str(odd), "--out", str(tmp_path / "b")]) == 0
+    err = capsys.readouterr().err
+    assert err.count("rises to 5x its value on the axis") == 1

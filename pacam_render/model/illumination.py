@@ -97,7 +97,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import ParameterError, check_positive
+from ..errors import FileKeyError, ParameterError, check_positive
 
 RELATIVE_ILLUMINATION_MODES = ("off", "cos4")
 """The built-in settings; any other value is a curve file's path."""
@@ -267,7 +267,8 @@ def read_curve(path: str | Path) -> tuple[str, np.ndarray, np.ndarray]:
     ParameterError
         Naming the file and the problem: missing or unreadable, a bad header or row, fewer
         than two points, abscissae not starting at 0 or not strictly increasing, a field angle
-        >= 90 deg, values not finite or < 0, or 0 at the centre.
+        >= 90 deg, values not finite or < 0, 0 at the centre, or over :data:`MAX_RISE` times
+        the centre's (a :class:`~pacam_render.errors.FileKeyError` for the file's contents).
     """
     path = Path(path)
     where = f"relative_illumination file {path}"
@@ -277,11 +278,16 @@ def read_curve(path: str | Path) -> tuple[str, np.ndarray, np.ndarray]:
         text = path.read_text()
     except (OSError, UnicodeDecodeError) as exc:
         raise ParameterError(f"{where}: cannot be read ({exc})") from None
-    if path.suffix.lower() == ".json":
-        abscissa, x, y = _read_json(text, where)
-    else:
-        abscissa, x, y = _read_csv(text, where)
-    return abscissa, *_check_curve(abscissa, x, y, where)
+    try:  # the file's columns and keys, not the command line's flag of the same name
+        if path.suffix.lower() == ".json":
+            abscissa, x, y = _read_json(text, where)
+        else:
+            abscissa, x, y = _read_csv(text, where)
+        return abscissa, *_check_curve(abscissa, x, y, where)
+    except FileKeyError:
+        raise
+    except ParameterError as exc:
+        raise FileKeyError(str(exc)) from None
 
 
 def _read_json(text: str, where: str):
@@ -369,7 +375,37 @@ def _check_curve(abscissa: str, x: np.ndarray, y: np.ndarray, where: str):
             f"{where}: relative_illumination at {abscissa} = 0 must be > 0 (the curve is "
             "divided by it)"
         )
-    return x, y / y[0]
+    return x, _check_rise(y / y[0], where)
+
+
+MAX_RISE = 10.0
+"""The largest relative illumination a curve may reach against its axis value: a lens's falls
+off the axis (a pupil that grows with the field lifts it a little above 1); 10x is a curve
+whose axis value is wrong (1e-300 made the render's signal overflow after it had run)."""
+NOTE_RISE = 1.1
+"""Above this against the axis, a curve is noted: unusual for a lens, and worth a look."""
+
+
+def _check_rise(y: np.ndarray, where: str) -> np.ndarray:
+    """``y`` (the curve over its axis value), refused above :data:`MAX_RISE`, noted above
+    :data:`NOTE_RISE`."""
+    from ..limits import note
+
+    top = float(y.max())
+    if top > MAX_RISE:
+        raise ParameterError(
+            f"{where}: relative_illumination reaches {top:.3g}x its value on the axis, over the "
+            f"{MAX_RISE:g}x a lens's curve may (check the value at the axis)"
+        )
+    said = f"the curve in {where.split(' file ', 1)[-1]} rises to {top:.3g}x its value on the axis"
+    if top > NOTE_RISE and said not in _NOTED:  # once: the curve is read more than once
+        _NOTED.add(said)
+        note(f"{said}, unusual for a lens (its light falls off the axis)")
+    return y
+
+
+_NOTED: set[str] = set()
+"""Curve notes said already in this process."""
 
 
 def film_tangents(

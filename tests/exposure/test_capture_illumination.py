@@ -145,7 +145,9 @@ def test_cli_refuses_a_bad_curve_naming_the_flag_and_the_file(tmp_path, capsys):
     argv = ["render", "train", "--relative-illumination", str(bad), "--out", str(out)]
     assert main(argv) == 2
     err = capsys.readouterr().err
-    assert "--relative-illumination file" in err and "lens.csv line 3" in err
+    # the file's contents in its own words (issue 47, medium 6): its column, not the flag
+    assert "relative_illumination file" in err and "lens.csv line 3" in err
+    assert "--relative-illumination" not in err
     assert "Traceback" not in err and not out.exists()
     assert main(["render", "train", "--relative-illumination", "cos", "--out", str(out)]) == 2
     assert "--relative-illumination must be off, cos4" in capsys.readouterr().err
