@@ -286,3 +286,24 @@ def test_a_curve_whose_axis_value_is_wrong_is_refused_before_the_render(tmp_path
     assert main([*args, str(odd), "--out", str(tmp_path / "b")]) == 0
     err = capsys.readouterr().err
     assert err.count("rises to 5x its value on the axis") == 1
+
+
+def test_a_slit_too_narrow_to_measure_its_diffraction_still_renders(tmp_path, capsys):
+    """Found while timing bitmaps (issue 46, item 4): with diffraction off, a schedule of
+    3-pixel slits failed the whole render, because the budget's measure of what diffraction
+    would do needs a kernel of ~9600 px. The budget now says it is not measured."""
+    import json
+
+    m = np.zeros((16, 64, 64), np.float32)
+    for k in range(16):
+        m[k, :, 4 + 3 * k : 7 + 3 * k] = 1.0
+    np.save(tmp_path / "slits.npy", m)
+    design = tmp_path / "slit.toml"
+    assert main(["design", "--masks", str(tmp_path / "slits.npy"), "--write", str(design)]) == 0
+    out = tmp_path / "c"
+    args = ["render", "train", "--design", str(design), "--crop", "400,500,48,32", "--spp", "8",
+            "--diffraction", "off", "--no-truth", "--quiet", "--out", str(out)]  # fmt: skip
+    assert main(args) == 0
+    entry = json.loads((out / "capture.json").read_text())["optics_error"]["effects"]
+    assert entry["diffraction"]["size_rms"] is None
+    assert entry["diffraction"]["estimate"].startswith("not measured: a diffraction kernel")

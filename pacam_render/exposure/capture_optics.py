@@ -66,7 +66,13 @@ def _diffraction(spec, cam, image, patterns, variance, ctx):
     head["decision"] = decision
     if on and not shows_bitmaps(cam, spec.mode):
         return None, True, {**head, **rays_record(spec, cam, ctx["pitch_mm"])}
-    d = diffract(image, patterns, variance, cam, spec.mode, ctx["pitch_mm"])
+    try:
+        d = diffract(image, patterns, variance, cam, spec.mode, ctx["pitch_mm"])
+    except ParameterError as exc:
+        if on:
+            raise
+        # left out, and too wide to measure (a slit of a few LCoS pixels): say so, not fail
+        return None, False, {**head, "how": f"not measured: {exc}"}
     return (d if on else None), on, {**head, **d.record}
 
 
@@ -127,6 +133,8 @@ def _diffraction_entry(
     info: dict, included: bool, residual: float | None = None, approx: str = _AIRY_RAYS
 ) -> dict:
     if "effect_rms" not in info and not included:
+        if info.get("how", "").startswith("not measured"):  # unknown, not nothing
+            return oe.entry(False, info["decision"], None, info["how"])
         return oe.entry(False, info["decision"], 0.0)
     if included and residual is not None:  # what the rays' method leaves out
         return oe.entry(True, info["how"], residual, _HOW_SIZED[approx], approximation=approx,
