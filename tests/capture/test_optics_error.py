@@ -207,6 +207,8 @@ def test_an_ideal_lcos_that_a_typical_device_is_not_is_named_the_largest_left_ou
     assert b["largest_left_out"] == "lcos_switching"
     line = oe.summary_line(b)
     assert "ideal LCoS's switching" in line and "`lcos_switching_ms`" in line
+    proto = block(16, 45.0, 1e-4)  # the prototype blends 3 %: its loose bound is not weighed
+    assert not proto["effects"]["lcos_switching"]["typical_matters"]
     quiet = block(16, 45.0, 0.5)
     assert not any(e.get("typical_matters") for e in quiet["effects"].values())
     assert quiet["largest_left_out"] == "diffraction"
