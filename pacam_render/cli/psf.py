@@ -130,18 +130,8 @@ def run(args: argparse.Namespace) -> int:
     diffraction = _diffraction(args, cam)
     out = prepare_out_dir(args.out, args.force, PSF_FILES)  # a capture's folder is fine
     k = geometric = _checked_psf(cam, args)
-    if diffraction is not None:  # as the rays draw it, the pixel's box counted once
-        from ..psf.analytic import design_psf
-        from ..psf.diffraction import DECONVOLUTION_MAX_LOST
-        from ..psf.exact_defocus import ray_kernel
-
-        wl, pitch = diffraction["wavelength_nm"], diffraction["pixel_pitch_mm"]
-
-        def build(c, f, fine):
-            return design_psf(c, args.mode, args.velocity * f, fine, origin=args.origin)
-
-        k = ray_kernel(build, cam, args.mode, args.velocity, args.origin, wl, k.shape, pitch,
-                       DECONVOLUTION_MAX_LOST, diffraction["psf"])  # fmt: skip
+    if diffraction is not None:
+        k = _diffracted(cam, args, k, diffraction)
     r = _rendered_psf(cam, geometric, seed, args, diffraction) if args.render else None
     # nothing is written before the render ends: an interrupt leaves no half set of files
     write_exr(out / "psf_analytic.exr", {"psf": k}, force=args.force)
@@ -185,6 +175,22 @@ def run(args: argparse.Namespace) -> int:
     write_json(out / "psf.json", meta, force=args.force)
     print(f"wrote {out}/: {written}, psf.json ({k.shape[0]}x{k.shape[1]} px)")
     return 0
+
+
+def _diffracted(cam: CameraDesign, args: argparse.Namespace, k, diffraction: dict):
+    """The analytic kernel ``k`` with ``diffraction`` as the rays draw it, the pixel's box
+    counted once (:func:`~pacam_render.psf.exact_defocus.ray_kernel`)."""
+    from ..psf.analytic import design_psf
+    from ..psf.diffraction import DECONVOLUTION_MAX_LOST
+    from ..psf.exact_defocus import ray_kernel
+
+    wl, pitch = diffraction["wavelength_nm"], diffraction["pixel_pitch_mm"]
+
+    def build(c, f, fine):
+        return design_psf(c, args.mode, args.velocity * f, fine, origin=args.origin)
+
+    return ray_kernel(build, cam, args.mode, args.velocity, args.origin, wl, k.shape, pitch,
+                      DECONVOLUTION_MAX_LOST, diffraction["psf"])  # fmt: skip
 
 
 def _diffraction(args: argparse.Namespace, cam: CameraDesign) -> dict | None:
