@@ -21,7 +21,7 @@ import numpy as np
 from ..errors import ParameterError, check_positive
 from . import optics, paper
 from . import schedule as sch
-from .masks import MaskStack, check_masks
+from .masks import MaskStack
 
 MIN_OPENING_LCOS_PX = 1.0
 """Smallest displayable opening radius, LCoS pixels."""
@@ -162,7 +162,7 @@ class CameraDesign:
                 f"pattern_masks holds {m.n_patterns} patterns, but n_patterns = "
                 f"{self.n_patterns}: they must agree"
             )
-        check_masks(m.array, self.R_max_mm, m.pitch_mm)
+        m.check_inside(self.R_max_mm)
 
     def check_lcos_rate(self) -> None:
         """Raise unless the LCoS can show n_patterns in the exposure at ``lcos_rate_fps``."""
@@ -392,9 +392,13 @@ class CameraDesign:
     def inputs(self) -> dict:
         """The constructor arguments, JSON-ready (round-trips through :meth:`from_inputs`):
         a bitmap schedule's patterns are stored whole (:meth:`MaskStack.to_json`)."""
+        return self._inputs(whole_masks=True)
+
+    def _inputs(self, whole_masks: bool) -> dict:
         out = asdict(self)
         if self.pattern_masks is not None:
-            out["pattern_masks"] = self.pattern_masks.to_json()
+            m = self.pattern_masks
+            out["pattern_masks"] = m.to_json() if whole_masks else m.digest
         if self.pattern_centres_mm is not None:
             out["pattern_centres_mm"] = [list(c) for c in self.pattern_centres_mm]
         return out
@@ -403,11 +407,9 @@ class CameraDesign:
         """A hash of everything that makes this camera (the name aside): equal digests, equal
         cameras. The first 16 hex digits of SHA-256 over the sorted inputs, the bitmaps by
         their own digest."""
-        d = self.inputs()
+        d = self._inputs(whole_masks=False)
         d.pop("name")
         d.pop("quoted_a_i_px_per_ms2")
-        if self.pattern_masks is not None:
-            d["pattern_masks"] = self.pattern_masks.digest
         return hashlib.sha256(json.dumps(d, sort_keys=True).encode()).hexdigest()[:16]
 
     @classmethod
@@ -445,6 +447,7 @@ def prototype(
 
 
 PRESETS = {"prototype": prototype}
+"""Camera presets by name: the paper's prototype (:func:`prototype`)."""
 
 
 def preset(name: str, **options) -> CameraDesign:

@@ -144,21 +144,31 @@ def _as_array(source) -> np.ndarray:
     return np.array(source)
 
 
+_LEVELS = {
+    t: (np.arange(np.iinfo(t).max + 1, dtype=np.float64) / np.iinfo(t).max).astype(np.float32)
+    for t in (np.uint8, np.uint16)
+}
+"""Transmittance of each 8- and 16-bit code value: level / max, rounded to float32."""
+
+
 def _normalise(arr: np.ndarray, name: str) -> np.ndarray:
     """Transmittance in [0, 1] as float32; 8/16-bit integers are code values."""
     if arr.size == 0:
         raise ParameterError(f"{name}: empty mask (shape {arr.shape})")
     if arr.dtype == np.bool_:
         return arr.astype(np.float32)
-    if arr.dtype in (np.uint8, np.uint16):  # image code values
-        return (arr.astype(np.float64) / np.iinfo(arr.dtype).max).astype(np.float32)
-    arr = arr.astype(np.float64)
-    if not np.all(np.isfinite(arr)):
+    if arr.dtype in (np.uint8, np.uint16):  # image code values, through a table of levels
+        return _LEVELS[arr.dtype.type][arr]
+    if arr.dtype.kind == "c":
+        raise ParameterError(f"{name}: transmittance must be real, got a complex array")
+    if arr.dtype.kind not in "fiu" or arr.dtype.itemsize > 8:
+        arr = arr.astype(np.float64)  # the rest (int64, float128, ...) checked in float64
+    lo, hi = float(arr.min()), float(arr.max())  # NaN propagates; inf fails the range
+    if not (np.isfinite(lo) and np.isfinite(hi)):
         raise ParameterError(f"{name}: transmittance must be finite (found NaN or inf)")
-    lo, hi = float(arr.min()), float(arr.max())
     if lo < 0.0 or hi > 1.0:
         raise ParameterError(f"{name}: transmittance must be in [0, 1], got [{lo:g}, {hi:g}]")
-    return arr.astype(np.float32)
+    return arr.astype(np.float32, copy=arr.dtype != np.float32)
 
 
 def _load_file(path: str) -> np.ndarray:
@@ -224,21 +234,34 @@ def load_masks(source, name: str = "masks") -> np.ndarray:
     return out
 
 
-def check_masks(masks: np.ndarray, lens_radius_mm: float, pitch_mm: float = LCOS_PITCH_MM):
+def check_masks(
+    masks: np.ndarray, lens_radius_mm: float, pitch_mm: float = LCOS_PITCH_MM, reach2=None
+):
     """Raise unless some pattern transmits light and no open pixel lies outside the lens.
 
     A pixel is outside the lens when its centre is farther than ``lens_radius_mm`` from the
     optical axis. Individual all-black patterns are allowed (the aperture is closed then, like
-    a shutter); a stack that is black everywhere is not.
+    a shutter); a stack that is black everywhere is not. ``reach2``: the stack's
+    :func:`open_reach2_mm2`, when known.
     """
     R_max = check_positive("lens_radius", lens_radius_mm, "mm")
     if masks.ndim != 3 or masks.size == 0:
         raise ParameterError(f"masks: expected a non-empty (N, H, W) stack, got {masks.shape}")
-    if not np.any(masks > 0):
-        raise ParameterError("masks: all patterns are black (transmittance 0 everywhere)")
+    _check_reach(open_reach2_mm2(masks, pitch_mm) if reach2 is None else reach2, R_max, pitch_mm)
+
+
+def open_reach2_mm2(masks: np.ndarray, pitch_mm: float) -> np.ndarray:
+    """Each pattern's largest squared distance (mm^2) of an open pixel's centre from the
+    optical axis; -1 for an all-black pattern."""
     x, y = pixel_centres_mm(masks.shape[1:], pitch_mm)
-    outside = (x[None, :] ** 2 + y[:, None] ** 2) > R_max * R_max * (1 + 1e-9)
-    bad = np.flatnonzero(np.any((masks > 0) & outside[None], axis=(1, 2)))
+    r2 = x[None, :] ** 2 + y[:, None] ** 2
+    return np.array([r2[m > 0].max(initial=-1.0) for m in masks])
+
+
+def _check_reach(reach2: np.ndarray, R_max: float, pitch_mm: float) -> None:
+    if not np.any(reach2 >= 0):
+        raise ParameterError("masks: all patterns are black (transmittance 0 everywhere)")
+    bad = np.flatnonzero(reach2 > R_max * R_max * (1 + 1e-9))
     if bad.size:
         r_px = R_max / pitch_mm
         raise ParameterError(
@@ -290,12 +313,16 @@ class MaskStack:
         The display's pixel pitch, mm.
     source : str, optional
         Where the stack was read from (information only: not compared).
+    name : str, optional
+        What the messages call the masks (a design file's ``[schedule] masks``).
     """
 
-    __slots__ = ("array", "pitch_mm", "digest", "source")
+    __slots__ = ("array", "pitch_mm", "digest", "source", "_memo")
 
-    def __init__(self, masks, pitch_mm: float = LCOS_PITCH_MM, source: str | None = None):
-        a = load_masks(masks)
+    def __init__(
+        self, masks, pitch_mm: float = LCOS_PITCH_MM, source: str | None = None, name="masks"
+    ):
+        a = load_masks(masks, name)
         a.setflags(write=False)
         pitch = check_positive("mask_pitch_mm", pitch_mm, "mm")
         h = hashlib.sha256(np.ascontiguousarray(a).tobytes())
@@ -304,6 +331,11 @@ class MaskStack:
         object.__setattr__(self, "pitch_mm", float(pitch))
         object.__setattr__(self, "digest", h.hexdigest()[:16])
         object.__setattr__(self, "source", source)
+        object.__setattr__(self, "_memo", {})  # figures of the patterns, computed once
+        if isinstance(masks, np.ndarray) and masks.dtype == np.uint8 and masks.shape == a.shape:
+            codes = masks.copy()  # 8-bit levels, as a file stores them: compact_array's
+            codes.setflags(write=False)
+            self._memo["codes"] = codes
 
     def __setattr__(self, key, value):
         raise AttributeError("MaskStack is immutable")
@@ -328,13 +360,33 @@ class MaskStack:
     def n_patterns(self) -> int:
         return int(self.array.shape[0])
 
+    def check_inside(self, lens_radius_mm: float) -> None:
+        """:func:`check_masks` for a lens of radius ``lens_radius_mm``; the patterns' reach is
+        measured once per stack (a design is checked on every copy)."""
+        reach2 = self._once("reach2", lambda: open_reach2_mm2(self.array, self.pitch_mm))
+        check_masks(self.array, lens_radius_mm, self.pitch_mm, reach2)
+
+    def _once(self, name: str, compute):
+        """``compute()``, kept: the stack is immutable, and a capture's record, checks and
+        schedule figures ask for the same figures of its (often 84 MB of) patterns."""
+        if name not in self._memo:
+            value = compute()
+            if isinstance(value, np.ndarray):
+                value.setflags(write=False)
+            self._memo[name] = value
+        return self._memo[name]
+
     def open_areas_mm2(self) -> np.ndarray:
         """Each pattern's open area, sum(tau) pitch^2, mm^2, shape (N,)."""
-        return self.array.sum(axis=(1, 2), dtype=np.float64) * self.pitch_mm**2
+        area = lambda: self.array.sum(axis=(1, 2), dtype=np.float64) * self.pitch_mm**2  # noqa: E731
+        return self._once("areas", area).copy()
 
     def centroids_xy_mm(self) -> np.ndarray:
         """Each pattern's transmittance-weighted centre (x right, y down), mm, shape (N, 2);
         NaN for an all-black pattern."""
+        return self._once("centroids", self._centroids).copy()
+
+    def _centroids(self) -> np.ndarray:
         n, h, w = self.array.shape
         x = (np.arange(w) + 0.5 - w / 2.0) * self.pitch_mm
         y = (np.arange(h) + 0.5 - h / 2.0) * self.pitch_mm
@@ -352,15 +404,21 @@ class MaskStack:
     def compact_array(self) -> np.ndarray:
         """The patterns as 8-bit code values when that is exact (binary masks, images),
         else float32: what a file stores, and :func:`load_masks` reads back identically."""
+        if "codes" in self._memo:  # made from 8-bit levels (a design file's stack)
+            return self._memo["codes"]
         a = self.array
-        as8 = np.round(a.astype(np.float64) * 255.0)  # as load_masks reads 8-bit levels
-        if np.array_equal((as8 / 255.0).astype(np.float32), a):
-            return as8.astype(np.uint8)
+        codes = (a * np.float32(255.0) + np.float32(0.5)).astype(np.uint8)  # a in [0, 1]
+        if np.array_equal(_LEVELS[np.uint8][codes], a):  # as load_masks reads 8-bit levels
+            return codes
         return a.astype("<f4")
 
     def to_json(self) -> dict:
         """The stack, exactly, JSON-ready: the patterns as zlib-compressed, base64 bytes
-        (8-bit code values when every transmittance is one, else float32)."""
+        (8-bit code values when every transmittance is one, else float32). Compressed once
+        per stack (64 full-display masks take 1.5 s): every record of a capture embeds it."""
+        return dict(self._once("json", self._encode))
+
+    def _encode(self) -> dict:
         data = self.compact_array()
         return {
             "shape": list(data.shape),
@@ -432,3 +490,40 @@ def _inflate(blob: bytes, shape: tuple, dtype, where: str) -> bytes:
             f"{where}: the stored patterns do not inflate to their declared shape {shape}"
         )
     return raw
+
+
+_STACKS: dict = {}  # (path, pitch, what the files were) -> MaskStack, the last few read
+_STACKS_KEPT = 4
+
+
+def _file_state(path: str) -> tuple:
+    """What a mask source was when read: each file's name, size and modification time."""
+    if os.path.isdir(path):
+        names = sorted(os.listdir(path))
+        return tuple((n, *_stat(os.path.join(path, n))) for n in names)
+    return (_stat(path),)
+
+
+def _stat(path: str) -> tuple:
+    try:
+        st = os.stat(path)
+    except OSError:
+        return (None, None)
+    return (st.st_size, st.st_mtime_ns)
+
+
+def read_mask_stack(path, pitch_mm: float, source: str | None = None, name: str = "masks"):
+    """:class:`MaskStack` of :func:`read_mask_source`, read once per process while its files are
+    unchanged (size and modification time): a command reads its design more than once, and 64
+    full-display masks take 1-2 s to read, decode and hash."""
+    p = os.path.abspath(os.fspath(path))
+    key = (p, float(pitch_mm), source, _file_state(p))
+    stack = _STACKS.get(key)
+    if stack is None:
+        stored = os.path.isfile(p) and p.lower().endswith((".npz", ".npy"))
+        raw = _load_file(p) if stored else read_mask_source(path, name)  # 8-bit levels kept
+        stack = MaskStack(raw, pitch_mm, source, name)
+        if len(_STACKS) >= _STACKS_KEPT:
+            _STACKS.pop(next(iter(_STACKS)))
+        _STACKS[key] = stack
+    return stack

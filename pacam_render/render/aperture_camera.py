@@ -223,11 +223,13 @@ from .kernel_types import (
     opaque_scalar,
     traversable,
 )
-from .plan import PROP_KEYS, AperturePlan, build_plan, config_from_props
+from .plan import PROP_KEYS, AperturePlan, build_plan, config_from_props, handed
 from .relative_illumination import RelativeIllumination
 from .schedule_lookup import ScheduleLookup
 
 PROJECTION_KEYS = ("x_fov", "near_clip", "far_clip")
+_MASK_KEYS = {"schedule", "masks", "mask_file", "mask_pitch", "lens_radius"}
+"""What a bitmap schedule's sampling tables depend on: ``configure`` keeps them otherwise."""
 """Traversed parameters of the projection (as Mitsuba's projective cameras expose them)."""
 
 
@@ -302,7 +304,8 @@ class ProgrammableApertureCamera(mi.Sensor):
         t_close = float(props.get("shutter_close", t_open + self.shutter_open_time()))
         self._exposure = (t_open, t_close)
         self._cfg = config_from_props(props)
-        self._set_plan(self._build(self._cfg))
+        tables = handed(props.get("mask_tables", "")) if "mask_tables" in props else None
+        self._set_plan(self._build(self._cfg, tables=tables))
         self._sync_traversed()
         self._set_illumination(props)
         self._set_diffraction(props)
@@ -373,13 +376,17 @@ class ProgrammableApertureCamera(mi.Sensor):
         make_opaque(self._from_world)
         self.m_to_world = self._to_world
 
-    def _build(self, cfg: dict) -> AperturePlan:
+    def _build(self, cfg: dict, changed=(), tables=None) -> AperturePlan:
+        """The plan of ``cfg``; a bitmap's tables are kept while the masks, their pitch and
+        the lens stay (``changed`` names what a ``configure`` changes), or taken as built
+        (``tables``)."""
+        old = getattr(self, "_plan", None)
+        if tables is None and old is not None and not set(changed) & _MASK_KEYS:
+            tables = old.tables
         return build_plan(
-            cfg,
-            *self._exposure,
-            focal_px=self._focal_px,
-            focus_mm=first(self._focus),
-        )
+            cfg, *self._exposure, focal_px=self._focal_px, focus_mm=first(self._focus),
+            tables=tables,
+        )  # fmt: skip
 
     def configure(self, **changes) -> AperturePlan:
         """Change the schedule or its parameters (same names as the plugin's properties).
@@ -419,7 +426,7 @@ class ProgrammableApertureCamera(mi.Sensor):
         if focus is not None:
             self._focus = opaque_scalar(check_positive("focus_distance", focus, "mm"))
         try:
-            plan = self._build(cfg)
+            plan = self._build(cfg, changes)
         except Exception:
             self._focus = old_focus
             raise

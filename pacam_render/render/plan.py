@@ -23,6 +23,7 @@ from ..model.paper import N_PATTERNS as DEFAULT_N_PATTERNS
 from .masks import MaskTables, build_tables, check_masks, load_masks
 
 SCHEDULES = ("static", "parabolic", "centres", "bitmap", "flutter", "camera_parabolic")
+"""The aperture schedules the plugin's ``schedule`` parameter takes."""
 TIME_VARYING = ("parabolic", "flutter", "camera_parabolic")  # centres, bitmap: if N > 1
 _TOL = 1e-9  # relative tolerance for "opening inside the lens"
 
@@ -283,6 +284,7 @@ def build_plan(
     t_close: float,
     focal_px: float | None = None,
     focus_mm: float | None = None,
+    tables: MaskTables | None = None,
 ) -> AperturePlan:
     """Resolve a configuration (the plugin's parameters) into an :class:`AperturePlan`.
 
@@ -295,6 +297,10 @@ def build_plan(
     focal_px, focus_mm : float, optional
         (W/2)/tan(fov/2) and the focus distance; needed only to turn an
         ``image_acceleration`` into a camera acceleration (Levin's a_i(Z_f) = f_px a_c / Z_f).
+    tables : MaskTables, optional
+        A ``bitmap`` schedule's sampling tables, built and checked by an earlier plan of the
+        same masks, pitch and lens (the plugin's ``configure`` of a time window): reading,
+        checking and tabulating 64 full-display masks took 1.3 s per call, paid per time step.
 
     Returns
     -------
@@ -323,7 +329,7 @@ def build_plan(
         raise ParameterError(
             f"continuous applies to the parabolic and camera_parabolic schedules, not {kind!r}"
         )
-    s = _Shape(n=n)
+    s = _Shape(n=n, tables=tables if kind == "bitmap" else None)
     _SHAPERS[kind](s, c, kind, R_max, R, 0.5 * (t1 - t0), continuous, (focal_px, focus_mm))
     n = s.n
     if n > 1:
@@ -498,11 +504,12 @@ def _shape_bitmap(s: _Shape, c, kind, R_max, R, T, continuous, focal) -> None:
     source = c["masks"] if c["masks"] is not None else c["mask_file"]
     if source is None:
         raise ParameterError("masks: schedule='bitmap' needs masks (array) or mask_file")
-    pitch = check_positive("mask_pitch", c["mask_pitch"], "mm")
-    masks = load_masks(source)
-    check_masks(masks, R_max, pitch)
-    s.n = _fixed_n(c, kind, len(masks), "masks")
-    s.tables = build_tables(masks, pitch)
+    if s.tables is None:
+        pitch = check_positive("mask_pitch", c["mask_pitch"], "mm")
+        masks = load_masks(source)
+        check_masks(masks, R_max, pitch)
+        s.tables = build_tables(masks, pitch)
+    s.n = _fixed_n(c, kind, s.tables.n_patterns, "masks")
     s.area = s.tables.area_mm2
     s.centres = np.zeros((s.n, 2))
 
@@ -548,6 +555,26 @@ PROP_KEYS = (
     "reference_exposure",
     "time_window",
 )
+
+
+_HANDED: dict[str, MaskTables] = {}  # token -> the tables sensor_dict built, the last few
+_HANDED_KEPT = 8
+
+
+def hand_over(tables: MaskTables) -> str:
+    """A token for the sampling tables :func:`~.registry.sensor_dict` built while checking the
+    schedule, which the plugin it describes takes instead of tabulating the masks again (a
+    Mitsuba property holds no Python object; 64 full-display masks take 0.5-1.2 s)."""
+    token = f"pacam-mask-tables-{id(tables):x}"
+    if len(_HANDED) >= _HANDED_KEPT:
+        _HANDED.pop(next(iter(_HANDED)))
+    _HANDED[token] = tables
+    return token
+
+
+def handed(token) -> MaskTables | None:
+    """The tables :func:`hand_over` kept for ``token`` (None: tabulate the masks)."""
+    return _HANDED.get(str(token)) if token else None
 
 
 def config_from_props(props) -> dict:

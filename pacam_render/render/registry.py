@@ -22,12 +22,14 @@ import numpy as np
 from ..errors import ParameterError, check_positive
 from ..model import paper
 from ..model.camera import CameraDesign
-from .plan import PROP_KEYS, build_plan
+from .plan import PROP_KEYS, build_plan, hand_over
 from .samplers import quantum, sampler_dict
 from .variant import activate_variant
 
 PLUGIN_NAME = "programmable_aperture"
+"""The Mitsuba plugin name of the programmable-aperture camera (``type`` in a scene)."""
 PSF_PLUGIN_NAME = "pacam_psf_camera"
+"""The Mitsuba plugin name of the camera that PSF renders trace particles into."""
 _MODULES = (
     ("aperture_camera", "ProgrammableApertureCamera", PLUGIN_NAME),
     ("psf_camera", "PSFCamera", PSF_PLUGIN_NAME),
@@ -226,8 +228,9 @@ def sensor_dict(**params) -> dict:
         if not 0.0 < fov < 180.0:
             raise ParameterError(f"fov must be in (0, 180) deg, got {fov!r}")
         focal_px = 0.5 * width / math.tan(math.radians(fov) / 2.0)
+    tables = None
     if focal_px is not None or cfg.get("image_acceleration") is None:
-        build_plan(cfg, t0, t1, focal_px=focal_px, focus_mm=focus)
+        tables = build_plan(cfg, t0, t1, focal_px=focal_px, focus_mm=focus).tables
     if "relative_illumination" in params:
         _check_illumination(params, focal_px)
 
@@ -240,6 +243,8 @@ def sensor_dict(**params) -> dict:
         elif isinstance(v, (list, tuple)) and k in ("centres", "masks"):
             v = mi.TensorXf(np.asarray(v, dtype=np.float32))
         out[k] = v
+    if tables is not None:  # the plugin takes the bitmaps' tables built here
+        out["mask_tables"] = hand_over(tables)
     return out
 
 

@@ -297,6 +297,29 @@ def test_bitmap_discs_match_disc_schedule():
     assert b.sum() == pytest.approx(a1.sum(), rel=0.005)
 
 
+def test_bitmap_tables_kept_until_the_masks_change():
+    """A capture's time steps re-configure the window only: the masks' tables are kept (each
+    step re-read, checked and tabulated 64 full-display masks, 1.3 s a step); new masks, a new
+    pitch or a new lens rebuild and re-check them."""
+    R = 20 * LCOS_PITCH_MM
+    masks = disc_masks([[0.0, 0.0], [0.2, 0.0]], R, shape=(64, 80))
+    sensor = mi.load_dict(
+        ac.sensor_dict(lens_radius=1.0, schedule="bitmap", masks=masks, fov=FOV,
+                       focus_distance=ZF, shutter_open=0.0, shutter_close=2.0, film=film(8))
+    )  # fmt: skip
+    tables = sensor.plan.tables
+    sensor.configure(time_window=(0.0, 1.0))
+    sensor.configure(time_window=(0.5, 1.5, 1.0), focus_distance=ZF + 1)
+    assert sensor.plan.tables is tables
+    wider = disc_masks([[0.0, 0.0], [0.2, 0.0]], 1.5 * R, shape=(64, 80))
+    sensor.configure(masks=mi.TensorXf(wider))
+    assert sensor.plan.tables is not tables
+    assert sensor.plan.tables.area_mm2 == pytest.approx(wider.sum(axis=(1, 2)) * LCOS_PITCH_MM**2)
+    with pytest.raises(ParameterError, match="outside the lens"):
+        sensor.configure(lens_radius=0.4)  # the kept masks are checked against the new lens
+    assert sensor.plan.lens_radius_mm == 1.0  # refused: nothing changed
+
+
 # ------------------------------------------------------------------------------------------
 # 4. brightness follows open area and exposure
 # ------------------------------------------------------------------------------------------

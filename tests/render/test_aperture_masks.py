@@ -81,6 +81,9 @@ def test_load_masks_types(tmp_path):
         (np.full((4, 4), 1.5), r"\[0, 1\]"),
         (np.full((4, 4), -0.1), r"\[0, 1\]"),
         (np.full((4, 4), np.nan), "finite"),
+        (np.full((4, 4), np.inf), "finite"),
+        (np.full((4, 4), 0.5 + 0.5j), "real"),
+        (np.full((4, 4), 2, np.int64), r"\[0, 1\]"),
         (np.zeros((2, 2, 2, 2)), "shape"),
         (np.zeros((0, 4, 4)), "empty"),
         ([np.zeros((4, 4)), np.zeros((5, 4))], "same size"),
@@ -90,6 +93,25 @@ def test_load_masks_types(tmp_path):
 def test_load_masks_rejects(bad, match):
     with pytest.raises(ParameterError, match=match):
         load_masks(bad)
+
+
+def test_levels_and_compact_stack_round_trip():
+    """8- and 16-bit levels read as level / max rounded once to float32 (the table of levels
+    against the closed form), and a stack of levels is stored as its 8-bit codes, exactly;
+    other transmittances stay float32."""
+    from pacam_render.model.masks import MaskStack
+
+    u8 = np.arange(256, dtype=np.uint8).reshape(1, 16, 16)
+    assert np.array_equal(load_masks(u8), (u8 / 255.0).astype(np.float32))
+    u16 = np.array([[0, 1, 257, 32768, 65535]], np.uint16)
+    assert np.array_equal(load_masks(u16)[0], (u16 / 65535.0).astype(np.float32))
+    stack = MaskStack(u8)
+    codes = stack.compact_array()
+    assert codes.dtype == np.uint8 and np.array_equal(codes, u8)
+    assert stack.to_json() == stack.to_json()  # compressed once, the same record
+    odd = MaskStack(np.full((1, 4, 4), 0.3, np.float32))
+    assert odd.compact_array().dtype == np.float32
+    assert np.array_equal(load_masks(odd.compact_array()), odd.array)
 
 
 def test_check_masks():
