@@ -109,6 +109,10 @@ def test_a_second_run_into_the_same_out_is_refused_at_the_start(tmp_path, capsys
         err = capsys.readouterr().err
         assert "is in use by another pacam run (pid" in err and time.perf_counter() - t0 < 10
         assert not (out / "capture.exr").exists()
+        # nor does a psf or a deconvolution write into it (issue 47, low: psf did)
+        assert main(["psf", "--velocity", "0", "--out", str(out)]) == 2
+        assert "is in use by another pacam run (pid" in capsys.readouterr().err
+        assert not (out / "psf.json").exists()
     finally:
         holder.kill()
         holder.wait()
@@ -196,10 +200,14 @@ def test_sigterm_and_sigint_save_the_finished_steps_and_resume(tmp_path):
     early.send_signal(signal.SIGINT)
     err = early.communicate(timeout=120)[1]
     assert early.returncode == 130 and "interrupted" in err and "Traceback" not in err, err
-    done = subprocess.run([sys.executable, "-m", "pacam_render", *cli], capture_output=True)
+    done = subprocess.run(
+        [sys.executable, "-m", "pacam_render", *cli], capture_output=True, text=True
+    )
     assert done.returncode == 0, done.stderr
     meta = json.loads((out / "capture.json").read_text())
     assert meta["resumed_from_step"] > 0 and not (out / ".partial").exists()
+    # --quiet still says so (issue 47, low): the capture is partly an earlier run's
+    assert f"resumed: {meta['resumed_from_step']} finished step(s)" in done.stderr
     spec = CaptureSpec.geometric(
         scene="train", mode="coded", width=64, height=48, spp=64, max_step_px=0.05
     )

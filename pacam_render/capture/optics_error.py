@@ -92,10 +92,21 @@ def relative_illumination_entry(image, cos4_map, ri_record: dict | None) -> dict
     )
 
 
-def leakage_entry(image, full_over_coded: float, contrast: float | None = None) -> dict:
+NOT_APPLIED = "{flag} = {value:g} was asked but is not in the rays: the capture's schedule {why}"
+"""How an LCoS entry reads when its value was asked for a schedule that does not model it."""
+
+
+def leakage_entry(
+    image, full_over_coded: float, contrast: float | None = None, asked: float | None = None
+) -> dict:
     """In the rays at a finite ``contrast``; else ideal (infinite contrast), with the size per
-    1 / contrast (module docstring)."""
+    1 / contrast (module docstring). ``asked``: a contrast given for a schedule that shows no
+    disc (a bitmap, the flutter shutter, Levin's camera): sized at that contrast."""
     per = image_rms(image) * max(full_over_coded - 1.0, 0.0)
+    if asked is not None and contrast is None:
+        why = NOT_APPLIED.format(flag="lcos_contrast", value=asked, why="shows no disc to leak")
+        return entry(False, why, per / asked, "closed form: (full-aperture - coded) / contrast",
+                     asked=asked, size_rms_per_inverse_contrast=per)  # fmt: skip
     if contrast is not None:
         return entry(
             True,
@@ -137,10 +148,16 @@ def grid_entry(image, fill_factor: float | None = None) -> dict:
     )
 
 
-def switching_entry(image, n_patterns: int, exposure_ms: float, t_ms=None) -> dict:
+def switching_entry(image, n_patterns: int, exposure_ms: float, t_ms=None, asked=None) -> dict:
     """In the rays at a switching time ``t_ms``; else ideal (instant), with an upper bound of
-    the size per ms of switching time."""
+    the size per ms of switching time. ``asked``: a switching time given for a schedule that
+    switches no disc (a bitmap, a continuous parabola): bounded at that time."""
     frac = max(n_patterns - 1, 0) / exposure_ms
+    if asked and not t_ms:
+        why = NOT_APPLIED.format(flag="lcos_switching_ms", value=asked, why="switches no disc")
+        return entry(False, why, frac * asked * image_rms(image),
+                     "upper bound: (N - 1) t / E of the exposure blends neighbouring patterns",
+                     asked=asked, size_rms_per_ms=frac * image_rms(image))  # fmt: skip
     if t_ms:
         return entry(
             True,
@@ -176,10 +193,11 @@ def bounces_entry(image, scene: str, integrator: dict | None) -> dict:
     )  # fmt: skip
 
 
-def add_ratios(block: dict, noise_sigma: float | None, where: str) -> None:
+def add_ratios(block: dict, noise_sigma: float | None, where: str, own: bool = True) -> None:
     """Each entry's sizes over the sensor's noise, and the LCoS values at which an ideal
-    effect would equal it; ``where`` names the sensor."""
-    block["reference_noise"] = {"sigma": noise_sigma, "sensor": where}
+    effect would equal it; ``where`` names the sensor, ``own`` says whether it is the
+    capture's (its sensor model or noise target) or a stand-in."""
+    block["reference_noise"] = {"sigma": noise_sigma, "sensor": where, "stand_in": not own}
     ok = noise_sigma is not None and noise_sigma > 0
     for e in block["effects"].values():
         size = e.get("size_rms")
@@ -208,7 +226,7 @@ def _typical_lcos(effects: dict, noise_sigma: float) -> None:
     blend = effects["lcos_switching"].get("blend_per_ms", 0.0) * TYPICAL_LCOS["lcos_switching"]
     for k, size in per.items():
         e = effects[k]
-        if e["included"] or not size:
+        if e["included"] or not size or "asked" in e:  # an asked value is sized at itself
             continue
         e["size_rms_at_typical"] = size
         # switching's size is a loose bound (neighbouring patterns differ little): it is
@@ -242,9 +260,11 @@ def summary_line(block: dict | None) -> str | None:
     if e.get("typical_matters"):
         return _typical_line(k, e, block)
     ratio = e.get("ratio_to_sensor")
-    vs = f", {ratio:.2g}x the sensor's noise" if ratio is not None else ""
+    vs = f", {ratio:.2g}x {_noise_words(block)}" if ratio is not None else ""
     if e.get("residual"):
         what += " (what its approximation leaves out)"
+    if e.get("asked") is not None:
+        what += f" at the asked {e['asked']:g} (not in the rays: the schedule has none)"
     return f"optics left out: largest is {what}, RMS {e['size_rms']:.3g}{vs}"
 
 
@@ -265,6 +285,14 @@ def _typical_line(k: str, e: dict, block: dict) -> str:
     return (
         f"optics left out: largest is an ideal LCoS's {k.removeprefix('lcos_')}: a typical "
         f"device ({device.format(TYPICAL_LCOS[k])}) would add RMS {e['size_rms_at_typical']:.3g}, "
-        f"{e['size_rms_at_typical'] / sigma:.2g}x the sensor's noise (it equals the noise at "
+        f"{e['size_rms_at_typical'] / sigma:.2g}x {_noise_words(block)} (it equals the noise at "
         f"{e[at_noise]:.3g}); give the display's value as `{flag}`"
     )
+
+
+def _noise_words(block: dict) -> str:
+    """The noise the sizes are over: the capture's sensor's, or a named stand-in's."""
+    ref = block.get("reference_noise") or {}
+    if not ref.get("stand_in"):
+        return "the sensor's noise"
+    return f"the noise of a stand-in sensor ({ref['sensor']}; the capture has none)"

@@ -19,6 +19,7 @@ from dataclasses import asdict, dataclass, field, fields
 from typing import Any
 
 from ..errors import ParameterError
+from ..limits import note
 from ..model import paper
 
 PIXEL_UNIT = "radiance x (open area / full aperture) x (exposure / 45 ms)"
@@ -43,6 +44,9 @@ LAYER_UNITS = {
 ``capture``'s. Layers in :data:`CAPTURE_UNIT` are divided by ``light_factor`` to be compared
 with ``sharp``: :func:`read_capture` does it."""
 _PATTERN_LAYER = re.compile(r"sub\d+")
+EXTRA_KEYS = frozenset({"lightfield"})
+"""Top-level keys of a capture.json that are not fields but are written by pacam: a capture
+synthesised from a light-field store names its store."""
 
 
 def layer_unit(name: str) -> str | None:
@@ -207,6 +211,10 @@ class CaptureRecord:
             kw["noise_sigma"] = old * kw["light_factor"]
         drop = {"sensor", "noise_sigma_unit"}
         extra = {k: v for k, v in d.items() if k not in known and k not in drop}
+        unknown = sorted(set(extra) - EXTRA_KEYS)
+        if unknown:  # kept as they are, but said: a misspelt key would change nothing
+            note(f"{where}: unknown key(s) {', '.join(map(repr, unknown[:5]))} not read (a hand "
+                 "edit, or a newer pacam's record?)")  # fmt: skip
         return cls(**kw, sensor=sensor, extra=extra)
 
     def design_inputs(self) -> dict:

@@ -241,6 +241,12 @@ def _deconvolve_out(args: argparse.Namespace, inputs: list[Path]) -> tuple[Path,
     if any(out.resolve() == p.resolve() for p in inputs):
         raise ParameterError(f"--out {out} is an input of this command; give another path")
     if out.suffix in (".exr", ".png"):
+        if args.allow_psf_mismatch:
+            raise ParameterError(
+                f"--allow-psf-mismatch needs --out DIR: --out {out} writes the image only, "
+                "so the mismatch it allows would be recorded nowhere (DIR's deconvolved.json "
+                "records it)"
+            )
         print(
             f"note: --out {out} writes the image only; --out DIR writes deconvolved.exr, "
             ".png and .json (method, PSF, noise and the score against sharp)",

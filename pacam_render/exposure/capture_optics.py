@@ -169,16 +169,22 @@ def finish_optics(spec, design, cam, desc, image, patterns, variance, ctx) -> Op
         "relative_illumination": oe.relative_illumination_entry(
             image, ctx["cos4_map"], ctx["ri_record"]
         ),
-        "lcos_leakage": oe.leakage_entry(image, full_over_coded(rec), ctx.get("lcos_contrast")),
+        "lcos_leakage": oe.leakage_entry(
+            image, full_over_coded(rec), ctx.get("lcos_contrast"), spec.lcos_contrast
+        ),
         "lcos_grid": oe.grid_entry(image, spec.lcos_fill_factor if included else None),
         "lcos_switching": oe.switching_entry(
-            image, cam.n_patterns, cam.exposure_ms, ctx.get("lcos_switching_ms")
+            image,
+            cam.n_patterns,
+            cam.exposure_ms,
+            ctx.get("lcos_switching_ms"),
+            spec.lcos_switching_ms,
         ),
         "bounces": oe.bounces_entry(image, spec.scene, getattr(desc, "integrator", None)),
     }
     block = {"diffraction": info, "effects": effects}
     noise, where = reference_noise(spec, design, rec, image, ctx["target"])
-    oe.add_ratios(block, noise, where)
+    oe.add_ratios(block, noise, where, own=ctx["target"] is not None)
     return Optics(image, patterns, variance, block)
 
 

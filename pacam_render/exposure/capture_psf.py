@@ -92,17 +92,27 @@ def check_psf_design(path: Path, meta: dict | None, record: CaptureRecord | None
         On a mismatch, naming both values of each figure, unless ``allow`` (a deliberate
         mismatch, as in Fig. 9's wrong assumed depth): then a note says it.
     """
-    if record is None or not isinstance(meta, dict):
+    if not isinstance(meta, dict):
         return ()
-    if "design_digest" not in meta:
+    sidecar = path.parent / "psf.json"
+    if record is None:  # a capture.exr without its capture.json
+        made = ", ".join(f"{w} {f.format(meta[k])}" for k, w, f in _FIGURES if k in meta)
         warnings.warn(
-            f"{path.parent / 'psf.json'} records no design (an older pacam): its r, a_i and "
-            "schedule cannot be checked against the capture's; remake it with pacam psf "
-            f"`like` CAPTURE.exr",
+            f"the capture has no capture.json: the camera {sidecar} was made for "
+            f"({made or 'not recorded'}) cannot be checked against the capture's",
             PacamWarning,
             stacklevel=2,
         )
         return ()
+    if "design_digest" not in meta:
+        known = [w for k, w, _ in _FIGURES if k in meta]
+        what = f"only its {', '.join(known)} are" if known else "nothing is"
+        warnings.warn(
+            f"{sidecar} records no design digest (an older pacam, or an edit): {what} checked "
+            "against the capture's; remake it with pacam psf `like` CAPTURE.exr",
+            PacamWarning,
+            stacklevel=2,
+        )
     diff = psf_mismatch(meta, record)
     if diff and not allow:
         raise PSFMismatchError(

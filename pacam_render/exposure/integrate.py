@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from ..errors import ParameterError
-from ..limits import DEFAULT_MAX_STEPS
+from ..limits import DEFAULT_MAX_STEPS, note
 from .estimate import rms
 from .progress import (
     Progress,
@@ -176,6 +176,9 @@ def integrate(exp: Exposure, spec, run: Run, store, target=None, record=None, de
         prog = Progress(sched, group_stats(sched, {}))
     check_samples(prog.sched, exp, spec, run.max_samples)
     prog.resumed_from = prog.steps_done
+    if prog.steps_done:  # said even when quiet: the capture is partly an earlier run's
+        note(f"resumed: {prog.steps_done} finished step(s) of an earlier run, saved in "
+             f"{run.partial_dir}, are kept")  # fmt: skip
     if pilot_done(prog.sched):  # a pilot refused as out of reach, resumed: plan the rest now
         _plan_main(exp, prog, run, store, target, record)
     n_steps = exp.steps_per_pass(prog.sched.groups[-1][0])  # a fixed or a main pass

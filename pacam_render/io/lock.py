@@ -62,6 +62,40 @@ def output_lock(folder: str | os.PathLike, flag: str = "`out`") -> Iterator[Path
         os.close(fd)
 
 
+def check_unlocked(folder: str | os.PathLike, flag: str = "`out`") -> None:
+    """Refuse a folder whose lock another process holds (a running render's ``out``), without
+    taking it: for commands that write a few files and hold no lock of their own.
+
+    Raises
+    ------
+    ParameterError
+        If another process holds the folder's lock.
+    """
+    d = Path(folder)
+    path = (d / LOCK_NAME).resolve()
+    if path in _held or not path.is_file():
+        return
+    try:
+        fd = os.open(path, os.O_RDONLY)
+    except FileNotFoundError:  # its holder just finished
+        return
+    try:
+        fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
+    except BlockingIOError:
+        raise _busy(fd, flag, d) from None
+    finally:
+        os.close(fd)
+
+
+def _busy(fd: int, flag: str, shown: Path) -> ParameterError:
+    """The refusal of a folder whose lock file ``fd`` another process holds."""
+    holder = os.read(fd, 64).decode(errors="replace").strip() or "another process"
+    return ParameterError(
+        f"{flag} {shown} is in use by another pacam run ({holder}); wait for it to finish or "
+        "choose another folder"
+    )
+
+
 def _acquire(path: Path, flag: str, shown: Path) -> int:
     """Lock ``path``; retry if the file we locked was unlinked by a finishing holder."""
     while True:
@@ -69,12 +103,9 @@ def _acquire(path: Path, flag: str, shown: Path) -> int:
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
-            holder = os.read(fd, 64).decode(errors="replace").strip() or "another process"
+            err = _busy(fd, flag, shown)
             os.close(fd)
-            raise ParameterError(
-                f"{flag} {shown} is in use by another pacam run ({holder}); wait for it to "
-                "finish or choose another folder"
-            ) from None
+            raise err from None
         try:
             same = os.fstat(fd).st_ino == os.stat(path).st_ino
         except FileNotFoundError:

@@ -10,6 +10,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 from ..errors import ParameterError
+from .lock import check_unlocked
 
 
 def check_writable(path: str | os.PathLike, force: bool, flag: str = "") -> Path:
@@ -109,6 +110,7 @@ def prepare_out_dir(path: str | os.PathLike, force: bool, names=None) -> Path:
     d = Path(path)
     if d.exists() and not d.is_dir():
         raise ParameterError(f"`out` {d} exists and is not a folder")
+    check_unlocked(d)  # a running render's folder
     held = [] if not d.is_dir() else [p.name for p in d.iterdir() if p.name != ".pacam.lock"]
     if names is not None:
         held = [n for n in held if n in set(names)]

@@ -23,12 +23,14 @@ from __future__ import annotations
 import hashlib
 import itertools
 import json
+import os
 from dataclasses import asdict, dataclass, field
 from importlib import resources
 from pathlib import Path
 
 from ..errors import FileKeyError, ParameterError
 from ..io.toml_file import parse_toml, read_text
+from ..limits import note
 from ..sensor.radiometry import DEFAULT_LIGHT_LEVEL
 
 AXES = {
@@ -330,6 +332,8 @@ def _parse(doc: dict, quick: bool, source: str, grey: bool = False) -> StudySpec
         set(RENDER) | {"grey", DIFFRACTION_RENDER, RELATIVE_ILLUMINATION_RENDER, LIGHTFIELD_RENDER},
     )
     render = _check_render(render)
+    base = Path(source).parent if source.lower().endswith(".toml") else None
+    grid, points = _designs_beside(grid, base), _designs_beside(points, base)
     pts = _expand(grid, points, render)
     _check_lightfield(render, pts)
     return StudySpec(
@@ -516,6 +520,42 @@ def _expand(grid, points: list, render: dict) -> tuple[Point, ...]:
             out.append(Point(index=len(out), **values))
     _check_designs(out, render)
     return tuple(out)
+
+
+def _designs_beside(axes, base: Path | None):
+    """The ``design`` values of a grid (or a list of grids or points) with their files
+    (``PATH.toml``, ``design=PATH``, ``schedule=PATH``) resolved against the study file's
+    folder, as a scene's includes are, and written relative to the working directory (the
+    text a row records; unchanged when the study runs from its own folder). A file found only
+    from the working directory (the old reading) is taken with a note."""
+    if base is None or not axes:
+        return axes
+    if isinstance(axes, list):
+        return [_designs_beside(a, base) if isinstance(a, dict) else a for a in axes]
+    if not isinstance(axes, dict) or "design" not in axes:
+        return axes
+    d = axes["design"]
+    values = [_beside(v, base) for v in (d if isinstance(d, list) else [d])]
+    return {**axes, "design": values if isinstance(d, list) else values[0]}
+
+
+def _beside(text, base: Path):
+    t = str(text)
+    if t.startswith("schedule="):
+        prefix, path = "schedule=", t[len("schedule=") :]
+    elif (path := design_file_path(t)) is not None:
+        prefix = t[: len(t) - len(path)]  # "design=" or nothing
+    else:
+        return text
+    if Path(path).is_absolute():
+        return text
+    here = base / path
+    if here.exists():
+        return prefix + os.path.relpath(here)
+    if Path(path).exists():
+        note(f"design {t!r} is not beside the study file ({here}); read from the working "
+             "directory instead: write it relative to the study file")  # fmt: skip
+    return text
 
 
 def design_file_path(text) -> str | None:

@@ -212,3 +212,21 @@ def test_an_ideal_lcos_that_a_typical_device_is_not_is_named_the_largest_left_ou
     quiet = block(16, 45.0, 0.5)
     assert not any(e.get("typical_matters") for e in quiet["effects"].values())
     assert quiet["largest_left_out"] == "diffraction"
+
+
+@pytest.mark.render
+def test_the_budget_names_a_stand_in_sensor(tmp_path, capsys):
+    """Issue 47 (low): without `--sensor` the budget's ratios are over a stand-in sensor's
+    noise (the design's preset or the ICX285 at the default light); the line said "the
+    sensor's noise" as if the capture had one."""
+    from pacam_render.cli import main
+
+    args = ["render", "train", "--width", "32", "--height", "24", "--spp", "8",
+            "--diffraction", "off", "--no-truth", "--quiet"]  # fmt: skip
+    assert main([*args, "--out", str(tmp_path / "a")]) == 0
+    out = capsys.readouterr().out
+    line = next(s for s in out.splitlines() if s.startswith("optics left out"))
+    assert "x the noise of a stand-in sensor (grasshopper-icx285 at " in line
+    assert main([*args, "--sensor", "grasshopper-icx285", "--out", str(tmp_path / "b")]) == 0
+    line = next(s for s in capsys.readouterr().out.splitlines() if s.startswith("optics left"))
+    assert "x the sensor's noise" in line and "stand-in" not in line

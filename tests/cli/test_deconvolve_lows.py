@@ -59,6 +59,19 @@ def test_a_kernel_file_that_sums_to_nothing_is_refused(cap, tmp_path, capsys):
     assert "sums to 0: it holds no PSF" in capsys.readouterr().err
 
 
+def test_an_allowed_mismatch_needs_a_folder_that_records_it(cap, tmp_path, capsys):
+    """Issue 47 (low): with --out X.exr the allowed mismatch was said on stderr only."""
+    k = np.zeros((3, 3))
+    k[1, 1] = 1.0
+    np.save(tmp_path / "k.npy", k)
+    argv = ["deconvolve", str(cap), "--psf", str(tmp_path / "k.npy"), "--method", "wiener",
+            "--noise-sigma", "0.01", "--allow-psf-mismatch"]  # fmt: skip
+    assert main([*argv, "--out", str(tmp_path / "x.exr")]) == 2
+    assert "--allow-psf-mismatch needs --out DIR" in capsys.readouterr().err
+    assert not (tmp_path / "x.exr").exists()
+    assert main([*argv, "--out", str(tmp_path / "d")]) == 0
+
+
 def test_nan_in_sharp_is_no_score_not_a_nan_score(tmp_path, capsys, monkeypatch):
     import pacam_render.cli.deconvolve as cli_deconvolve
     from pacam_render.io.exr import read_exr

@@ -88,6 +88,34 @@ def test_levin_has_no_lcos_to_leak():
     assert np.array_equal(cap.image, _capture(**kw).image)  # the capture without it
 
 
+def test_an_asked_lcos_value_not_applied_is_sized_not_called_ideal():
+    """Issue 47, medium 7: a contrast or switching time given for a schedule without discs
+    (the fluttered shutter here, a bitmap design alike) is named in the budget as asked and
+    not applied, sized at the asked value by the closed forms; it was "ideal LCoS", size 0."""
+    from pacam_render.capture.optics_error import image_rms, summary_line
+
+    kw = {"scene": "train", "mode": "flutter", "width": 32, "height": 24, "spp": 8}
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        cap = render_capture(
+            CaptureSpec.geometric(**kw, lcos_contrast=2.0, lcos_switching_ms=0.5),
+            progress=False,
+            truth=False,
+        )
+    block = cap.record.optics_error
+    leak, switch = block["effects"]["lcos_leakage"], block["effects"]["lcos_switching"]
+    for e, flag, value in ((leak, "lcos_contrast", 2), (switch, "lcos_switching_ms", 0.5)):
+        assert not e["included"] and e["asked"] == value
+        assert e["how"].startswith(f"{flag} = {value:g} was asked but is not in the rays")
+        assert "ideal" not in e["how"]
+    assert leak["size_rms"] == pytest.approx(leak["size_rms_per_inverse_contrast"] / 2.0)
+    assert leak["size_rms"] > 0
+    n, t = cap.record.camera["n_patterns"], cap.record.exposure_ms
+    assert switch["size_rms"] == pytest.approx((n - 1) / t * 0.5 * image_rms(cap.image))
+    assert block["largest_left_out"] in ("lcos_leakage", "lcos_switching")
+    assert "at the asked" in summary_line(block)
+
+
 def test_the_cli_renders_every_lcos_flaw_and_the_budget_says_so(tmp_path):
     import json
 

@@ -186,6 +186,34 @@ def test_local_cluster_of_two_equals_the_serial_run(tmp_path):
     assert (tmp_path / "dask" / "report.md").read_text().count("coded") > 0
 
 
+def _overlaps(tasks: list) -> list[tuple]:
+    """(worker, task, task) for each two pacam tasks whose compute intervals overlap on one
+    worker, from a Dask task stream's records."""
+    spans: dict = {}
+    for t in tasks:
+        if not str(t.get("key", "")).startswith("pacam-"):
+            continue
+        for ss in t.get("startstops", ()):
+            if ss.get("action") == "compute":
+                spans.setdefault(t.get("worker"), []).append((ss["start"], ss["stop"], t["key"]))
+    out = []
+    for worker, iv in spans.items():
+        iv.sort()
+        out += [(worker, a[2], b[2]) for a, b in zip(iv, iv[1:]) if b[0] < a[1]]
+    return out
+
+
+def test_overlaps_names_tasks_that_ran_at_once():
+    c = lambda key, a, b, w="w1": {
+        "key": key,
+        "worker": w,  # noqa: E731
+        "startstops": ({"action": "compute", "start": a, "stop": b},),
+    }
+    tasks = [c("pacam-a", 0, 2), c("pacam-b", 1, 3), c("pacam-c", 3, 4), c("pacam-d", 1, 2, "w2"),
+             c("other", 0, 9)]  # fmt: skip
+    assert _overlaps(tasks) == [("w1", "pacam-a", "pacam-b")]
+
+
 @pytest.mark.render
 def test_a_study_runs_on_a_client_of_your_own_and_leaves_it_open(tmp_path):
     """``run_study(client=...)``: every point is a task on that cluster (its task stream shows
@@ -206,7 +234,10 @@ def test_a_study_runs_on_a_client_of_your_own_and_leaves_it_open(tmp_path):
             assert client.status == "running"
         assert summary.dashboard == client.dashboard_link  # printed with the progress
     failed = [(r["point"], r["status"]) for r in _rows(tmp_path / "mine") if r["status"] != "ok"]
-    assert summary.ran == 4 and summary.failed == 0, failed  # a failed point says why
+    # a failed point says why, and which pacam tasks ran at once on one worker (the lock
+    # should leave none): the next failure under load names its cause
+    assert summary.ran == 4 and summary.failed == 0, (failed, _overlaps(stream.data))
+    assert _overlaps(stream.data) == []
     assert sum(t["key"].startswith("pacam-") for t in stream.data) == 4  # 2 pilots, 2 renders
     drop = ("render_s", "total_s", "row_digest")  # the digest hashes the timings too
     a, b = _rows(tmp_path / "serial"), _rows(tmp_path / "mine")

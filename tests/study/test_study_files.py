@@ -123,3 +123,32 @@ def test_a_study_file_with_a_byte_order_mark_is_read(tmp_path):
     path = tmp_path / "bom.toml"
     path.write_bytes(b"\xef\xbb\xbf" + TINY.encode())
     assert load_study(str(path)).name == "files"
+
+
+def test_design_files_are_read_beside_the_study_file(tmp_path, monkeypatch):
+    """Issue 47 (low): a study's design paths resolved against the working directory, so a
+    study run from elsewhere could not find the design file beside it."""
+    from pacam_render.model.camera import prototype
+    from pacam_render.model.design_file import write_design
+
+    sub = tmp_path / "sub"
+    sub.mkdir()
+    write_design(sub / "mine.toml", prototype().with_(n_patterns=8))
+    (sub / "s.toml").write_text(
+        '[render]\nscene = "train"\n[grid]\nmode = ["coded"]\n'
+        'design = ["prototype", "mine.toml"]\n[[points]]\nmode = "coded"\n'
+        'design = "design=mine.toml"\n'
+    )
+    monkeypatch.chdir(tmp_path)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", PacamWarning)
+        spec = load_study("sub/s.toml")
+    designs = {p.design for p in spec.points}
+    assert designs == {"prototype", "sub/mine.toml", "design=sub/mine.toml"}
+    monkeypatch.chdir(sub)  # from the study's own folder the text is unchanged
+    assert {p.design for p in load_study("s.toml").points} >= {"mine.toml"}
+    (tmp_path / "only_here.toml").write_text((sub / "mine.toml").read_text())
+    (sub / "t.toml").write_text('[grid]\nmode = ["coded"]\ndesign = ["only_here.toml"]\n')
+    monkeypatch.chdir(tmp_path)  # found only from the working directory: taken, with a note
+    with pytest.warns(PacamWarning, match="not beside the study file"):
+        assert load_study("sub/t.toml").points[0].design == "only_here.toml"
