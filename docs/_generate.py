@@ -31,6 +31,7 @@ _BARS = re.compile(r"(?<![|\\])\|(?=[^|\s])([^|`]*?[^|\s])\|(?!\|)")
 DOCS = Path(__file__).resolve().parent
 API = DOCS / "reference" / "api"
 CLI = DOCS / "reference" / "cli"
+DESIGN_FILE = DOCS / "reference" / "design_file.md"
 
 
 def subpackages() -> list[str]:
@@ -196,14 +197,105 @@ def cli_pages() -> dict[str, str]:
     return pages
 
 
+def design_file_page() -> str:
+    """reference/design_file.md: every design-file key (:mod:`pacam_render.model.design_keys`),
+    the prototype's file as ``pacam design`` writes it, and the mask images' conventions (the
+    docstring of :mod:`pacam_render.model.masks`)."""
+    from pacam_render.model import masks
+    from pacam_render.model.camera import prototype
+    from pacam_render.model.design_file import design_toml
+    from pacam_render.model.design_keys import key_rows
+
+    rows = key_rows()
+    cols = list(rows[0])
+    table = ["| " + " | ".join(cols) + " |", "|" + "---|" * len(cols)]
+    table += ["| " + " | ".join(f"`{r[c]}`" if c == "key" else r[c] for c in cols) + " |"
+              for r in rows]  # fmt: skip
+    doc = masks.__doc__.split("\n\nNumpy only")[0]
+    return "\n".join([
+        "# Design file keys",
+        "",
+        "A camera design is one TOML file (`pacam design --write FILE`) that every command takes "
+        "with `--design FILE` ([how-to](../howto/own_camera.md)). Each key, its unit, its "
+        "default (the paper's prototype), the values it may take and the `pacam design` flag "
+        "that sets it; a key no flag sets is edited in the file. An error about a file names "
+        "its key (`[exposure] exposure_ms`); an error about a flag names the flag. Generated "
+        "from `pacam_render.model.design_keys` at every docs build; a test checks the list "
+        "against the keys the reader accepts.",
+        "",
+        *table,
+        "",
+        "## The prototype's file",
+        "",
+        "`pacam design --write proto.toml` with no other flag writes:",
+        "",
+        "```toml",
+        design_toml(prototype()).rstrip(),
+        "```",
+        "",
+        "## Mask images (`[schedule] kind = \"bitmap\"`)",
+        "",
+        "Any size: each image pixel is one display pixel of `[lcos] pitch_mm`, and the image's "
+        "centre is the optical axis, so an image of the prototype's display is 1280x1024 and a "
+        "smaller one covers the middle of the display. Every open pixel must lie inside the "
+        "lens (`[lens] R_max_mm` from the axis): the reader names the patterns that do not. "
+        "All the images of one folder must have one size; they are read in name order, one "
+        "per pattern. 8- and 16-bit images are grey levels (level / 255 or / 65535, no gamma "
+        "decoding); colour images are read as the Rec. 709 luminance of their code values.",
+        "",
+        "From `pacam_render.model.masks`:",
+        "",
+        "```text",
+        doc.strip(),
+        "```",
+        "",
+    ])  # fmt: skip
+
+
 def write_reference_pages(app=None) -> None:
-    """Write the API and CLI pages (Sphinx's ``builder-inited``)."""
+    """Write the API and CLI pages and the design file's keys (Sphinx's ``builder-inited``)."""
+    _write(DESIGN_FILE, design_file_page())
     for folder, pages in ((API, api_pages()), (CLI, cli_pages())):
         for name, text in pages.items():
             _write(folder / name, text)
         stale = {p.name for p in folder.glob("*.rst")} - set(pages)
         for name in stale:
             (folder / name).unlink()
+
+
+@functools.cache
+def _attribute_docs(module: str) -> dict[str, list[str]]:
+    """The attribute docstrings (a string literal after an assignment) of ``module`` and, for a
+    package, of every module below it, by name."""
+    from sphinx.pycode import ModuleAnalyzer
+
+    mod = importlib.import_module(module)
+    names = [module]
+    if hasattr(mod, "__path__"):
+        names += [i.name for i in pkgutil.walk_packages(mod.__path__, module + ".")]
+    out: dict[str, list[str]] = {}
+    for m in reversed(names):  # the package's own last, so it wins
+        try:
+            docs = ModuleAnalyzer.for_module(m).find_attr_docs()
+        except Exception:  # a module that cannot be analysed: no attribute docs from it
+            continue
+        out.update({attr: list(doc) for (cls, attr), doc in docs.items() if not cls})
+    return out
+
+
+def constant_docs(app, what, name, obj, options, lines) -> None:
+    """A constant re-exported by a package shows its own attribute docstring, not its type's
+    ("Convert a string or number to a floating point number", ``autodoc-process-docstring``)."""
+    own = type(obj).__doc__
+    first = next((s.strip() for s in lines if s.strip()), "")
+    if what not in ("data", "attribute") or not first or not isinstance(own, str):
+        return
+    if first != own.strip().splitlines()[0].strip():  # numpydoc puts a blank line first
+        return
+    module, attr = name.rsplit(".", 1)
+    doc = _attribute_docs(module).get(attr)
+    if doc:
+        lines[:] = doc
 
 
 def escape_bars(app, what, name, obj, options, lines) -> None:

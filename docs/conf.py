@@ -91,7 +91,16 @@ html_last_updated_fmt = None
 # Written before Sphinx reads any source (autosummary then writes one page per name).
 _generate.write_reference_pages()
 
+# A summary is a docstring's first sentence: "(Eq. 13)" and "Sec. 4" do not end one (the
+# tables showed "phi (Eq.").
+import sphinx.ext.autosummary as _autosummary  # noqa: E402
+
+_autosummary.WELL_KNOWN_ABBREVIATIONS = (
+    *_autosummary.WELL_KNOWN_ABBREVIATIONS, "Eq.", "Eqs.", "Sec.", "Fig.", "Figs.", "cf."
+)
+
 
 def setup(app):
+    app.connect("autodoc-process-docstring", _generate.constant_docs)
     app.connect("autodoc-process-docstring", _generate.escape_bars)
     app.connect("missing-reference", _generate.resolve_reference)

@@ -25,6 +25,7 @@ from typing import Any
 
 _EXPORTS = {
     ".errors": ["ParameterError"],
+    ".limits": ["PacamWarning", "show_notes"],
     ".capture.files": ["CaptureFile", "read_capture"],
     ".capture.kernels": ["analytic_psf"],
     ".capture.record": ["CaptureRecord"],

@@ -28,6 +28,35 @@ def note(message: str, stacklevel: int = 2) -> None:
     warnings.warn(message, PacamWarning, stacklevel=stacklevel + 1)
 
 
+def show_notes(prefix: str = "note") -> None:
+    """Print each :class:`PacamWarning` as one line, ``note: ...``, as the command line does
+    (without Python's source path and line); other warnings as before. For scripts and
+    notebooks.
+
+    Examples
+    --------
+    >>> import sys, warnings
+    >>> before = warnings.showwarning
+    >>> show_notes()
+    >>> warnings.showwarning(PacamWarning("spp raised to 8"), PacamWarning, "x.py", 1, sys.stdout)
+    note: spp raised to 8
+    >>> warnings.showwarning = before
+    """
+    default = warnings.showwarning
+    if getattr(default, "_pacam_notes", False):
+        default = default._pacam_default  # shown once, however often this is called
+
+    def show(message, category, filename, lineno, file=None, line=None):
+        if not issubclass(category, PacamWarning):
+            return default(message, category, filename, lineno, file, line)
+        import sys
+
+        print(f"{prefix}: {message}", file=sys.stderr if file is None else file)
+
+    show._pacam_notes, show._pacam_default = True, default
+    warnings.showwarning = show
+
+
 def available_bytes() -> int:
     """Memory the process can still use, bytes: the least of the machine's (MemAvailable of
     /proc/meminfo, else physical RAM), what its own limits leave (``ulimit -v`` and ``-d``:

@@ -43,3 +43,40 @@ def test_a_design_files_errors_name_its_keys_not_the_flags(tmp_path, capsys):
     assert main(["render", "train", "--design", str(bad), "--out", str(tmp_path / "c")]) == 2
     err = capsys.readouterr().err
     assert "exactly one of R_mm, f_number, r_px" in err and "--f-number" not in err
+
+
+def test_the_design_report_cites_the_paper_only_for_the_papers_values():
+    """A design file's or a solved design's values are its own, not "Table 1 / Sec. 4", and
+    its focus is not "not published"; the prototype's report keeps both."""
+    from pacam_render.model.camera import prototype
+    from pacam_render.model.report import design_report
+
+    mine = prototype().with_(exposure_ms=20.0, n_patterns=8, object_depth_mm=800.0, R_mm=2.5)
+    text = design_report(mine)
+    rows = {line.split("  ")[0].strip(): line.rstrip() for line in text.splitlines()}
+    assert rows["object depth"].endswith("this design")
+    assert rows["exposure"].endswith("this design")
+    assert rows["field of view (horizontal)"].endswith("Table 1")  # the paper's 46 deg
+    assert "Focus is not published" not in text and "Focus: Z_f =" in text
+    proto = design_report(prototype())
+    assert "Focus is not published" in proto and "this design" not in proto
+
+
+def test_a_hand_edited_design_file_is_noted_once(tmp_path):
+    """The digest pacam design writes in the header went stale after a hand edit, silently."""
+    import warnings
+
+    from pacam_render.limits import PacamWarning
+    from pacam_render.model.camera import prototype
+    from pacam_render.model.design_file import read_design, write_design
+
+    p = tmp_path / "d.toml"
+    write_design(p, prototype())
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", PacamWarning)
+        read_design(p)  # as written: nothing to say
+    p.write_text(p.read_text().replace("depth_mm = 500.0", "depth_mm = 520.0"))
+    with pytest.warns(PacamWarning, match="was edited after pacam design wrote it") as caught:
+        cam = read_design(p)
+        read_design(p)
+    assert len(caught) == 1 and cam.digest() in str(caught[0].message)

@@ -184,6 +184,12 @@ def _diffraction_choice(plan: CapturePlan, description, run: Run, target) -> tup
     quick = plan.with_spec(diffraction="off", spp=8, passes=2, per_pattern=False,
                            sampler="independent").with_diffraction(False, "preview")  # fmt: skip
     quiet = replace(run, progress=False, partial_dir=None, pilot_only=False, stop_after_steps=None)
+    if run.progress:  # a preview is announced: it runs before the capture's own bar
+        import sys
+
+        print("diffraction auto: rendering a short geometric preview first (the fewest "
+              "samples the steps allow, no truth layers) to measure diffraction's effect",
+              file=sys.stderr)  # fmt: skip
     with warnings.catch_warnings():  # the preview's own notes are not the capture's
         warnings.simplefilter("ignore", PacamWarning)
         try:

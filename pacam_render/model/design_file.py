@@ -49,14 +49,16 @@ from __future__ import annotations
 import json
 import math
 import os
+import re
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import FileKeyError, ParameterError
 from ..io.toml_file import read_toml
+from ..limits import note
 from .camera import CameraDesign, preset
-from .masks import MaskStack, read_mask_source
+from .masks import read_mask_stack
 
 FORMAT = 1
 """The design file's format version (``format = 1``)."""
@@ -228,7 +230,7 @@ def _schedule(t, cam: CameraDesign, where: str, base_dir: Path) -> dict:
             f"{where}: [schedule] masks must name a .npy stack, an image or a folder of images"
         )
     path = base_dir / src
-    stack = MaskStack(read_mask_source(path, "[schedule] masks"), cam.lcos_pitch_mm, str(src))
+    stack = read_mask_stack(path, cam.lcos_pitch_mm, str(src), "[schedule] masks")
     return {"pattern_masks": stack, "n_patterns": stack.n_patterns}
 
 
@@ -248,11 +250,33 @@ def read_design(path) -> CameraDesign:
     path = Path(path)
     d = read_toml(path, "design file")
     try:
-        return design_from_dict(d, str(path), path.parent)
+        cam = design_from_dict(d, str(path), path.parent)
     except FileKeyError:
         raise
     except ParameterError as exc:  # a file's keys, not the command line's flags of that name
         raise FileKeyError(str(exc)) from None
+    _check_digest_comment(path, cam)
+    return cam
+
+
+_DIGEST_COMMENT = re.compile(r"^# digest ([0-9a-f]{16});", re.MULTILINE)
+_NOTED: set = set()
+
+
+def _check_digest_comment(path: Path, cam: CameraDesign) -> None:
+    """A note when the digest ``pacam design`` wrote in the file's header is not the camera's
+    any more: the file was edited by hand (the camera is read as it now is)."""
+    with open(path, encoding="utf-8", errors="replace") as fh:
+        head = fh.read(4096)
+    m = _DIGEST_COMMENT.search(head)
+    said = (str(path.resolve()), cam.digest())
+    if m and m.group(1) != cam.digest() and said not in _NOTED:
+        _NOTED.add(said)  # a command reads its design more than once: said once
+        note(
+            f"{path} was edited after pacam design wrote it: its camera's digest is now "
+            f"{cam.digest()} (the header says {m.group(1)}); captures and kernels record the "
+            "new one. `pacam design --design FILE --write FILE --force` rewrites the header"
+        )
 
 
 def design_to_dict(cam: CameraDesign, masks_name: str | None = None) -> dict:

@@ -15,6 +15,7 @@ import math
 
 import numpy as np
 
+from . import paper
 from .camera import CameraDesign
 from .schedule_fit import schedule_figures
 
@@ -28,14 +29,24 @@ def _rows(d: CameraDesign, fig: dict | None = None) -> list[tuple[str, str, floa
     return [*_optics_rows(d), *_motion_rows(d, fig)]
 
 
+def _paper(value, published, where: str) -> str:
+    """The source of a design value: the paper's table or section where it is the paper's
+    value, else the design's own (a design file or a solved design is not Table 1)."""
+    return where if np.allclose(value, published, rtol=1e-9, atol=0.0) else "this design"
+
+
 def _optics_rows(d: CameraDesign) -> list[tuple[str, str, float, str, str]]:
+    size = (d.width_px, d.height_px)
     return [
-        ("image size", "W x H", f"{d.width_px} x {d.height_px}", "px", "Table 1"),
-        ("field of view (horizontal)", "fov", d.fov_deg, "deg", "Table 1"),
+        ("image size", "W x H", f"{d.width_px} x {d.height_px}", "px",
+         _paper(size, (paper.WIDTH_PX, paper.HEIGHT_PX), "Table 1")),
+        ("field of view (horizontal)", "fov", d.fov_deg, "deg",
+         _paper(d.fov_deg, paper.FOV_DEG, "Table 1")),
         ("sensor distance", "Z_p", d.Z_p_mm, "mm", "fov, 6.45 um pixels"),
         ("sensor distance in pixels", "f_px", d.focal_length_px, "px", "(W/2)/tan(fov/2)"),
         ("thin-lens focal length", "f", d.lens_focal_length_mm, "mm", "Eq. 7"),
-        ("object depth", "Z", d.object_depth_mm, "mm", "Sec. 4"),
+        ("object depth", "Z", d.object_depth_mm, "mm",
+         _paper(d.object_depth_mm, paper.OBJECT_DEPTH_MM, "Sec. 4")),
         ("focus distance", "Z_f", d.focus_distance_mm, "mm", "derived from r"),
         ("magnification", "alpha", d.alpha, "", "Eq. 3"),
         ("parallax coefficient", "beta", d.beta, "mm/mm", "Eq. 9"),
@@ -43,12 +54,13 @@ def _optics_rows(d: CameraDesign) -> list[tuple[str, str, float, str, str]]:
         ("clear aperture radius", "R_max", d.R_max_mm, "mm", f"F{d.F_min:g}"),
         ("  in LCoS pixels", "", d.R_max_mm / d.lcos_pitch_mm, "LCoS px", ""),
         ("opening radius", "R", d.R_mm, "mm", f"F{d.F_number:.3g}"),
-        ("  in LCoS pixels", "", d.R_mm / d.lcos_pitch_mm, "LCoS px", "Sec. 4"),
+        ("  in LCoS pixels", "", d.R_mm / d.lcos_pitch_mm, "LCoS px",
+         _paper(d.R_mm / d.lcos_pitch_mm, paper.OPENING_LCOS_PX, "Sec. 4")),
         ("open area", "pi R^2", d.open_area_mm2, "mm^2", "light ~ area"),
         ("static PSF radius", "r", d.r_px, "px", "Eq. 12"),
-        ("exposure", "2T", d.exposure_ms, "ms", "Sec. 4"),
+        ("exposure", "2T", d.exposure_ms, "ms", _paper(d.exposure_ms, paper.EXPOSURE_MS, "Sec. 4")),
         ("patterns", "n", d.n_patterns, "", f"{d.pattern_rate_fps:.4g} per s"),
-    ]
+    ]  # fmt: skip
 
 
 def _or_undefined(v):
@@ -138,15 +150,25 @@ def schedule_notes(d: CameraDesign, fig: dict | None = None) -> list[str]:
     ]
 
 
+def _focus_note(d: CameraDesign) -> str:
+    """Where the focus comes from: the paper does not publish the prototype's; another design
+    has its own (its file's, or the solver's)."""
+    from .camera import prototype
+
+    side = "behind" if d.beta_px_per_mm < 0 else "in front of"
+    where = f"r = |beta| R = {d.r_px:.3g} px at Z = {d.object_depth_mm:g} mm ({side} the object)"
+    if d.digest() == prototype().digest():
+        return f"Focus is not published: Z_f = {d.focus_distance_mm:.1f} mm is derived so that {where}."  # noqa: E501
+    return f"Focus: Z_f = {d.focus_distance_mm:.1f} mm, this design's, gives {where}."
+
+
 def consistency_notes(d: CameraDesign) -> list[str]:
     """Which published figures cannot all hold at once, with the numbers."""
     notes = [
         "Image coordinates are upright (as displayed): there an aperture offset X_a shifts the "
         "image by +beta X_a and a_i = beta a_a (Eq. 10) holds with its sign; Eq. 8's -beta is "
         "the inverted sensor frame.",
-        f"Focus is not published: Z_f = {d.focus_distance_mm:.1f} mm is derived so that "
-        f"r = |beta| R = {d.r_px:.3g} px at Z = {d.object_depth_mm:g} mm "
-        f"({'behind' if d.beta_px_per_mm < 0 else 'in front of'} the object).",
+        _focus_note(d),
         f"One thin lens cannot have both a {d.fov_deg:g} deg field on the 8.26 mm ICX285 "
         f"(f = {d.lens_focal_length_mm:.2f} mm) and F{d.F_min:g} at a "
         f"{d.R_max_mm:.2f} mm radius (f = {d.f_number_focal_mm:.1f} mm): the relay optics make "

@@ -37,6 +37,7 @@ from .pnp import pnp_deconvolve
 from .sparse import sparse_deconvolve
 
 METHODS = ("wiener", "hl", "tv", "rl", "uwiener", "bm3d", "pnp")
+"""The deconvolution methods ``deconvolve`` takes (``method``)."""
 SIGMA_METHODS = ("wiener", "hl", "tv", "bm3d", "pnp")
 """The methods that take a ``noise_sigma`` (rl regularises by its iterations, uwiener
 estimates its own)."""

@@ -22,9 +22,13 @@ from .motion import Motion, image_to_scene_velocity, look_at
 SCENE_DIR = Path(__file__).resolve().parents[2] / "scenes"
 """The repository's ``scenes/`` folder: XML files exported from the built-in scenes."""
 
-WHITE_IRRADIANCE = 0.8 * math.pi  # lights give a white diffuse surface a radiance of ~0.8
-SOCCER_SPEED_PX_PER_MS = 1.0  # in the prototype's image: 0.66 m/s at 1000 mm, a hand-moved ball
-WALKER_SPEED_MM_PER_MS = 1.4  # 1.4 m/s, a typical walking speed: 0.70 px/ms at 3000 mm
+WHITE_IRRADIANCE = 0.8 * math.pi
+"""Irradiance of the built-in scenes' lights: a white diffuse surface reads a radiance of ~0.8."""
+SOCCER_SPEED_PX_PER_MS = 1.0
+"""The soccer ball's image speed, px/ms, in the prototype's image: 0.66 m/s at 1000 mm, a
+hand-moved ball."""
+WALKER_SPEED_MM_PER_MS = 1.4
+"""The walker's speed, mm/ms: 1.4 m/s, a typical walking speed (0.70 px/ms at 3000 mm)."""
 
 
 def _bitmap(path: Path, **extra) -> dict:
@@ -270,6 +274,7 @@ def psf_scene(
 
 
 BUILTIN_SCENES = {"train": train_scene, "soccer": soccer_scene, "walker": walker_scene}
+"""The built-in scenes by name, each a function that builds its description."""
 
 
 def load_scene(

@@ -76,6 +76,7 @@ PRESETS: dict[str, dict[str, Any]] = {
         "bayer": "RGGB",
     },
 }
+"""Built-in presets: constructor keyword arguments of :class:`~.model.SensorModel` by name."""
 PRESETS["grasshopper-icx285-mono"] = {
     **PRESETS["grasshopper-icx285"],
     "name": "grasshopper-icx285-mono",
@@ -87,7 +88,6 @@ PRESETS["grasshopper-icx285-mono"] = {
     "qe": 0.62,
     "bayer": None,  # no colour filter: every pixel sees the grey image, no mosaic, no demosaic
 }
-"""Built-in presets: constructor keyword arguments by name."""
 
 MONO_PRESETS: dict[str, str] = {"grasshopper-icx285": "grasshopper-icx285-mono"}
 """Each built-in colour (Bayer) preset's monochrome counterpart, for grey captures."""

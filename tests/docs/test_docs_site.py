@@ -191,3 +191,24 @@ def test_the_landing_page_is_styled_by_the_theme(tmp_path):
     assert np.abs(styled - unstyled).mean() > 0.02, "the landing page looks unstyled"
     # the theme's navigation bar: a coloured or shaded band across the top, not the bare page
     assert styled[:60].std() > 0.02
+
+
+def test_api_summaries_are_our_words_and_whole_sentences():
+    """Issue 46 (low): a re-exported constant's summary was its type's docstring ("Convert a
+    string or number to a floating point number"), and "phi (Eq. 1)" was cut at "(Eq."."""
+    import html
+    import re
+
+    builtin = [t.__doc__.strip().splitlines()[0].strip() for t in (float, int, str, tuple, dict)]
+    row = re.compile(r'<tr class="row-(?:odd|even)"><td><p><a[^>]*>.*?</a></p></td>\s*'
+                     r"<td><p>(.*?)</p></td>", re.S)  # fmt: skip
+    bad = []
+    for page in sorted((HTML / "reference" / "api").glob("*.html")):
+        for m in row.finditer(page.read_text(errors="replace")):
+            summary = html.unescape(re.sub(r"<[^>]+>", "", m.group(1))).strip()
+            if any(summary.startswith(b[:30]) for b in builtin) or summary.endswith(
+                ("(Eq.", "Eq.", "Sec.")
+            ):
+                bad.append(f"{page.name}: {summary[:60]}")
+    assert not bad, bad
+    assert (HTML / "reference" / "design_file.html").is_file()
