@@ -307,3 +307,17 @@ def test_a_slit_too_narrow_to_measure_its_diffraction_still_renders(tmp_path, ca
     entry = json.loads((out / "capture.json").read_text())["optics_error"]["effects"]
     assert entry["diffraction"]["size_rms"] is None
     assert entry["diffraction"]["estimate"].startswith("not measured: a diffraction kernel")
+
+
+def test_a_bad_mask_source_is_named_as_the_user_gave_it(tmp_path, capsys):
+    """A design file's masks are its `[schedule] masks`, the command line's `--masks`; both
+    were called `mask_file` (the plugin's parameter)."""
+    text = tmp_path / "notes.png"
+    text.write_text("not an image\n")
+    d = tmp_path / "d.toml"
+    d.write_text('[lens]\nfocus_distance_mm = 751.6\n[schedule]\nkind = "bitmap"\n'
+                 f'masks = "{text.name}"\n')  # fmt: skip
+    assert main(["design", "--design", str(d)]) == 2
+    assert "[schedule] masks: " in capsys.readouterr().err
+    assert main(["design", "--masks", str(text)]) == 2
+    assert "error: --masks: " in capsys.readouterr().err

@@ -79,6 +79,7 @@ FLAGS = {
     "margin_px": "--margin-px",
     "max_disk": "--max-disk-gib",
     "alpha": "--uniform-share",
+    "masks": "--masks",
 }
 """Parameter names in library messages, and the flags a CLI user typed instead: the one
 mapping (a file's keys, :class:`~pacam_render.errors.FileKeyError`, are left as they are)."""

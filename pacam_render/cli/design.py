@@ -102,9 +102,9 @@ def _schedule(args: argparse.Namespace, base: CameraDesign) -> CameraDesign:
         return apply_schedule(base, read_schedule(args.schedule), args.schedule)
     if args.masks is None:
         return base
-    from ..model.masks import MaskStack, read_mask_source
+    from ..model.masks import read_mask_stack
 
-    stack = MaskStack(read_mask_source(args.masks), base.lcos_pitch_mm, args.masks)
+    stack = read_mask_stack(args.masks, base.lcos_pitch_mm, args.masks, "`masks`")
     return base.with_(
         pattern_centres_mm=None,
         pattern_masks=stack,

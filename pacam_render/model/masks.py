@@ -171,21 +171,21 @@ def _normalise(arr: np.ndarray, name: str) -> np.ndarray:
     return arr.astype(np.float32, copy=arr.dtype != np.float32)
 
 
-def _load_file(path: str) -> np.ndarray:
+def _load_file(path: str, name: str = "mask_file") -> np.ndarray:
     if not os.path.isfile(path):
-        raise ParameterError(f"mask_file: no such file {path!r}")
+        raise ParameterError(f"{name}: no such file {path!r}")
     if path.lower().endswith(".npy"):
         from ..io.arrays import read_npy
 
-        return read_npy(path, "mask_file")
+        return read_npy(path, name)
     if path.lower().endswith(".npz"):  # a design file's compressed stack (key ``masks``)
         try:
             with np.load(path, allow_pickle=False) as z:
                 if "masks" not in z.files:
-                    raise ParameterError(f"mask_file: {path!r} holds no 'masks' array ({z.files})")
+                    raise ParameterError(f"{name}: {path!r} holds no 'masks' array ({z.files})")
                 return z["masks"]
         except (ValueError, EOFError, OSError, zipfile.BadZipFile) as exc:
-            raise ParameterError(f"mask_file: {path!r} is not a readable .npz ({exc})") from None
+            raise ParameterError(f"{name}: {path!r} is not a readable .npz ({exc})") from None
     import mitsuba as mi
 
     try:
@@ -193,7 +193,7 @@ def _load_file(path: str) -> np.ndarray:
     except RuntimeError as exc:  # Mitsuba's "Unknown file format", a truncated stream
         why = str(exc).strip().splitlines()[-1][:200]
         raise ParameterError(
-            f"mask_file: {path!r} is not an image Mitsuba can read ({why}); masks are PNG, "
+            f"{name}: {path!r} is not an image Mitsuba can read ({why}); masks are PNG, "
             "EXR or other image files, or a .npy stack"
         ) from None
 
@@ -210,7 +210,8 @@ def load_masks(source, name: str = "masks") -> np.ndarray:
         paths = [p.strip() for p in source.split(",") if p.strip()]
         if not paths:
             raise ParameterError(f"{name}: empty file list")
-        parts = [_load_file(p) for p in paths]
+        file_name = "mask_file" if name == "masks" else name  # the plugin's parameter
+        parts = [_load_file(p, file_name) for p in paths]
     elif isinstance(source, (list, tuple)):
         if len(source) == 0:
             raise ParameterError(f"{name}: empty list of masks")
@@ -521,7 +522,7 @@ def read_mask_stack(path, pitch_mm: float, source: str | None = None, name: str 
     stack = _STACKS.get(key)
     if stack is None:
         stored = os.path.isfile(p) and p.lower().endswith((".npz", ".npy"))
-        raw = _load_file(p) if stored else read_mask_source(path, name)  # 8-bit levels kept
+        raw = _load_file(p, name) if stored else read_mask_source(path, name)  # levels kept
         stack = MaskStack(raw, pitch_mm, source, name)
         if len(_STACKS) >= _STACKS_KEPT:
             _STACKS.pop(next(iter(_STACKS)))

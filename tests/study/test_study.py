@@ -204,11 +204,10 @@ def _overlaps(tasks: list) -> list[tuple]:
 
 
 def test_overlaps_names_tasks_that_ran_at_once():
-    c = lambda key, a, b, w="w1": {
-        "key": key,
-        "worker": w,  # noqa: E731
-        "startstops": ({"action": "compute", "start": a, "stop": b},),
-    }
+    def c(key, a, b, w="w1"):
+        return {"key": key, "worker": w,
+                "startstops": ({"action": "compute", "start": a, "stop": b},)}  # fmt: skip
+
     tasks = [c("pacam-a", 0, 2), c("pacam-b", 1, 3), c("pacam-c", 3, 4), c("pacam-d", 1, 2, "w2"),
              c("other", 0, 9)]  # fmt: skip
     assert _overlaps(tasks) == [("w1", "pacam-a", "pacam-b")]
