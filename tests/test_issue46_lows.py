@@ -80,3 +80,16 @@ def test_a_hand_edited_design_file_is_noted_once(tmp_path):
         cam = read_design(p)
         read_design(p)
     assert len(caught) == 1 and cam.digest() in str(caught[0].message)
+
+
+def test_getting_started_shows_the_design_report_as_it_is():
+    """Issue 46: the report in Getting started lacked the rows the report now prints."""
+    from pathlib import Path
+
+    from pacam_render.model.camera import prototype
+    from pacam_render.model.report import design_report
+
+    text = (Path(__file__).resolve().parents[1] / "docs" / "getting_started.md").read_text()
+    start = text.index("```text\npacam_render design report: prototype")
+    block = text[start + len("```text\n") : text.index("```", start + 8)]
+    assert block == design_report(prototype()) + "\n"
