@@ -228,9 +228,9 @@ from .relative_illumination import RelativeIllumination
 from .schedule_lookup import ScheduleLookup
 
 PROJECTION_KEYS = ("x_fov", "near_clip", "far_clip")
+"""Traversed parameters of the projection (as Mitsuba's projective cameras expose them)."""
 _MASK_KEYS = {"schedule", "masks", "mask_file", "mask_pitch", "lens_radius"}
 """What a bitmap schedule's sampling tables depend on: ``configure`` keeps them otherwise."""
-"""Traversed parameters of the projection (as Mitsuba's projective cameras expose them)."""
 
 
 class ProgrammableApertureCamera(mi.Sensor):
@@ -304,7 +304,8 @@ class ProgrammableApertureCamera(mi.Sensor):
         t_close = float(props.get("shutter_close", t_open + self.shutter_open_time()))
         self._exposure = (t_open, t_close)
         self._cfg = config_from_props(props)
-        tables = handed(props.get("mask_tables", "")) if "mask_tables" in props else None
+        token = props.get("mask_tables", "") if "mask_tables" in props else None
+        tables = handed(token, self._cfg)
         self._set_plan(self._build(self._cfg, tables=tables))
         self._sync_traversed()
         self._set_illumination(props)

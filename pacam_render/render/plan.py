@@ -10,6 +10,7 @@ Conventions, units and the radiometry are described in :mod:`pacam_render.render
 
 from __future__ import annotations
 
+import itertools
 import math
 import re
 from dataclasses import dataclass, field
@@ -557,24 +558,35 @@ PROP_KEYS = (
 )
 
 
-_HANDED: dict[str, MaskTables] = {}  # token -> the tables sensor_dict built, the last few
+_HANDED: dict[str, tuple] = {}  # token -> (what the tables were built from, the tables)
 _HANDED_KEPT = 8
+_TOKENS = itertools.count()
 
 
-def hand_over(tables: MaskTables) -> str:
-    """A token for the sampling tables :func:`~.registry.sensor_dict` built while checking the
-    schedule, which the plugin it describes takes instead of tabulating the masks again (a
-    Mitsuba property holds no Python object; 64 full-display masks take 0.5-1.2 s)."""
-    token = f"pacam-mask-tables-{id(tables):x}"
+def hand_over(tables: MaskTables, cfg: dict) -> str:
+    """A token for the sampling tables :func:`~.registry.sensor_dict` built from ``cfg`` while
+    checking the schedule, which the plugin it describes takes instead of tabulating the masks
+    again (a Mitsuba property holds no Python object; 64 full-display masks take 0.5-1.2 s).
+    Tokens are never reused: one evicted is rebuilt from its masks."""
+    token = f"pacam-mask-tables-{next(_TOKENS)}"
     if len(_HANDED) >= _HANDED_KEPT:
         _HANDED.pop(next(iter(_HANDED)))
-    _HANDED[token] = tables
+    _HANDED[token] = (_source(cfg), tables)
     return token
 
 
-def handed(token) -> MaskTables | None:
-    """The tables :func:`hand_over` kept for ``token`` (None: tabulate the masks)."""
-    return _HANDED.get(str(token)) if token else None
+def handed(token, cfg: dict) -> MaskTables | None:
+    """The tables :func:`hand_over` kept for ``token``, if ``cfg`` names the same masks (their
+    shape), pitch and lens; else None (tabulate the masks)."""
+    kept = _HANDED.get(str(token)) if token else None
+    return kept[1] if kept is not None and kept[0] == _source(cfg) else None
+
+
+def _source(cfg: dict) -> tuple:
+    m = cfg.get("masks")
+    shape = tuple(int(v) for v in m.shape) if hasattr(m, "shape") else m
+    pitch = cfg.get("mask_pitch", LCOS_PITCH_MM)
+    return (shape, cfg.get("mask_file"), float(pitch), float(cfg["lens_radius"]))
 
 
 def config_from_props(props) -> dict:

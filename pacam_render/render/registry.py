@@ -244,7 +244,7 @@ def sensor_dict(**params) -> dict:
             v = mi.TensorXf(np.asarray(v, dtype=np.float32))
         out[k] = v
     if tables is not None:  # the plugin takes the bitmaps' tables built here
-        out["mask_tables"] = hand_over(tables)
+        out["mask_tables"] = hand_over(tables, cfg)
     return out
 
 

@@ -320,6 +320,20 @@ def test_bitmap_tables_kept_until_the_masks_change():
     assert sensor.plan.lens_radius_mm == 1.0  # refused: nothing changed
 
 
+def test_the_plugin_takes_the_tables_sensor_dict_built_for_the_same_masks_and_lens():
+    from pacam_render.render.plan import handed
+
+    masks = disc_masks([[0.0, 0.0], [0.2, 0.0]], 20 * LCOS_PITCH_MM, shape=(64, 80))
+    sd = ac.sensor_dict(lens_radius=1.0, schedule="bitmap", masks=masks, fov=FOV,
+                        focus_distance=ZF, shutter_open=0.0, shutter_close=2.0,
+                        film=film(8))  # fmt: skip
+    built = handed(sd["mask_tables"], {"masks": masks, "lens_radius": 1.0})
+    assert built is not None and mi.load_dict(sd).plan.tables is built
+    other = mi.load_dict({**sd, "lens_radius": 0.9})  # edited after sensor_dict: rebuilt
+    assert other.plan.tables is not built and other.plan.lens_radius_mm == 0.9
+    assert np.array_equal(other.plan.tables.cdf, built.cdf)  # from the same masks
+
+
 # ------------------------------------------------------------------------------------------
 # 4. brightness follows open area and exposure
 # ------------------------------------------------------------------------------------------
