@@ -275,7 +275,7 @@ def _check_digest_comment(path: Path, cam: CameraDesign) -> None:
         note(
             f"{path} was edited after pacam design wrote it: its camera's digest is now "
             f"{cam.digest()} (the header says {m.group(1)}); captures and kernels record the "
-            "new one. `pacam design --design FILE --write FILE --force` rewrites the header"
+            "new one. Writing the design again (write_design) renews the header"
         )
 
 

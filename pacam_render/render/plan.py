@@ -299,9 +299,7 @@ def build_plan(
         (W/2)/tan(fov/2) and the focus distance; needed only to turn an
         ``image_acceleration`` into a camera acceleration (Levin's a_i(Z_f) = f_px a_c / Z_f).
     tables : MaskTables, optional
-        A ``bitmap`` schedule's sampling tables, built and checked by an earlier plan of the
-        same masks, pitch and lens (the plugin's ``configure`` of a time window): reading,
-        checking and tabulating 64 full-display masks took 1.3 s per call, paid per time step.
+        A ``bitmap`` schedule's tables, built and checked for the same masks, pitch and lens.
 
     Returns
     -------

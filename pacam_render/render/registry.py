@@ -209,7 +209,6 @@ def sensor_dict(**params) -> dict:
     turning it into a camera acceleration, a_c = a_i Z_f / f_px, needs the focal length in px,
     f_px = (W/2) / tan(fov/2).
     """
-    import mitsuba as mi
 
     ensure_registered()
     # validate here, so that bad input raises ParameterError itself (inside mi.load_dict it
@@ -234,18 +233,24 @@ def sensor_dict(**params) -> dict:
     if "relative_illumination" in params:
         _check_illumination(params, focal_px)
 
-    out = {"type": PLUGIN_NAME}
-    for k, v in params.items():
-        if k in ("centres", "masks") and not isinstance(v, str) and not hasattr(v, "shape"):
-            v = np.asarray(v)
-        if isinstance(v, np.ndarray):
-            v = mi.TensorXf(np.ascontiguousarray(v, dtype=np.float32))
-        elif isinstance(v, (list, tuple)) and k in ("centres", "masks"):
-            v = mi.TensorXf(np.asarray(v, dtype=np.float32))
-        out[k] = v
+    out = {"type": PLUGIN_NAME, **{k: _property(k, v) for k, v in params.items()}}
     if tables is not None:  # the plugin takes the bitmaps' tables built here
         out["mask_tables"] = hand_over(tables, cfg)
     return out
+
+
+def _property(key: str, v):
+    """A parameter as Mitsuba's properties hold it: arrays (and list or tuple ``centres`` and
+    ``masks``) as float32 ``mi.TensorXf``."""
+    import mitsuba as mi
+
+    if key in ("centres", "masks") and not isinstance(v, str) and not hasattr(v, "shape"):
+        v = np.asarray(v)
+    if isinstance(v, np.ndarray):
+        return mi.TensorXf(np.ascontiguousarray(v, dtype=np.float32))
+    if isinstance(v, (list, tuple)) and key in ("centres", "masks"):
+        return mi.TensorXf(np.asarray(v, dtype=np.float32))
+    return v
 
 
 def _check_illumination(params: dict, focal_px: float | None) -> None:

@@ -27,4 +27,6 @@ def test_the_keys_pacam_writes_say_nothing():
     with warnings.catch_warnings():
         warnings.simplefilter("error", PacamWarning)
         rec = CaptureRecord.from_json(_record(lightfield={"store": "s"}, light_factor=0.2))
-        CaptureRecord.from_json(rec.to_json())
+        again = CaptureRecord.from_json(rec.to_json())
+    assert rec.extra == again.extra == {"lightfield": {"store": "s"}}
+    assert again.light_factor == 0.2
