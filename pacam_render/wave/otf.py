@@ -28,6 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..errors import ParameterError
 from .pupil import DiscPupil, GridPupil
 from .reference import circular_mtf
 from .scale import DiffractionScale
@@ -118,12 +119,48 @@ def grid_otf(pupil: GridPupil, scale: DiffractionScale) -> OTF:
     The lag that an image frequency nu (cycles/px) probes is -nu lambda D / p mm, i.e.
     -nu lambda D / (p dx) cells for cells of side dx.
     """
-    a = pupil.amplitude
-    h, w = a.shape
+    c = _real_autocorrelation(pupil.amplitude)
+    tail = tail_px(pupil.edge_mm, pupil.energy_mm2, scale)
+    return _lag_otf(c, pupil.pitch_mm, scale, tail)
+
+
+def mixture_otf(parts, scale: DiffractionScale) -> OTF:
+    """The OTF of a light-weighted mixture of pupils of one cell pitch: sum w_k H_k / sum w_k,
+    exact (each H_k is translation-invariant, so the normalised autocorrelations add on one
+    array of lags). Its kernel is the weighted mean of the pupils' kernels, computed once: a
+    bitmap schedule's 64 patterns took 64 kernels per wavelength.
+
+    Parameters
+    ----------
+    parts : list of (GridPupil, float)
+        The pupils (one ``pitch_mm``) and their weights (> 0).
+    scale : DiffractionScale
+    """
+    pitches = {p.pitch_mm for p, _ in parts}
+    if len(pitches) != 1:
+        raise ParameterError(f"a mixture's pupils must share one cell pitch, got {pitches}")
+    cs = [(_real_autocorrelation(p.amplitude), float(w)) for p, w in parts]
+    H = max(c.shape[0] for c, _ in cs) // 2
+    W = max(c.shape[1] for c, _ in cs) // 2
+    acc = np.zeros((2 * H + 1, 2 * W + 1), dtype=np.result_type(*(c for c, _ in cs)))
+    for c, w in cs:
+        h, wd = c.shape[0] // 2, c.shape[1] // 2
+        acc[H - h : H + h + 1, W - wd : W + wd + 1] += w * c
+    total = sum(w for _, w in cs)
+    tail = sum(w * tail_px(p.edge_mm, p.energy_mm2, scale) for p, w in parts) / total
+    return _lag_otf(acc / total, pitches.pop(), scale, tail)
+
+
+def _real_autocorrelation(a: np.ndarray) -> np.ndarray:
     c = autocorrelation(a)
-    if not np.iscomplexobj(a):
-        c = c.real
-    cells_per_cycle = scale.lag_mm_per_cycle_per_px / pupil.pitch_mm
+    return c if np.iscomplexobj(a) else c.real
+
+
+def _lag_otf(c: np.ndarray, pitch_mm: float, scale: DiffractionScale, tail: float) -> OTF:
+    """The OTF whose value at nu is the lag array ``c`` (centred, H(0) = 1) read bilinearly at
+    -nu lambda D / p, in cells of ``pitch_mm``; 0 beyond the array."""
+    h, w = c.shape[0] // 2, c.shape[1] // 2
+    cells_per_cycle = scale.lag_mm_per_cycle_per_px / pitch_mm
 
     def grid(nu_x, nu_y):
         ix, fx, okx = _bilinear(w - np.asarray(nu_x, float) * cells_per_cycle, 2 * w + 1)
@@ -134,9 +171,7 @@ def grid_otf(pupil: GridPupil, scale: DiffractionScale) -> OTF:
         out[~oky] = 0.0
         return out
 
-    tail = tail_px(pupil.edge_mm, pupil.energy_mm2, scale)
-    cut_x, cut_y = grid_cutoffs(pupil, scale)
-    return OTF(grid, cut_x, cut_y, tail)
+    return OTF(grid, w / cells_per_cycle, h / cells_per_cycle, tail)
 
 
 def grid_cutoffs(pupil: GridPupil, scale: DiffractionScale) -> tuple[float, float]:

@@ -28,8 +28,8 @@ import numpy as np
 
 from ..errors import ParameterError
 from ..model.modes import mode as mode_of
-from .fraunhofer import DEFAULT_MAX_LOST, DiffractionKernel, fraunhofer_kernel
-from .otf import pupil_cutoff
+from .fraunhofer import DEFAULT_MAX_LOST, DiffractionKernel, fraunhofer_kernel, kernel_from_otf
+from .otf import mixture_otf, pupil_cutoff
 from .pupil import DiscPupil, mask_pupil
 from .scale import scale_for
 
@@ -80,11 +80,6 @@ def mode_pupils(cam, mode: str) -> list[tuple[object, float]]:
     return out
 
 
-def _pad(k: np.ndarray, n: int) -> np.ndarray:
-    h = (n - k.shape[0]) // 2
-    return np.pad(k, h)
-
-
 def mode_diffraction_kernel(
     cam,
     mode: str,
@@ -105,15 +100,15 @@ def mode_diffraction_kernel(
     wavelength_nm : float
         nm, in [300, 1100]; :data:`CHANNEL_WAVELENGTHS_NM` per colour channel.
     size, max_lost, sampling
-        As for :func:`~pacam_render.wave.fraunhofer.fraunhofer_kernel` (per pattern).
+        As for :func:`~pacam_render.wave.fraunhofer.fraunhofer_kernel` (of the whole mixture).
     pixel_pitch_mm : float, optional
         As for :func:`~pacam_render.wave.scale.scale_for`.
 
     Returns
     -------
     DiffractionKernel
-        The weighted kernel (the largest pattern kernel's size); ``lost`` and ``alias`` are
-        the weighted means of the patterns'.
+        The patterns' kernels' mean, weighted by their light: the kernel of the mean of their
+        OTFs (:func:`~pacam_render.wave.otf.mixture_otf`), with its own ``lost`` and ``alias``.
 
     Examples
     --------
@@ -124,22 +119,10 @@ def mode_diffraction_kernel(
     """
     scale = scale_for(cam, wavelength_nm, pixel_pitch_mm)
     parts = mode_pupils(cam, mode)
-    kernels, cache = [], {}
-    for pupil, weight in parts:
-        key = getattr(pupil, "amplitude", None)
-        key = (key.shape, key.tobytes()) if key is not None else pupil
-        if key not in cache:  # shifted copies of one opening diffract alike
-            cache[key] = fraunhofer_kernel(pupil, scale, size, max_lost, sampling)
-        kernels.append((cache[key], weight))
-    if len(kernels) == 1:
-        return kernels[0][0]
-    n = max(d.kernel.shape[0] for d, _ in kernels)
-    total = sum(w for _, w in kernels)
-    kernel = sum(w * _pad(d.kernel, n) for d, w in kernels) / total
-    lost = sum(w * d.lost for d, w in kernels) / total
-    alias = sum(w * d.alias for d, w in kernels) / total
-    period = max(d.period_px for d, _ in kernels)
-    return DiffractionKernel(kernel / kernel.sum(), float(lost), float(alias), period, sampling)
+    if len(parts) == 1:
+        return fraunhofer_kernel(parts[0][0], scale, size, max_lost, sampling)
+    # the patterns' light-weighted mean, from the mean of their OTFs: one kernel, exact
+    return kernel_from_otf(mixture_otf(parts, scale), size, max_lost, sampling)
 
 
 def mode_cutoff(cam, mode: str, wavelength_nm: float, pixel_pitch_mm=None) -> float:
