@@ -233,10 +233,10 @@ def test_a_study_runs_on_a_client_of_your_own_and_leaves_it_open(tmp_path):
             assert client.status == "running"
         assert summary.dashboard == client.dashboard_link  # printed with the progress
     failed = [(r["point"], r["status"]) for r in _rows(tmp_path / "mine") if r["status"] != "ok"]
-    # a failed point says why, and which pacam tasks ran at once on one worker (the lock
-    # should leave none): the next failure under load names its cause
+    # a failed point says why, and which pacam tasks overlapped on one worker (Dask's compute
+    # intervals include the wait for the engine's lock, so overlaps alone are not a fault): the
+    # next failure under load names what ran beside it
     assert summary.ran == 4 and summary.failed == 0, (failed, _overlaps(stream.data))
-    assert _overlaps(stream.data) == []
     assert sum(t["key"].startswith("pacam-") for t in stream.data) == 4  # 2 pilots, 2 renders
     drop = ("render_s", "total_s", "row_digest")  # the digest hashes the timings too
     a, b = _rows(tmp_path / "serial"), _rows(tmp_path / "mine")
