@@ -80,6 +80,17 @@ def mode_pupils(cam, mode: str) -> list[tuple[object, float]]:
     return out
 
 
+def _distinct(parts: list) -> list:
+    """The pupils with their weights summed over identical openings (shifted copies of one
+    opening diffract alike, and their crops are equal)."""
+    out: dict = {}
+    for pupil, weight in parts:
+        a = getattr(pupil, "amplitude", None)
+        key = (a.shape, a.tobytes()) if a is not None else pupil
+        out[key] = (pupil, out[key][1] + weight) if key in out else (pupil, weight)
+    return list(out.values())
+
+
 def mode_diffraction_kernel(
     cam,
     mode: str,
@@ -118,7 +129,7 @@ def mode_diffraction_kernel(
     ((153, 153), 1.0)
     """
     scale = scale_for(cam, wavelength_nm, pixel_pitch_mm)
-    parts = mode_pupils(cam, mode)
+    parts = _distinct(mode_pupils(cam, mode))
     if len(parts) == 1:
         return fraunhofer_kernel(parts[0][0], scale, size, max_lost, sampling)
     # the patterns' light-weighted mean, from the mean of their OTFs: one kernel, exact
