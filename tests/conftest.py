@@ -7,6 +7,9 @@ marked here. ``make test-fast`` runs ``-m "not render"``; ``make test`` runs eve
 
 from __future__ import annotations
 
+import os
+import tempfile
+
 import pytest
 
 RENDER_MODULES = {
@@ -21,6 +24,10 @@ RENDER_FIXTURES = {"quick_dir", "renderer", "mi"}  # fixtures of tests that rend
 
 
 def pytest_configure(config):
+    # the suite's renders go in a history of their own, not the user's (exposure.cost)
+    if not os.environ.get("PACAM_RENDER_TIMES"):
+        folder = tempfile.mkdtemp(prefix="pacam-test-times-")
+        os.environ["PACAM_RENDER_TIMES"] = os.path.join(folder, "render_times.jsonl")
     config.addinivalue_line(
         "markers", "render: the test ray-traces with Mitsuba (left out by make test-fast)"
     )

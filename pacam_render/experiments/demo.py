@@ -77,12 +77,13 @@ class Panel:
     note: str = ""
 
 
-def _capture(spec: CaptureSpec, out: Path, seed: int):
-    """Render one capture; pass all but the reference through the sensor model."""
+def _capture(plan, out: Path, seed: int):
+    """Render one capture (a :class:`~pacam_render.exposure.plan.CapturePlan`); pass all but
+    the reference through the sensor model."""
     from ..sensor.model import SensorModel
 
-    cap = render_capture(spec, partial_dir=out / ".partial", truth=False)  # own reference
-    if spec.mode != "reference":
+    cap = render_capture(plan, partial_dir=out / ".partial", truth=False)  # own reference
+    if plan.spec.mode != "reference":
         model = SensorModel.from_preset(SENSOR_PRESET)
         add_sensor_layers(cap, model, SENSOR_PRESET, LIGHT_LEVEL, seed)
     return cap
@@ -147,15 +148,20 @@ def run_train(
     force: bool = False,
     crop: tuple[int, int, int, int] | None = None,
     method: str = DEMO_METHOD,
+    progress: bool = True,
 ) -> tuple[Path, list[Panel], dict]:
     """Captures of the train set, deblurred, in one figure: returns (figure, panels, captures).
 
-    ``crop`` renders that window of a width x height sensor (see :class:`CaptureSpec`)."""
+    ``crop`` renders that window of a width x height sensor (see :class:`CaptureSpec`). With
+    ``progress``, the predicted time is said first and one bar covers every stage
+    (:class:`~pacam_render.exposure.cost.Overall`)."""
+    from ..exposure.plan import plan_capture
+
     out = prepare_out_dir(out, force)
     t0 = time.perf_counter()
     size = {"width": width, "height": height, "spp": spp, "seed": seed, "crop": crop}
     lens = {**size, **CAMERA_OPTICS}  # a camera's optics; the pinhole reference has none
-    runs = {
+    specs = {
         "reference": CaptureSpec.geometric(mode="reference", **size),
         "normal": CaptureSpec(mode="normal", **lens),
         **{
@@ -164,29 +170,51 @@ def run_train(
         },
         "short": CaptureSpec(mode="short", **lens),
     }
+    plans = {key: plan_capture(spec) for key, spec in specs.items()}
+    overall = _overall(plans, method, name, progress)
     caps = {}
-    for key, spec in runs.items():
-        sub = out / key
-        sub.mkdir(parents=True, exist_ok=True)
-        caps[key] = _capture(spec, sub, seed)
-        write_capture(caps[key], sub, force=True)  # the folder was cleared or created above
+    with overall:
+        for key, plan in plans.items():
+            sub = out / key
+            sub.mkdir(parents=True, exist_ok=True)
+            with overall.stage(key):
+                caps[key] = _capture(plan, sub, seed)
+            write_capture(caps[key], sub, force=True)  # the folder was cleared or created above
+        with overall.stage("deblurring"):
+            deblurred = [_deconvolve(caps[f"coded_{i}"], rendered_psf, spp_psf, method)
+                         for i in range(len(coded))]  # fmt: skip
     ref = caps["reference"].image
     panels = [Panel("reference (pinhole, frozen)", ref)]
     panels.append(Panel("normal, 45 ms F9.85", _noisy(caps["normal"])))
     for i, c in enumerate(coded):
-        cap = caps[f"coded_{i}"]
-        panels.append(Panel(f"coded, {c.label}", _noisy(cap)))
-        for how, est in _deconvolve(cap, rendered_psf, spp_psf, method).items():
+        panels.append(Panel(f"coded, {c.label}", _noisy(caps[f"coded_{i}"])))
+        for how, est in deblurred[i].items():
             panels.append(Panel(f"deconvolved ({how}), {c.label}", est))
     short = caps["short"]
     panels.append(Panel(f"short, {paper.SHORT_EXPOSURE_MS} ms F{paper.F_MIN:g}", _noisy(short)))
     seconds = time.perf_counter() - t0
     fig_path = out / f"{name}.png"
-    spec = runs["reference"]
+    spec = specs["reference"]
     _figure(panels, ref, fig_path, window_crops(spec), max_shift_px(spec))
     caps["_seconds"] = seconds
     caps["_spec"] = spec
     return fig_path, panels, caps
+
+
+def _overall(plans: dict, method: str, name: str, progress: bool):
+    """One bar over the demo's captures (:func:`~pacam_render.exposure.cost.overall_bar`) and
+    its deblurring (:mod:`~pacam_render.restore.cost`), the estimate said first."""
+    from ..exposure.cost import overall_bar
+    from ..psf.analytic import design_psf
+    from ..restore.cost import deconvolve_cost
+
+    deblur = 0.0
+    for plan in (p for p in plans.values() if p.spec.mode == "coded"):
+        w, h = plan.window
+        k = design_psf(plan.cam, "coded", 0.0, None, origin="pinhole")
+        deblur += deconvolve_cost((h, w, 3), k.shape, method).seconds
+    captures = {key: (plan, False) for key, plan in plans.items()}
+    return overall_bar(captures, name, progress, {"deblurring": deblur})
 
 
 def run_demo(

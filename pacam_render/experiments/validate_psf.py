@@ -154,14 +154,27 @@ def _pct(x: float, ref: float) -> float:
     return 100.0 * (x - ref) / abs(ref) if ref else math.nan
 
 
+def static_spec(design: CameraDesign, grid: Grid, seed: int) -> PSFSpec:
+    """The centred static opening that measures r: 16 windows' particles in one."""
+    shape = (ladder_size(2 * math.ceil(design.r_px + 0.5) + 1),) * 2
+    spp = _spp(16 * grid.particles_per_window, shape)
+    return PSFSpec("normal", 0.0, seed=seed, size=shape, spp=spp, per_window=False)
+
+
+def point_spec(design: CameraDesign, speed: float, grid: Grid, seed: int) -> PSFSpec:
+    """A grid point's coded PSF render: the kernel both models fit in, the grid's particles
+    per pattern window."""
+    shape = (ladder_size(coded_kernel_side(design, speed)),) * 2
+    spp = _spp(grid.particles_per_window, shape)
+    return PSFSpec("coded", speed, seed=seed, size=shape, spp=spp)
+
+
 def _static_r(renderer, design: CameraDesign, grid: Grid) -> dict:
     """Render a centred static opening (object still) twice; fit r."""
     r = design.r_px
-    shape = (ladder_size(2 * math.ceil(r + 0.5) + 1),) * 2
-    spp = _spp(16 * grid.particles_per_window, shape)
-    kw = dict(size=shape, spp=spp, per_window=False)
-    a = renderer.render(design, PSFSpec("normal", 0.0, seed=grid.seeds[0], **kw))
-    b = renderer.render(design, PSFSpec("normal", 0.0, seed=grid.seeds[1], **kw))
+    specs = [static_spec(design, grid, seed) for seed in grid.seeds[:2]]
+    a, b = (renderer.render(design, spec) for spec in specs)
+    shape = specs[0].size
     ra, rb = metrics.fit_disc_radius(a.kernel, r), metrics.fit_disc_radius(b.kernel, r)
     rm = metrics.fit_disc_radius(0.5 * (a.kernel + b.kernel), r)
     return {
@@ -200,15 +213,14 @@ def run_point(
 ) -> tuple[dict, dict]:
     """Render one grid point twice and compare it with the model (a CSV row without r)."""
     t0 = time.perf_counter()
-    shape = (ladder_size(coded_kernel_side(design, speed)),) * 2
+    spec_a, spec_b = (point_spec(design, speed, grid, seed) for seed in grid.seeds[:2])
+    shape, spp = spec_a.size, spec_a.spp
     disc = design_psf(design, "coded", speed, size=shape)
     # a designed schedule has no continuous limit (Eq. 14 is the parabola's)
     cont = None if design.designed else design_psf(design, "coded_continuous", speed, size=shape)
     analytic_s = time.perf_counter() - t0
-    spp = _spp(grid.particles_per_window, shape)
-    kw = dict(size=shape, spp=spp)
-    a = renderer.render(design, PSFSpec("coded", speed, seed=grid.seeds[0], **kw), model=disc)
-    b = renderer.render(design, PSFSpec("coded", speed, seed=grid.seeds[1], **kw), model=disc)
+    a = renderer.render(design, spec_a, model=disc)
+    b = renderer.render(design, spec_b, model=disc)
     mean = 0.5 * (a.kernel + b.kernel)
     floor = metrics.rel_l1(a.kernel, b.kernel) / 2.0
     l1_disc = metrics.rel_l1(mean, disc)
@@ -300,6 +312,8 @@ def run(
 
     out_dir = prepare_out_dir(out, force)
     t_start = time.perf_counter()
+    if progress:
+        _announce(grid, workers)
     pairs = [(Z, N) for Z in grid.depths_mm for N in grid.f_numbers]
     n = len(pairs) * len(grid.velocity_fractions)
     results: dict = {}
@@ -340,9 +354,7 @@ def pair_task(task) -> list[tuple[dict, dict]]:
     renderer = _RENDERERS["psf"]
     design = design_for(Z, N, grid.base)
     static = _static_r(renderer, design, grid)
-    rng = abs(model_a_i(design)) * design.T_ms
-    if rng == 0.0:  # F_min: the base opening's range at this depth
-        rng = design_for(Z, grid.base.F_number, grid.base).velocity_range_px_per_ms
+    rng = speed_range(design, Z, grid)
     out = []
     for frac in grid.velocity_fractions:
         row, kernels = run_point(renderer, design, frac, frac * rng, grid)
@@ -360,6 +372,44 @@ def pair_task(task) -> list[tuple[dict, dict]]:
         }
         out.append((_judge(full), kernels))
     return out
+
+
+def speed_range(design: CameraDesign, depth_mm: float, grid: Grid) -> float:
+    """The speed that a velocity fraction of 1 stands for at this design (px/ms): its Eq. 18
+    range; at F_min, where the opening cannot move, the base opening's range at this depth."""
+    rng = abs(model_a_i(design)) * design.T_ms
+    if rng == 0.0:
+        rng = design_for(depth_mm, grid.base.F_number, grid.base).velocity_range_px_per_ms
+    return rng
+
+
+def estimate(grid: Grid):
+    """The grid's PSF renders before any (:func:`~pacam_render.psf_render.render.psf_work`),
+    at this machine's rates for them: an :class:`~pacam_render.exposure.cost.Estimate`."""
+    from ..exposure.cost import Estimate, Work, rates
+    from ..psf_render.render import psf_history_key, psf_work
+
+    static, points = Work(), Work()
+    for Z in grid.depths_mm:
+        for N in grid.f_numbers:
+            design = design_for(Z, N, grid.base)
+            rng = speed_range(design, Z, grid)
+            for seed in grid.seeds[:2]:
+                static += psf_work(design, static_spec(design, grid, seed))
+                for frac in grid.velocity_fractions:
+                    points += psf_work(design, point_spec(design, frac * rng, grid, seed))
+    parts = {"static r": static, "points": points}
+    return Estimate(parts, rates(psf_history_key()), "particles")
+
+
+def _announce(grid: Grid, workers: int) -> None:
+    """Say the grid's predicted time (:func:`estimate`) on stderr, shared among ``workers``."""
+    from ..exposure.cost import say
+    from ..limits import duration
+
+    est = estimate(grid)
+    share = f"; on {workers} workers about {duration(est.seconds / workers)}" if workers > 1 else ""
+    say(f"estimate: validate-psf ({grid.name}) renders {est.describe()}{share}")
 
 
 def last_step_over_r(design: CameraDesign) -> float:

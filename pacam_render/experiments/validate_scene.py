@@ -212,20 +212,27 @@ class Renders:
 def render(p: Plan, progress: bool) -> Renders:
     """The capture and the padded truth, for each of the two seeds."""
     from ..exposure.capture import render_capture
+    from ..exposure.cost import overall_bar
 
     t0 = time.perf_counter()
     caps, truths = [], []
+    runs = {}
     for k in range(SEEDS):
         seed = p.spec.seed + k
-        cap = render_capture(
-            replace(p.spec, seed=seed), progress=progress, description=p.desc, truth=False
-        )
-        ref = render_capture(
-            replace(p.truth_spec, seed=seed), progress=progress, description=p.desc, truth=True
-        )
-        ri_map = cap.extra_layers.get(RI_LAYER)  # irradiance -> radiance, as the model is
-        caps.append(flat_field(cap.image / cap.record.light_factor, ri_map))  # white ~ 1
-        truths.append(ref.extra_layers)
+        runs[f"capture (seed {seed})"] = (replace(p.spec, seed=seed), False)
+        runs[f"truth (seed {seed})"] = (replace(p.truth_spec, seed=seed), True)
+    with overall_bar(runs, "validate-scene", progress, description=p.desc) as bar:
+        for k in range(SEEDS):
+            seed = p.spec.seed + k
+            with bar.stage(f"capture (seed {seed})"):
+                cap = render_capture(runs[f"capture (seed {seed})"][0], progress=progress,
+                                     description=p.desc, truth=False)  # fmt: skip
+            with bar.stage(f"truth (seed {seed})"):
+                ref = render_capture(runs[f"truth (seed {seed})"][0], progress=progress,
+                                     description=p.desc, truth=True)  # fmt: skip
+            ri_map = cap.extra_layers.get(RI_LAYER)  # irradiance -> radiance, as the model is
+            caps.append(flat_field(cap.image / cap.record.light_factor, ri_map))  # white ~ 1
+            truths.append(ref.extra_layers)
     return Renders(caps, truths, cap.record, time.perf_counter() - t0)
 
 

@@ -41,6 +41,7 @@ from ..limits import (
 from ..model import paper
 from ..render.registry import sensor_entry
 from .capture_camera import illumination_map, illumination_record
+from .capture_diffraction import PREVIEW_SPP
 from .capture_record import build_record, record_design_fit, render_error_summary, versions
 from .capture_spec import CaptureSpec
 from .checkpoint import partial_lock
@@ -158,15 +159,38 @@ def render_capture(
         plan.replay_notes()  # the camera's notes go in the record, first, as they always have
         run = Run(partial_dir, progress, save_every_s, stop_after_steps, max_steps, flag)
         run = replace(run, max_samples=max_samples, pilot_only=pilot_only and target is not None)
+        if progress:
+            _announce(plan, description, run, truth, target)
         plan = plan.with_diffraction(*_diffraction_choice(plan, description, run, target))
         cap = _render(plan, description, run, truth, target, keep_partial)
     cap.record.notes = _replay(caught)
     return cap
 
 
+def _announce(plan: CapturePlan, description, run: Run, truth: bool, target) -> None:
+    """Say the capture's predicted time before any render (:mod:`.cost`), on stderr; inside a
+    command's overall bar, which said its own, nothing."""
+    from .cost import estimate_capture, in_overall, say
+
+    if in_overall():
+        return
+    est = estimate_capture(plan, description, target is not None, truth, run.max_steps)
+    then = "; the noise target plans the rest from it" if target is not None else ""
+    say(f"estimate: {est.describe()}{then}")
+
+
+def preview_scene(desc):
+    """The scene ``auto``'s preview renders: frozen at t = 0, so that a pass is one render
+    whatever the motion (its cost was the time steps'). Motion only lowers the image's high
+    frequencies, where diffraction acts, and adds the poses' noise to the capture's sigma, so the
+    frozen preview's effect and its threshold err towards including diffraction."""
+    return replace(desc, motions={}) if not desc.is_static else desc
+
+
 def _diffraction_choice(plan: CapturePlan, description, run: Run, target) -> tuple[bool, str]:
     """``spec.diffraction`` resolved: (in the capture, the decision in words). ``auto`` renders
-    a short geometric preview (2 passes, independent samples, no truth) and measures
+    a short geometric preview (:func:`preview_scene`: 2 passes, independent samples, no
+    truth) and measures
     diffraction's effect on it with the post-process (:func:`~.capture_diffraction.diffract`,
     its Monte Carlo share removed): included unless below the noise target, or without one
     below the Monte Carlo sigma that ``spec.spp`` will reach (the preview's, scaled by
@@ -179,21 +203,22 @@ def _diffraction_choice(plan: CapturePlan, description, run: Run, target) -> tup
         return False, "not applicable: a pinhole"
     if spec.diffraction != "auto":
         return decide(spec.diffraction, 0.0, 0.0, "")  # as asked
+    from ..scenes import load_scene
+
     t0 = time.perf_counter()
-    # independent samples: 1 spp per time step where ldsampler takes 4 (a quarter the cost)
-    quick = plan.with_spec(diffraction="off", spp=8, passes=2, per_pattern=False,
+    quick = plan.with_spec(diffraction="off", spp=PREVIEW_SPP, passes=2, per_pattern=False,
                            sampler="independent").with_diffraction(False, "preview")  # fmt: skip
+    frozen = preview_scene(description if description is not None else load_scene(spec.scene))
     quiet = replace(run, progress=False, partial_dir=None, pilot_only=False, stop_after_steps=None)
     if run.progress:  # a preview is announced: it runs before the capture's own bar
-        import sys
+        from .cost import say
 
-        print("diffraction auto: rendering a short geometric preview first (the fewest "
-              "samples the steps allow, no truth layers) to measure diffraction's effect",
-              file=sys.stderr)  # fmt: skip
+        say(f"diffraction auto: rendering a short geometric preview first ({PREVIEW_SPP} spp, the "
+            "scene at t = 0, no truth layers) to measure diffraction's effect")  # fmt: skip
     with warnings.catch_warnings():  # the preview's own notes are not the capture's
         warnings.simplefilter("ignore", PacamWarning)
         try:
-            pre = _render(quick, description, quiet, False, None, False)
+            pre = _render(quick, frozen, quiet, False, None, False)
         except CaptureInterrupted as exc:  # its steps are not the capture's: none to resume
             raise CaptureInterrupted(
                 "interrupted during the preview that diffraction 'auto' renders, before the "
@@ -210,7 +235,7 @@ def _diffraction_choice(plan: CapturePlan, description, run: Run, target) -> tup
         why = f"the Monte Carlo sigma at {spp} spp"
     on, text = decide("auto", d.record["effect_rms"], threshold, why)
     took = time.perf_counter() - t0
-    return on, f"{text} (a {pre.record.effective_spp} spp geometric preview, {took:.1f} s)"
+    return on, f"{text} (a {pre.record.effective_spp} spp geometric preview at t = 0, {took:.1f} s)"
 
 
 def _replay(caught) -> list[str]:
@@ -274,7 +299,16 @@ def check_budget(
 
 
 def _render(plan: CapturePlan, description, run: Run, truth: bool, target, keep: bool) -> Capture:
-    """The capture of a plan whose diffraction is decided (:func:`_diffraction_choice`)."""
+    """The capture of a plan whose diffraction is decided (:func:`_diffraction_choice`); its
+    work and seconds go in this machine's history of renders (:func:`~.cost.metered`)."""
+    from .cost import metered
+
+    with metered(plan.variant):
+        return _render_plan(plan, description, run, truth, target, keep)
+
+
+def _render_plan(plan: CapturePlan, description, run: Run, truth, target, keep: bool) -> Capture:
+    """:func:`_render`'s work."""
     from ..scenes import load_scene
     from ..scenes.units import check_units
     from .checkpoint import Checkpoint, resume_parts

@@ -44,6 +44,9 @@ from ..wave.patterns import (
 
 DIFFRACTION_CHOICES = ("auto", "on", "off")
 """The ``diffraction`` settings of a capture."""
+PREVIEW_SPP = 32
+"""Samples per pixel of ``auto``'s geometric preview: two passes of 16 (``independent``) of the
+scene frozen at t = 0 (:func:`~.capture.preview_scene`), one render each."""
 
 
 def check_diffraction(value) -> str:

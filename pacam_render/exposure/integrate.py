@@ -15,6 +15,7 @@ from typing import Any
 
 from ..errors import ParameterError
 from ..limits import DEFAULT_MAX_STEPS, note
+from .cost import count_step
 from .estimate import rms
 from .progress import (
     Progress,
@@ -56,6 +57,7 @@ def render_pass_steps(exp: Exposure, prog: Progress, spec, run, store, bar) -> b
             prog.partial_pats[st.pattern] = prog.partial_pats.get(st.pattern, 0.0) + img
         prog.step, prog.steps_done = k + 1, prog.steps_done + 1
         bar.update(1)
+        count_step(exp.pixels * st.spp / 1e6)
         if prog.step == len(steps):
             break
         if run.stop_after(prog.steps_done) or run.signalled():

@@ -100,6 +100,23 @@ class CapturePlan:
         diff = diffraction_params(self.spec, self.cam, on, self.pitch_mm)
         return {**self.mode_params, **ri, **diff, **lcos}
 
+    def aperture(self, params: dict | None = None):
+        """The :class:`~pacam_render.render.plan.AperturePlan` the plugin builds from
+        ``params`` (default :meth:`sensor_params`), without Mitsuba; a lens mode only."""
+        from ..errors import ParameterError
+        from ..model import paper
+        from ..model.optics import focal_length_px
+        from ..render.plan import PROP_KEYS, build_plan
+
+        if not self.lens:
+            raise ParameterError("mode reference is a pinhole: render it directly (it has no lens)")
+        params = self.sensor_params() if params is None else params
+        cfg = {k: params[k] for k in PROP_KEYS if k in params}
+        cfg["reference_exposure"] = paper.EXPOSURE_MS
+        f_px = focal_length_px(self.cam.fov_deg, self.spec.width)
+        return build_plan(cfg, 0.0, self.cam.exposure_ms, focal_px=f_px,
+                          focus_mm=params["focus_distance"])  # fmt: skip
+
     def with_diffraction(self, on: bool, decision: str) -> CapturePlan:
         """This plan with diffraction decided: in the capture or not, and why."""
         return replace(self, diffraction=(bool(on), decision))

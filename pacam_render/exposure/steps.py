@@ -213,17 +213,24 @@ def plan_exposure(scene, sensor, desc, design, cam, spec, max_steps: int = DEFAU
     scene gets the time steps of :func:`plan_windows` at the fastest image speed of any of its
     shapes over the paper's t in [-T, T].
     """
-    from ..scenes import fastest_image_speed_px_per_ms
-
     w, h = spec.image_size
     exp = Exposure(scene, sensor, quantum=quantum(spec.sampler), pixels=w * h)
     if desc.is_static or spec.mode == "reference":  # one render per pass, no geometry update
         if spec.per_pattern:
             note("per_pattern keeps nothing here: a static scene or the reference is one pass")
         return exp, 0.0
+    exp.windows, speed = exposure_windows(desc, design, cam, spec, sensor.plan, max_steps)
+    exp.animator, exp.mid_ms = desc.animator(scene), 0.5 * cam.exposure_ms
+    return exp, speed
+
+
+def exposure_windows(desc, design, cam, spec, aperture, max_steps: int = DEFAULT_MAX_STEPS):
+    """A moving capture's time steps (:func:`plan_windows` over ``aperture``'s patterns, an
+    :class:`~pacam_render.render.plan.AperturePlan`) and its fastest image speed, px/ms; no
+    scene is loaded (the planner's cost model takes them before any render)."""
+    from ..scenes import fastest_image_speed_px_per_ms
+
     exposure = cam.exposure_ms
     speed = fastest_image_speed_px_per_ms(desc, design, (-0.5 * exposure, 0.5 * exposure))
-    plan = sensor.plan
-    exp.windows = plan_windows(plan.pattern_edges, plan.is_open, speed, spec.max_step_px, max_steps)
-    exp.animator, exp.mid_ms = desc.animator(scene), 0.5 * exposure
-    return exp, speed
+    edges, is_open = aperture.pattern_edges, aperture.is_open
+    return plan_windows(edges, is_open, speed, spec.max_step_px, max_steps), speed

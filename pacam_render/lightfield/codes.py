@@ -14,8 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import ParameterError
-from ..render.plan import PROP_KEYS, AperturePlan, build_plan
-from .geometry import focal_px
+from ..render.plan import AperturePlan
 
 SERVED = ("static", "parabolic", "centres", "bitmap", "flutter")
 """The schedules a store serves: every one whose camera does not move."""
@@ -79,13 +78,4 @@ def _bitmap(plan: AperturePlan, masks: np.ndarray, u, v, k) -> np.ndarray:
 def design_aperture(plan, params: dict) -> AperturePlan:
     """A capture plan's :class:`~pacam_render.render.plan.AperturePlan`, as the plugin builds
     it from the same parameters (``params``: the plan's sensor parameters)."""
-    from ..model import paper
-
-    if plan.spec.mode == "reference":
-        raise ParameterError("mode reference is a pinhole: render it directly (it has no lens)")
-    cfg = {k: params[k] for k in PROP_KEYS if k in params}
-    cfg["reference_exposure"] = paper.EXPOSURE_MS
-    f_px = focal_px(plan.spec.width, plan.cam.fov_deg)
-    dp = build_plan(cfg, 0.0, plan.cam.exposure_ms, focal_px=f_px,
-                    focus_mm=params["focus_distance"])  # fmt: skip
-    return dp
+    return plan.aperture(params)

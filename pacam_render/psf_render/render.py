@@ -82,6 +82,7 @@ from contextlib import contextmanager
 import numpy as np
 
 from ..errors import ParameterError, check_positive
+from ..exposure.cost import Work, count_step, metered
 from ..io.signals import deferred_signals
 from ..model.camera import CameraDesign
 from ..render.registry import PSF_PLUGIN_NAME, ensure_registered, sensor_dict
@@ -242,21 +243,20 @@ class PSFRenderer:
             design, req.setup, req.film, spec.integrator, spec.diffraction, pitch
         )
         sensor = self._place(design, req.setup, req.film, req.velocity, scene, params)
-        windows, is_open = _windows(req.setup, spec.per_window)
-        peak = req.model.max() * int(is_open.sum())
-        spp_pass = _spp_per_pass(req.spp, req.film, spec.integrator, peak)
-        plan = _pass_plan(req.spp, spp_pass, is_open)
+        windows, is_open, plan = render_plan(req, spec)
         t0 = time.perf_counter()
-        with _threads(spec.threads):
+        with _threads(spec.threads), metered(psf_history_key()):
             desc = f"render {spec.mode} PSF"
+            mpx = req.film.sample_pixels(spec.integrator) / 1e6  # particles per spp, millions
             images = self._render_passes(
-                scene, sensor, req, windows, plan, spec.per_window, desc, progress
+                scene, sensor, req, windows, plan, spec.per_window, desc, progress, mpx
             )
         seconds = time.perf_counter() - t0
         return self._result(req, spec, windows, is_open, images, plan, seconds, design)
 
-    def _render_passes(self, scene, sensor, req, windows, plan, per_window, desc, progress):
-        """Render every (window, pass) of ``plan``; returns the windows' images (float64)."""
+    def _render_passes(self, scene, sensor, req, windows, plan, per_window, desc, progress, mpx):
+        """Render every (window, pass) of ``plan``; returns the windows' images (float64).
+        Each call's ``mpx`` x samples million particles go to the cost model's history."""
         import mitsuba as mi
 
         h, w = req.shape
@@ -279,6 +279,7 @@ class PSFRenderer:
                     if flag["signal"] is not None or integ.should_stop():
                         raise KeyboardInterrupt
                     images[k] += np.array(img, dtype=np.float64).reshape(h, w) * (n / req.spp)
+                    count_step(n * mpx)
                     if bar is not None:
                         bar.update()
         finally:
@@ -342,6 +343,33 @@ def _render_call(mi, scene, spp: int, seed: int):
         if isinstance(exc.__cause__, KeyboardInterrupt):
             raise KeyboardInterrupt from None
         raise
+
+
+def render_plan(req, spec: PSFSpec):
+    """A render's time windows, whether each lets light in, and its (window, pass, samples)
+    render calls, sized so that float32 splats do not drift (:data:`ADDS_PER_PIXEL`)."""
+    windows, is_open = _windows(req.setup, spec.per_window)
+    peak = req.model.max() * int(is_open.sum())
+    spp_pass = _spp_per_pass(req.spp, req.film, spec.integrator, peak)
+    return windows, is_open, _pass_plan(req.spp, spp_pass, is_open)
+
+
+def psf_work(design: CameraDesign, spec: PSFSpec, model: np.ndarray | None = None) -> Work:
+    """What :meth:`PSFRenderer.render` of ``spec`` does, for the planner's cost model
+    (:mod:`~pacam_render.exposure.cost`): one call, its particles (millions) and render calls;
+    nothing is rendered."""
+    req = plan_render(design, spec, model)
+    plan = render_plan(req, spec)[2]
+    particles = sum(n for *_, n in plan) * req.film.sample_pixels(spec.integrator)
+    return Work(calls=1, msamples=particles / 1e6, renders=len(plan))
+
+
+def psf_history_key() -> str:
+    """The cost model's history key of PSF renders: ``psf`` and the variant that renders them
+    (their rates are a particle tracer's, not a capture's)."""
+    from ..render.variant import choose_variant
+
+    return f"psf {choose_variant()}"
 
 
 def _windows(setup: ModeSetup, per_window: bool):

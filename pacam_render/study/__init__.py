@@ -200,6 +200,8 @@ def _estimate(tasks: list, run, workers: int, progress: bool) -> float:
     from tqdm import tqdm
 
     costs: list[float] = []
+    if progress:
+        _say_pilots(tasks, workers)
     bar = tqdm(total=len(tasks), unit="pilot", desc="pilot passes", disable=not progress)
 
     def done(task: Task, result) -> None:
@@ -211,6 +213,26 @@ def _estimate(tasks: list, run, workers: int, progress: bool) -> float:
     with bar:
         run(_safe_pilot, tasks, done)
     return sum(costs) / max(1, workers)
+
+
+def _say_pilots(tasks: list, workers: int) -> None:
+    """Say the pilot passes' predicted time (:mod:`~pacam_render.exposure.cost`) before they
+    run; a task whose inputs fail is left to its render to report."""
+    from ..exposure.cost import estimate_capture, say
+    from .point import capture_inputs, render_target
+
+    total, rates = 0.0, None
+    for i, task in enumerate(tasks):
+        try:
+            spec, desc, _ = capture_inputs(task.render, task.points[0])
+            targeted = render_target(task.render, task.group or task.points) is not None
+            est = estimate_capture(spec, desc, targeted, truth=False, first=i < max(1, workers))
+        except Exception:  # noqa: BLE001 - the render reports it, with its point
+            continue
+        total, rates = total + est.seconds, est.rates
+    if rates is not None:
+        say(f"estimate: {len(tasks)} pilot passes about {duration(total / max(1, workers))} "
+            f"(at the rates of {rates.basis}); they then predict the renders")  # fmt: skip
 
 
 def _safe_pilot(task: Task):

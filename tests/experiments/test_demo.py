@@ -26,7 +26,13 @@ def test_demo_runs_small(tmp_path, capsys):
         m = exrio.read_exr(out / sub / "capture.exr")["relative_illumination"]
         assert abs(float(m.min()) - 0.613) < 0.02 and float(m.max()) > 0.99
     assert "relative_illumination" not in exrio.read_exr(out / "reference" / "capture.exr")
-    assert "design report" in capsys.readouterr().out
+    said = capsys.readouterr()
+    assert "design report" in said.out
+    # the whole demo's time is said once, before any render, and one bar covers it
+    assert said.err.count("estimate:") == 1
+    head = said.err[: said.err.index("diffraction auto: rendering")]
+    assert "estimate: demo about" in head and "deblurring" in head
+    assert "demo:" in said.err.rsplit("estimate:", 1)[1]  # the overall bar's label
     assert main(argv) == 2  # a second run needs --force
     assert main([*argv, "--force"]) == 0
 

@@ -1,0 +1,388 @@
+"""The planner's cost model: how long a capture's renders take, said before they start.
+
+A capture's time is close to linear in counts that its plan fixes before any render: its render
+calls (each loads the scene; the first in a process also compiles or loads the kernels), its
+camera samples (pixels x spp, over every pass, the ``sharp`` truth layer's included) and its
+Mitsuba renders (time steps x passes; each re-poses the moving geometry and launches one):
+
+    seconds = s_call * calls + s_first * first calls + s_msample * M samples
+              + s_render * renders.
+
+A PSF render (:mod:`pacam_render.psf_render`) counts the same way, its particles for samples.
+The rates are fitted by non-negative least squares on the relative error to this machine's
+earlier render calls of the same kind and variant (the history key): every render call appends
+its counts and seconds to a history file (:func:`history_path`). With fewer than
+:data:`MIN_HISTORY` of them the :data:`REFERENCE_RATES` are used, and the estimate says so.
+``benchmarks/bench_cost_model.py`` measures the estimate's error against the renders it
+predicts: a median of 8 % and at most 36 % on held-out captures (the normal mode's wide
+opening costs more per sample than the model knows).
+
+A capture rendered to a noise target plans its main passes from its pilot
+(:mod:`.progress`): only the pilot is predicted here, and the progress bar's total grows once
+the pilot has measured the error.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import time
+from contextlib import contextmanager
+from contextvars import ContextVar
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import numpy as np
+
+from ..limits import DEFAULT_MAX_STEPS, duration
+
+MIN_HISTORY = 4
+"""Earlier renders of a history key needed before their fit replaces :data:`REFERENCE_RATES`."""
+HISTORY_KEPT = 120
+"""The most recent renders per key that the fit uses (the file keeps twice as many)."""
+FIELDS = ("calls", "first_calls", "msamples", "renders")
+"""The counts of :class:`Work`, in the order of a :class:`Rates`' seconds."""
+REFERENCE_RATES = {"capture": (0.026, 0.69, 0.041, 0.031), "psf": (0.0, 0.066, 0.054, 0.0042)}
+"""Seconds per call, per first call in a process, per million samples (a PSF's: particles)
+and per render of ``llvm_ad_rgb`` on the 2-core reference machine, for captures and for PSF
+renders (a history key that starts with ``psf``): fitted by
+``python benchmarks/bench_cost_model.py`` to its calibration captures of the train scene and
+to ``validate-psf --quick``'s renders."""
+
+
+@dataclass(frozen=True)
+class Work:
+    """What render calls do: the calls, the first in its process, the camera samples
+    (millions) and the Mitsuba renders (:data:`FIELDS`)."""
+
+    calls: int = 0
+    first_calls: int = 0
+    msamples: float = 0.0
+    renders: int = 0
+
+    def __add__(self, other: Work) -> Work:
+        return Work(*(getattr(self, k) + getattr(other, k) for k in FIELDS))
+
+    def vector(self) -> np.ndarray:
+        return np.array([float(getattr(self, k)) for k in FIELDS])
+
+
+@dataclass(frozen=True)
+class Rates:
+    """Seconds per count of :class:`Work` (:data:`FIELDS`, :func:`rates`), and what they were
+    fitted to (``basis``, for the message)."""
+
+    per: tuple
+    basis: str
+
+    def seconds(self, work: Work) -> float:
+        return float(np.dot(self.per, work.vector()))
+
+
+@dataclass(frozen=True)
+class Estimate:
+    """A capture's predicted parts (name to :class:`Work`) and seconds, at ``rates``."""
+
+    parts: dict
+    rates: Rates
+    what: str = "samples"
+    """What :attr:`Work.msamples` counts, for the message (a PSF render's: particles)."""
+
+    def part_seconds(self) -> dict:
+        return {k: self.rates.seconds(w) for k, w in self.parts.items()}
+
+    @property
+    def seconds(self) -> float:
+        return sum(self.part_seconds().values())
+
+    def describe(self) -> str:
+        """``about 12 s (capture 9.1 s, truth 2.3 s; 21 M samples in 70 renders, ...)``."""
+        total = sum(self.parts.values(), Work())
+        each = ", ".join(f"{k} {duration(s)}" for k, s in self.part_seconds().items())
+        return (
+            f"about {duration(self.seconds)} ({each}; {total.msamples:.3g} M {self.what} in "
+            f"{total.renders} renders, at the rates of {self.rates.basis})"
+        )
+
+
+# ============================================================================================
+# The history of renders on this machine
+# ============================================================================================
+def history_path() -> Path:
+    """``$PACAM_RENDER_TIMES``, else ``render_times.jsonl`` in the asset cache's folder."""
+    env = os.environ.get("PACAM_RENDER_TIMES", "").strip()
+    if env:
+        return Path(env).expanduser()
+    from ..scenes.assets import cache_root
+
+    return cache_root() / "render_times.jsonl"
+
+
+def remember(key: str, work: Work, seconds: float) -> None:
+    """Append one finished render call to the history; a history that cannot be written is
+    skipped (the estimate then keeps the rates it had: nothing is lost but accuracy)."""
+    row = {k: getattr(work, k) for k in FIELDS}
+    row["msamples"] = round(work.msamples, 6)
+    line = json.dumps({"key": key, **row, "seconds": round(seconds, 4),
+                       "cores": os.cpu_count(), "time": round(time.time())})  # fmt: skip
+    path = history_path()
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        with open(path, "a", encoding="utf-8") as fh:  # one short line: an atomic append
+            fh.write(line + "\n")
+        if path.stat().st_size > 400 * HISTORY_KEPT * 2:
+            _trim(path)
+    except OSError:
+        return
+
+
+def _trim(path: Path) -> None:
+    """Keep the newest 2 x :data:`HISTORY_KEPT` lines (written aside, then renamed)."""
+    lines = path.read_text(encoding="utf-8").splitlines()[-2 * HISTORY_KEPT :]
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    tmp.write_text("\n".join(lines) + "\n", encoding="utf-8")
+    os.replace(tmp, path)
+
+
+def _history(key: str) -> list[dict]:
+    try:
+        text = history_path().read_text(encoding="utf-8")
+    except OSError:
+        return []
+    rows = []
+    for line in text.splitlines():
+        try:
+            row = json.loads(line)
+            ok = row["key"] == key and float(row["seconds"]) > 0
+            ok = ok and all(float(row[k]) >= 0 for k in FIELDS)
+        except (ValueError, KeyError, TypeError):
+            continue  # a line cut by a crash, or a hand edit: not evidence
+        if ok:
+            rows.append(row)
+    return rows[-HISTORY_KEPT:]
+
+
+def fit_rates(rows: list[dict], reference: tuple = REFERENCE_RATES["capture"]) -> tuple | None:
+    """The seconds per count (:data:`FIELDS`) by non-negative least squares on the relative
+    error over ``rows`` (each the counts and ``seconds``); None when fewer than
+    :data:`MIN_HISTORY` rows or none varies the samples. A count that moves with another (every
+    call the first of its process, say) is left to the other; one never seen keeps the
+    ``reference`` rate, scaled as the fitted ones are."""
+    from scipy.optimize import nnls
+
+    if len(rows) < MIN_HISTORY:
+        return None
+    a = np.array([[float(r[k]) for k in FIELDS] for r in rows])
+    s = np.array([float(r["seconds"]) for r in rows])
+    seen = [j for j in range(len(FIELDS)) if a[:, j].any()]
+    used = list(seen)
+    while used and np.linalg.matrix_rank(a[:, used] / a[:, used].max(axis=0)) < len(used):
+        used.pop(0)  # a count that moves with another (every call a first one): the other has it
+    if FIELDS.index("msamples") not in used:
+        return None
+    x, _ = nnls(a[:, used] / s[:, None], np.ones_like(s))
+    ref = np.array(reference)
+    fitted = [(j, v) for j, v in zip(used, x) if v > 0]
+    scale = float(np.median([v / ref[j] for j, v in fitted])) if fitted else 1.0
+    full = np.where(np.isin(np.arange(len(FIELDS)), seen), 0.0, ref * scale)  # never seen
+    full[used] = x
+    return tuple(float(v) for v in full)
+
+
+def rates(key: str) -> Rates:
+    """This machine's rates for the history key ``key`` (a variant, or ``psf`` and a variant:
+    :func:`fit_rates` on its history), else the reference machine's."""
+    rows = _history(key)
+    reference = REFERENCE_RATES["psf" if key.startswith("psf") else "capture"]
+    fitted = fit_rates(rows, reference)
+    if fitted is None:
+        have = f"; {len(rows)} earlier render(s) here" if rows else ""
+        return Rates(reference, f"a 2-core reference machine{have}")
+    return Rates(fitted, f"{len(rows)} earlier {key} renders on this machine")
+
+
+# ============================================================================================
+# A capture's work, from its plan
+# ============================================================================================
+def pass_work(exp, spp: int, passes: int) -> Work:
+    """The samples and renders of ``passes`` passes of ``spp`` samples over ``exp``'s steps
+    (:class:`~.steps.Exposure`)."""
+    steps = exp.steps(spp)
+    m = passes * exp.pixels * sum(s.spp for s in steps) / 1e6
+    return Work(msamples=m, renders=passes * len(steps))
+
+
+def capture_parts(exp, spec, lens: bool, targeted: bool, truth: bool, preview: bool, first) -> dict:
+    """The parts of a capture (name to :class:`Work`): diffraction ``auto``'s ``preview``
+    (:func:`~.capture.preview_scene`: a call of its own, two static passes), the capture's
+    passes (its pilot when ``targeted``), and the ``sharp`` truth layer's static passes (in the
+    capture's call); the first call is its process's first when ``first``."""
+    from .capture_diffraction import PREVIEW_SPP
+    from .estimate import PILOT_PASSES
+
+    parts = {}
+    if preview:
+        frozen = replace(exp, windows=[], quantum=1)
+        parts["preview"] = Work(1, int(first)) + pass_work(frozen, PREVIEW_SPP // 2, 2)
+    call = Work(1, int(first and not preview))
+    if targeted:
+        parts["pilot"] = call + pass_work(exp, exp.pass_quantum(), PILOT_PASSES)
+    else:
+        parts["capture"] = call + pass_work(exp, -(-spec.spp // spec.passes), spec.passes)
+    if truth and lens and not targeted:  # a targeted truth follows the target, unknown yet
+        static = replace(exp, windows=[])  # the reference is its own sharp layer
+        parts["truth"] = pass_work(static, -(-spec.spp // spec.passes), spec.passes)
+    return parts
+
+
+def estimate_capture(
+    plan, description=None, targeted: bool = False, truth: bool = True,
+    max_steps: int = DEFAULT_MAX_STEPS, first: bool | None = None,
+) -> Estimate:  # fmt: skip
+    """A capture's :class:`Estimate`, before any render: its time steps are planned from the
+    scene's description and the aperture's patterns, as the render plans them.
+
+    Parameters
+    ----------
+    plan : CapturePlan or CaptureSpec
+        The capture (a spec is resolved with :func:`~.plan.plan_capture`).
+    description : SceneDescription, optional
+        The scene, if not ``plan.spec.scene``.
+    targeted : bool, optional
+        Rendered to a noise target: only the pilot is predicted.
+    truth : bool, optional
+        With the ground-truth layers.
+    max_steps : int, optional
+        The most time steps allowed.
+    first : bool, optional
+        Whether its first render call is its process's first (default: whether none has been
+        made yet).
+    """
+    from ..render.samplers import quantum
+    from ..scenes import load_scene
+    from .plan import CapturePlan, plan_capture
+    from .steps import Exposure, exposure_windows
+
+    plan = plan if isinstance(plan, CapturePlan) else plan_capture(plan)
+    spec = plan.spec
+    desc = description if description is not None else load_scene(spec.scene)
+    w, h = spec.image_size
+    exp = Exposure(None, None, quantum=quantum(spec.sampler), pixels=w * h)
+    if plan.lens and not desc.is_static:
+        aperture = plan.aperture()
+        exp.windows = exposure_windows(desc, plan.design, plan.cam, spec, aperture, max_steps)[0]
+    preview = plan.lens and spec.diffraction == "auto" and plan.diffraction is None
+    first = not process_warm() if first is None else first
+    parts = capture_parts(exp, spec, plan.lens, targeted, truth, preview, first)
+    return Estimate(parts, rates(plan.variant))
+
+
+# ============================================================================================
+# What a render call did, and the bar over several
+# ============================================================================================
+_METER: ContextVar = ContextVar("pacam_render_meter", default=None)
+_CALLS = [0]  # render calls begun in this process
+_OVERALL: ContextVar = ContextVar("pacam_overall_bar", default=None)
+
+
+@contextmanager
+def metered(key: str):
+    """Count the steps rendered inside (:func:`count_step`) and, when the block finishes
+    without an exception, :func:`remember` them with its seconds."""
+    box = [Work(calls=1, first_calls=int(_CALLS[0] == 0))]
+    _CALLS[0] += 1
+    token = _METER.set(box)
+    t0 = time.perf_counter()
+    try:
+        yield box
+    finally:
+        _METER.reset(token)
+    remember(key, box[0], time.perf_counter() - t0)
+
+
+def count_step(msamples: float) -> None:
+    """One render step of ``msamples`` million samples: counted by the enclosing
+    :func:`metered` block; moves the enclosing :class:`Overall` bar, if any."""
+    box = _METER.get()
+    if box is not None:
+        box[0] = box[0] + Work(msamples=msamples, renders=1)
+    bar = _OVERALL.get()
+    if bar is not None:
+        bar.step(Work(msamples=msamples, renders=1))
+
+
+class Overall:
+    """One progress bar over a command's stages, in predicted seconds: each render step moves
+    it by its own predicted time, and each stage ends at its predicted share, so that the ETA
+    (tqdm's, from the rate so far) covers the whole command."""
+
+    def __init__(self, stages: dict, rates: Rates, desc: str, progress: bool):
+        from tqdm import tqdm
+
+        self.stages, self.rates = stages, rates
+        self.total = float(sum(stages.values()))
+        fmt = "{desc}: {percentage:3.0f}%|{bar}| {elapsed}<{remaining}"
+        self.bar = tqdm(total=self.total, desc=desc, disable=not progress, bar_format=fmt)
+        self._end = self.n = 0.0  # predicted seconds: where the current stage ends, where we are
+
+    @contextmanager
+    def stage(self, name: str):
+        """Steps rendered inside move the bar; at its end the bar stands at the stage's end."""
+        self._end = min(self.total, self._end + self.stages[name])
+        token = _OVERALL.set(self)
+        try:
+            yield
+        finally:
+            _OVERALL.reset(token)
+            self._move(self._end - self.n)
+
+    def step(self, work: Work) -> None:
+        self._move(min(self._end - self.n, self.rates.seconds(work)))
+
+    def _move(self, seconds: float) -> None:
+        self.n += seconds
+        self.bar.update(seconds)
+
+    def __enter__(self) -> Overall:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.bar.close()
+
+
+def overall_bar(
+    captures: dict, name: str, progress: bool, extra: dict | None = None, description=None
+) -> Overall:
+    """Predict a command's captures (name to (plan or spec, with truth layers)) and its
+    ``extra`` stages (name to seconds, predicted by their own models), say the estimate on
+    stderr with ``progress``, and return one :class:`Overall` bar over them, in that order.
+    The first capture warms the process for the others."""
+    cold = not process_warm()
+    ests = {key: estimate_capture(plan, description, truth=truth, first=cold and i == 0)
+            for i, (key, (plan, truth)) in enumerate(captures.items())}  # fmt: skip
+    stages = {key: est.seconds for key, est in ests.items()} | (extra or {})
+    rates = next(iter(ests.values())).rates
+    if progress:
+        each = ", ".join(f"{k} {duration(v)}" for k, v in stages.items())
+        say(f"estimate: {name} about {duration(sum(stages.values()))} ({each}; at the rates "
+            f"of {rates.basis})")  # fmt: skip
+    return Overall(stages, rates, name, progress)
+
+
+def process_warm() -> bool:
+    """Whether a render call has begun in this process (the next is not its first)."""
+    return _CALLS[0] > 0
+
+
+def in_overall() -> bool:
+    """Whether a :class:`Overall` bar is under way (its command said the estimate)."""
+    return _OVERALL.get() is not None
+
+
+def say(text: str) -> None:
+    """A line on stderr that leaves the progress bars whole (``tqdm.write``)."""
+    import sys
+
+    from tqdm import tqdm
+
+    tqdm.write(text, file=sys.stderr)
