@@ -42,7 +42,7 @@ HISTORY_KEPT = 120
 """The most recent renders per key that the fit uses (the file keeps twice as many)."""
 FIELDS = ("calls", "first_calls", "msamples", "renders")
 """The counts of :class:`Work`, in the order of a :class:`Rates`' seconds."""
-REFERENCE_RATES = {"capture": (0.026, 0.69, 0.041, 0.031), "psf": (0.0, 0.066, 0.054, 0.0042)}
+REFERENCE_RATES = {"capture": (0.049, 0.79, 0.047, 0.032), "psf": (0.0, 0.0, 0.058, 0.0061)}
 """Seconds per call, per first call in a process, per million samples (a PSF's: particles)
 and per render of ``llvm_ad_rgb`` on the 2-core reference machine, for captures and for PSF
 renders (a history key that starts with ``psf``): fitted by

@@ -72,12 +72,17 @@ def mode_pupils(cam, mode: str) -> list[tuple[object, float]]:
     if not shows_bitmaps(cam, mode):
         return [(DiscPupil(cam.R_mm), 1.0)]
     stack = cam.pattern_masks
+    return list(stack.once("pupils", lambda: _stack_pupils(stack)))
+
+
+def _stack_pupils(stack) -> tuple:
+    """Each open pattern's pupil and light (kept on the stack: every wavelength asks)."""
     out = []
     for mask in stack.array:
         area = float(mask.sum(dtype=np.float64)) * stack.pitch_mm**2
         if area > 0.0:
             out.append((mask_pupil(mask, stack.pitch_mm), area))
-    return out
+    return tuple(out)
 
 
 def _distinct(parts: list) -> list:
@@ -89,6 +94,15 @@ def _distinct(parts: list) -> list:
         key = (a.shape, a.tobytes()) if a is not None else pupil
         out[key] = (pupil, out[key][1] + weight) if key in out else (pupil, weight)
     return list(out.values())
+
+
+def _distinct_pupils(cam, mode: str) -> list:
+    """:func:`_distinct` of :func:`mode_pupils`, kept on a bitmap stack."""
+    if not shows_bitmaps(cam, mode):
+        return _distinct(mode_pupils(cam, mode))
+    return list(
+        cam.pattern_masks.once("distinct_pupils", lambda: tuple(_distinct(mode_pupils(cam, mode))))
+    )
 
 
 def mode_diffraction_kernel(
@@ -129,7 +143,7 @@ def mode_diffraction_kernel(
     ((153, 153), 1.0)
     """
     scale = scale_for(cam, wavelength_nm, pixel_pitch_mm)
-    parts = _distinct(mode_pupils(cam, mode))
+    parts = _distinct_pupils(cam, mode)
     if len(parts) == 1:
         return fraunhofer_kernel(parts[0][0], scale, size, max_lost, sampling)
     # the patterns' light-weighted mean, from the mean of their OTFs: one kernel, exact
