@@ -49,6 +49,8 @@ CALIBRATION = [  # mode, window (w, h), spp, diffraction
     ("coded", (640, 480), 64, "off"),
     ("coded", (240, 180), 128, "auto"),
     ("normal", (320, 240), 256, "auto"),
+    ("short", (640, 480), 512, "off"),
+    ("reference", (480, 360), 1024, "off"),
 ]
 HELD_OUT = [
     ("coded", (240, 180), 512, "off"),
@@ -56,6 +58,8 @@ HELD_OUT = [
     ("coded", (200, 120), 2048, "off"),
     ("reference", (640, 480), 64, "off"),
     ("coded", (160, 120), 256, "auto"),
+    ("short", (672, 701), 256, "off"),
+    ("coded", (672, 701), 256, "off"),
 ]
 
 

@@ -9,13 +9,15 @@ Mitsuba renders (time steps x passes; each re-poses the moving geometry and laun
               + s_render * renders.
 
 A PSF render (:mod:`pacam_render.psf_render`) counts the same way, its particles for samples.
-The rates are fitted by non-negative least squares on the relative error to this machine's
-earlier render calls of the same kind and variant (the history key): every render call appends
-its counts and seconds to a history file (:func:`history_path`). With fewer than
+The rates are fitted by non-negative least squares (residuals over the square root of the
+seconds) to this machine's earlier render calls of the same kind and variant (the history
+key): every render call appends its counts and seconds to a history file
+(:func:`history_path`). With fewer than
 :data:`MIN_HISTORY` of them the :data:`REFERENCE_RATES` are used, and the estimate says so.
 ``benchmarks/bench_cost_model.py`` measures the estimate's error against the renders it
-predicts: a median of 8 % and at most 36 % on held-out captures (the normal mode's wide
-opening costs more per sample than the model knows).
+predicts: a median of 19 % and at most 29 % on held-out captures from 160x120 to 672x701 px
+(a sample costs more in a large window than in a small one, and more through a wide opening,
+which the model does not know).
 
 A capture rendered to a noise target plans its main passes from its pilot
 (:mod:`.progress`): only the pilot is predicted here, and the progress bar's total grows once
@@ -42,7 +44,7 @@ HISTORY_KEPT = 120
 """The most recent renders per key that the fit uses (the file keeps twice as many)."""
 FIELDS = ("calls", "first_calls", "msamples", "renders")
 """The counts of :class:`Work`, in the order of a :class:`Rates`' seconds."""
-REFERENCE_RATES = {"capture": (0.049, 0.79, 0.047, 0.032), "psf": (0.0, 0.0, 0.058, 0.0061)}
+REFERENCE_RATES = {"capture": (0.043, 1.03, 0.072, 0.017), "psf": (0.0, 0.001, 0.053, 0.0052)}
 """Seconds per call, per first call in a process, per million samples (a PSF's: particles)
 and per render of ``llvm_ad_rgb`` on the 2-core reference machine, for captures and for PSF
 renders (a history key that starts with ``psf``): fitted by
@@ -163,8 +165,10 @@ def _history(key: str) -> list[dict]:
 
 
 def fit_rates(rows: list[dict], reference: tuple = REFERENCE_RATES["capture"]) -> tuple | None:
-    """The seconds per count (:data:`FIELDS`) by non-negative least squares on the relative
-    error over ``rows`` (each the counts and ``seconds``); None when fewer than
+    """The seconds per count (:data:`FIELDS`) by non-negative least squares over ``rows`` (each
+    the counts and ``seconds``), each residual divided by the square root of its seconds:
+    between the relative error, where a short render's start-up noise rules, and the absolute,
+    where the long renders that an estimate matters for do. None when fewer than
     :data:`MIN_HISTORY` rows or none varies the samples. A count that moves with another (every
     call the first of its process, say) is left to the other; one never seen keeps the
     ``reference`` rate, scaled as the fitted ones are."""
@@ -180,7 +184,8 @@ def fit_rates(rows: list[dict], reference: tuple = REFERENCE_RATES["capture"]) -
         used.pop(0)  # a count that moves with another (every call a first one): the other has it
     if FIELDS.index("msamples") not in used:
         return None
-    x, _ = nnls(a[:, used] / s[:, None], np.ones_like(s))
+    w = 1.0 / np.sqrt(s)
+    x, _ = nnls(a[:, used] * w[:, None], s * w)
     ref = np.array(reference)
     fitted = [(j, v) for j, v in zip(used, x) if v > 0]
     scale = float(np.median([v / ref[j] for j, v in fitted])) if fitted else 1.0
