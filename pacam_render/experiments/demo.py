@@ -50,7 +50,7 @@ scale, r = 2 px and the trains blur over 45 and 63 px, as in the paper."""
 DEMO_SPP = 1024
 """Samples per pixel of the full-scale demo: the moving captures keep one sampler render per
 0.5 px time step (at 128 spp, which they used to inflate to about 1000, their steps would be
-joined into one pose per pattern). 5.6 min on 2 cores shared with a study run (measured)."""
+joined into one pose per pattern). 4.9 min on 2 idle cores, with a camera's optics (measured)."""
 
 
 def window_crops(spec: CaptureSpec) -> dict[str, tuple[float, float, float, float]]:
