@@ -77,12 +77,13 @@ class Panel:
     note: str = ""
 
 
-def _capture(plan, out: Path, seed: int):
+def _capture(plan, out: Path, seed: int, progress: bool = True):
     """Render one capture (a :class:`~pacam_render.exposure.plan.CapturePlan`); pass all but
     the reference through the sensor model."""
     from ..sensor.model import SensorModel
 
-    cap = render_capture(plan, partial_dir=out / ".partial", truth=False)  # own reference
+    partial = out / ".partial"  # no truth layers: the demo renders its own reference
+    cap = render_capture(plan, partial_dir=partial, progress=progress, truth=False)
     if plan.spec.mode != "reference":
         model = SensorModel.from_preset(SENSOR_PRESET)
         add_sensor_layers(cap, model, SENSOR_PRESET, LIGHT_LEVEL, seed)
@@ -178,7 +179,7 @@ def run_train(
             sub = out / key
             sub.mkdir(parents=True, exist_ok=True)
             with overall.stage(key):
-                caps[key] = _capture(plan, sub, seed)
+                caps[key] = _capture(plan, sub, seed, progress)
             write_capture(caps[key], sub, force=True)  # the folder was cleared or created above
         with overall.stage("deblurring"):
             deblurred = [_deconvolve(caps[f"coded_{i}"], rendered_psf, spp_psf, method)

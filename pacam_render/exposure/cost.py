@@ -12,8 +12,8 @@ A PSF render (:mod:`pacam_render.psf_render`) counts the same way, its particles
 The rates are fitted by non-negative least squares (residuals over the square root of the
 seconds) to this machine's earlier render calls of the same kind and variant (the history
 key): every render call appends its counts and seconds to a history file
-(:func:`history_path`). With fewer than
-:data:`MIN_HISTORY` of them the :data:`REFERENCE_RATES` are used, and the estimate says so.
+(:func:`history_path`). With fewer than :data:`MIN_HISTORY` of them the
+:data:`REFERENCE_RATES` are used, and the estimate says so.
 ``benchmarks/bench_cost_model.py`` measures the estimate's error against the renders it
 predicts: a median of 19 % and at most 29 % on held-out captures from 160x120 to 672x701 px
 (a sample costs more in a large window than in a small one, and more through a wide opening,
@@ -27,6 +27,7 @@ the pilot has measured the error.
 from __future__ import annotations
 
 import json
+import math
 import os
 import time
 from contextlib import contextmanager
@@ -155,8 +156,8 @@ def _history(key: str) -> list[dict]:
     for line in text.splitlines():
         try:
             row = json.loads(line)
-            ok = row["key"] == key and float(row["seconds"]) > 0
-            ok = ok and all(float(row[k]) >= 0 for k in FIELDS)
+            counts = [float(row[k]) for k in ("seconds", *FIELDS)]
+            ok = row["key"] == key and counts[0] > 0 and all(0 <= v < math.inf for v in counts)
         except (ValueError, KeyError, TypeError):
             continue  # a line cut by a crash, or a hand edit: not evidence
         if ok:

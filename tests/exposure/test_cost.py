@@ -84,7 +84,12 @@ def test_rates_come_from_the_history_once_there_is_enough(history):
     for i in range(cost.MIN_HISTORY + 2):
         w = cost.Work(1, int(i == 0), 3.0 * (i + 1), 10 * (i % 3 + 1))
         cost.remember("llvm_ad_rgb", w, float(true @ w.vector()))
-    history.write_text(history.read_text() + '{"key": "llvm_ad_rgb", "seco\n')  # a cut line
+    bad = [
+        '{"key": "llvm_ad_rgb", "seco',
+        '{"key": "llvm_ad_rgb", "calls": 1, "first_calls": 0, '
+        '"msamples": Infinity, "renders": 1, "seconds": 2}',
+    ]  # a cut line, a hand edit
+    history.write_text(history.read_text() + "\n".join(bad) + "\n")
     r = cost.rates("llvm_ad_rgb")
     assert np.allclose(r.per, true, rtol=1e-6)
     assert r.basis == f"{cost.MIN_HISTORY + 2} earlier llvm_ad_rgb renders on this machine"
