@@ -366,10 +366,14 @@ def psf_work(design: CameraDesign, spec: PSFSpec, model: np.ndarray | None = Non
 
 def psf_history_key() -> str:
     """The cost model's history key of PSF renders: ``psf`` and the variant that renders them
-    (their rates are a particle tracer's, not a capture's)."""
+    (their rates are a particle tracer's, not a capture's): the active one, else the one
+    :func:`~pacam_render.render.variant.choose_variant` would pick. The active variant is
+    never changed here (a scene belongs to the variant it was loaded in)."""
+    import mitsuba as mi
+
     from ..render.variant import choose_variant
 
-    return f"psf {choose_variant()}"
+    return f"psf {mi.variant() or choose_variant()}"
 
 
 def _windows(setup: ModeSetup, per_window: bool):
