@@ -210,29 +210,28 @@ class Renders:
 
 
 def render(p: Plan, progress: bool) -> Renders:
-    """The capture and the padded truth, for each of the two seeds."""
+    """The capture and the padded truth, for each of the two seeds, under one bar (each
+    capture resolved once, for its estimate and its render)."""
     from ..exposure.capture import render_capture
     from ..exposure.cost import overall_bar
+    from ..exposure.plan import plan_capture
 
     t0 = time.perf_counter()
     caps, truths = [], []
     runs = {}
-    for k in range(SEEDS):
-        seed = p.spec.seed + k
-        runs[f"capture (seed {seed})"] = (replace(p.spec, seed=seed), False)
-        runs[f"truth (seed {seed})"] = (replace(p.truth_spec, seed=seed), True)
+    for seed in range(p.spec.seed, p.spec.seed + SEEDS):
+        runs[f"capture (seed {seed})"] = (plan_capture(replace(p.spec, seed=seed)), False)
+        runs[f"truth (seed {seed})"] = (plan_capture(replace(p.truth_spec, seed=seed)), True)
     with overall_bar(runs, "validate-scene", progress, description=p.desc) as bar:
-        for k in range(SEEDS):
-            seed = p.spec.seed + k
-            with bar.stage(f"capture (seed {seed})"):
-                cap = render_capture(runs[f"capture (seed {seed})"][0], progress=progress,
-                                     description=p.desc, truth=False)  # fmt: skip
-            with bar.stage(f"truth (seed {seed})"):
-                ref = render_capture(runs[f"truth (seed {seed})"][0], progress=progress,
-                                     description=p.desc, truth=True)  # fmt: skip
-            ri_map = cap.extra_layers.get(RI_LAYER)  # irradiance -> radiance, as the model is
-            caps.append(flat_field(cap.image / cap.record.light_factor, ri_map))  # white ~ 1
-            truths.append(ref.extra_layers)
+        done = {}
+        for name, (plan, truth) in runs.items():
+            with bar.stage(name):
+                done[name] = render_capture(plan, progress=progress, description=p.desc,
+                                            truth=truth)  # fmt: skip
+    for cap, ref in zip(list(done.values())[::2], list(done.values())[1::2]):
+        ri_map = cap.extra_layers.get(RI_LAYER)  # irradiance -> radiance, as the model is
+        caps.append(flat_field(cap.image / cap.record.light_factor, ri_map))  # white ~ 1
+        truths.append(ref.extra_layers)
     return Renders(caps, truths, cap.record, time.perf_counter() - t0)
 
 
