@@ -16,8 +16,8 @@ import time
 
 from common import median_spread, record
 
-from pacam_render.exposure.capture import render_capture
-from pacam_render.exposure.capture_spec import CaptureSpec
+from pacam_render.exposure.direct import render_capture
+from pacam_render.exposure.spec import CaptureSpec
 from pacam_render.scenes import load_scene
 
 

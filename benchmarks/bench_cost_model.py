@@ -1,7 +1,7 @@
 """The planner's cost model against the renders it predicts (issue 46, item 6).
 
 ``pacam render`` (and the demo, ``validate-scene``) says how long its renders will take before
-they start (:mod:`pacam_render.exposure.cost`): seconds per render call, per first call in a
+they start (:mod:`pacam_render.exposure.render_time`): seconds per render call, per first call in a
 process, per million samples and per render, fitted to this machine's earlier renders. This
 benchmark:
 
@@ -9,7 +9,7 @@ benchmark:
    them; 80x60 to 640x480 windows, 64 to 1024 spp, four modes, diffraction off, and two with
    ``auto``'s preview: a second call in its process) into an empty history, and fits the
    rates to them (the reference rates the package ships,
-   :data:`~pacam_render.exposure.cost.REFERENCE_RATES`);
+   :data:`~pacam_render.exposure.render_time.REFERENCE_RATES`);
 2. predicts a held-out set (other sizes, spp and modes, one with diffraction ``auto``) from those
    rates, renders it, and reports the estimate's error against the render calls' own seconds
    (what it predicts) and against the command's wall time (which adds Python's and Mitsuba's
@@ -34,8 +34,8 @@ from pathlib import Path
 import numpy as np
 from common import record
 
-from pacam_render.exposure import cost
-from pacam_render.exposure.capture_spec import CaptureSpec
+from pacam_render.exposure import render_time as cost
+from pacam_render.exposure.spec import CaptureSpec
 
 CALIBRATION = [  # mode, window (w, h), spp, diffraction
     ("coded", (80, 60), 64, "off"),

@@ -1,6 +1,6 @@
 """What a deconvolution costs (issue 37 item 9): each method's peak memory and seconds against
-its padded FFT grid and channels, the fit of :mod:`pacam_render.restore.cost`'s model to them,
-and the model against measurements at sizes it was not fitted on.
+its padded FFT grid and channels, the fit of :mod:`pacam_render.restore.deconvolve_cost`'s model to
+them, and the model against measurements at sizes it was not fitted on.
 
 Each measurement is one deconvolution in a fresh Python process (``--one``): a random image of
 H x W px and C channels, a 17 x 17 box kernel, the method's defaults and noise sigma 0.01.
@@ -66,8 +66,8 @@ def _peak_rss() -> int:
 
 def one(method: str, h: int, w: int, c: int, repeat: int) -> dict:
     """One method on one size, in this process: peak bytes over the RSS before, seconds."""
-    from pacam_render.restore.cost import padded_grid
     from pacam_render.restore.deconvolve import deconvolve
+    from pacam_render.restore.deconvolve_cost import padded_grid
 
     rng = np.random.default_rng(0)
     image = rng.random((h, w, c) if c > 1 else (h, w)) * 0.5 + 0.25
@@ -122,7 +122,7 @@ def fit(rows: list[dict]) -> dict:
 
 
 def validate_rows(repeat: int) -> list[dict]:
-    from pacam_render.restore.cost import deconvolve_cost
+    from pacam_render.restore.deconvolve_cost import deconvolve_cost
 
     rows = []
     for method, h, w, c in VALIDATE:

@@ -9,7 +9,7 @@ draw, two seeds each. The error is the L1 distance to the exact analytic kernel 
 Carlo floor is the L1 between the two seeds' kernels over sqrt(2).
 
 **Camera rays** (``--only paths``). The path tracer's exact rays probe the scene for the depth
-they meet (one more intersection per camera ray, :mod:`pacam_render.render.defocus_draw`).
+they meet (one more intersection per camera ray, :mod:`pacam_render.render.kernels.defocus_draw`).
 The cost: a coded capture of the train (256 x 192 window, 512 spp, RGB, diffraction on) with the
 exact rays, with the Airy draw, and geometric (diffraction off), each rendered twice with two
 seeds after a warm-up; seconds per render, and the Monte Carlo variance at equal samples (the
@@ -54,7 +54,7 @@ def _render(out: Path, flags: list, seed: int) -> tuple[np.ndarray, float, dict]
 def _draw(exact: bool) -> None:
     """Choose the particles' draw: the exact PSF, or the geometric lens point plus Airy."""
     from pacam_render.render import aperture_camera as ac
-    from pacam_render.render.defocus_draw import ExactDefocus
+    from pacam_render.render.kernels.defocus_draw import ExactDefocus
 
     ac.ProgrammableApertureCamera._exact_defocus_on = (
         ExactDefocus._exact_defocus_on if exact else (lambda self: False)
@@ -99,7 +99,7 @@ def particles() -> None:
 def _rays(mode: str) -> None:
     """Choose the camera rays' diffraction: exact, airy (the draw before) or as shipped."""
     from pacam_render.render import aperture_camera as ac
-    from pacam_render.render.defocus_draw import ExactDefocus
+    from pacam_render.render.kernels.defocus_draw import ExactDefocus
 
     ac.ProgrammableApertureCamera._exact_ray_on = (
         (lambda self: False) if mode == "airy" else ExactDefocus._exact_ray_on
@@ -107,8 +107,8 @@ def _rays(mode: str) -> None:
 
 
 def _train(diffraction: str, seed: int) -> tuple[np.ndarray, float]:
-    from pacam_render.exposure.capture import render_capture
-    from pacam_render.exposure.capture_spec import CaptureSpec
+    from pacam_render.exposure.direct import render_capture
+    from pacam_render.exposure.spec import CaptureSpec
 
     spec = CaptureSpec.geometric(scene="train", mode="coded", width=1280, height=960,
                        crop=(384, 544, 256, 192), spp=512,

@@ -27,8 +27,8 @@ import warnings
 import numpy as np
 from common import record
 
-from pacam_render.exposure.capture import render_capture
-from pacam_render.exposure.capture_spec import CaptureSpec, parse_crop
+from pacam_render.exposure.direct import render_capture
+from pacam_render.exposure.spec import CaptureSpec, parse_crop
 from pacam_render.limits import PacamWarning
 
 LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
@@ -61,19 +61,19 @@ def measure(spp: int, crop, rounds: int) -> list[dict]:
                 cap = capture(spp, crop, grey, seed)
                 assert cap.record.variant == name, (cap.record.variant, name)
                 caps[name][seed] = cap  # the same seed renders the same image every round
-                times[name].append(cap.record.render_error["seconds"])
+                times[name].append(cap.record.render_error.seconds)
     rows = []
     for name, pair in caps.items():
         a, b = pair[0], pair[1]
         err = [c.record.render_error for c in (a, b)]
         seconds = min(times[name])  # the least disturbed by other work on the machine
-        stated = float(np.sqrt(np.mean([e["mc_sigma"] ** 2 for e in err])))
+        stated = float(np.sqrt(np.mean([e.mc_sigma**2 for e in err])))
         diff = grey_image(a.image) - grey_image(b.image)
         measured = float(np.sqrt(np.mean(diff**2) / 2.0))
         rows.append({
             "variant": name,
             "channels": "Y" if a.image.ndim == 2 else "RGB (Y for the grey sigma)",
-            "spp": err[0]["spp"],
+            "spp": err[0].spp,
             "seconds (min)": seconds,
             "seconds (median)": statistics.median(times[name]),
             "MC sigma (capture.json)": stated,

@@ -37,8 +37,8 @@ from pathlib import Path
 import numpy as np
 from common import record
 
-from pacam_render.exposure.capture import render_capture
-from pacam_render.exposure.capture_spec import CaptureSpec
+from pacam_render.exposure.direct import render_capture
+from pacam_render.exposure.spec import CaptureSpec
 from pacam_render.lightfield import StoreSpec, render_lightfield, synthesize
 from pacam_render.model.camera import preset
 from pacam_render.model.design_file import write_design

@@ -18,8 +18,8 @@ import mitsuba as mi
 import numpy as np
 from common import median_spread, record
 
-from pacam_render.exposure.capture_camera import capture_design, mode_camera
-from pacam_render.exposure.capture_spec import CaptureSpec
+from pacam_render.exposure.camera import capture_design, mode_camera
+from pacam_render.exposure.spec import CaptureSpec
 from pacam_render.render.backend import select_variant
 from pacam_render.render.passes import render_passes, split_spp
 from pacam_render.render.registry import sensor_entry

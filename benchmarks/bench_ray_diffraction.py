@@ -8,7 +8,7 @@ reference, the rays' method at many samples (issue 36, item 1):
 - ``rays``: each film position jittered by a draw from the Airy pattern
   (:mod:`pacam_render.render.ray_diffraction`): unbiased, with more Monte Carlo noise;
 - ``post-process``: the geometric capture convolved with the band kernel, channel by channel
-  (:mod:`pacam_render.exposure.capture_diffraction`): no added noise, a bias where the image
+  (:mod:`pacam_render.exposure.optics.diffraction`): no added noise, a bias where the image
   holds detail finer than the pixel grid.
 
 For each: the samples, the seconds, the RMS error to the reference over the window (white =
@@ -27,10 +27,11 @@ import warnings
 import numpy as np
 from common import record
 
-from pacam_render.exposure.capture import render_capture
-from pacam_render.exposure.capture_camera import capture_design, film_pixel_pitch_mm, mode_camera
-from pacam_render.exposure.capture_diffraction import diffract
-from pacam_render.exposure.capture_spec import CaptureSpec
+from pacam_render.exposure.camera import capture_design, mode_camera
+from pacam_render.exposure.direct import render_capture
+from pacam_render.exposure.optics.diffraction import diffract
+from pacam_render.exposure.plan import plan_capture
+from pacam_render.exposure.spec import CaptureSpec
 
 
 def capture(crop, spp: int, diffraction: str, seed: int, grey: bool = False):
@@ -65,7 +66,7 @@ def main() -> None:
             img, var = cap.image, cap.mc_sigma**2
             if method == "post-process":
                 t0 = time.perf_counter()
-                d = diffract(img, {}, var, cam, "coded", film_pixel_pitch_mm(s))
+                d = diffract(img, {}, var, cam, "coded", plan_capture(s).pitch_mm)
                 img, var, sec = d.image, d.variance, sec + time.perf_counter() - t0
             err2 = max(float(np.mean((img - ref.image) ** 2)) - ref_var, 0.0)
             rows.append(

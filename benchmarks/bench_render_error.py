@@ -50,9 +50,9 @@ from common import record
 from matplotlib.ticker import ScalarFormatter
 
 from pacam_render.exposure import integrate, progress
-from pacam_render.exposure.capture import render_capture
-from pacam_render.exposure.capture_camera import capture_design
-from pacam_render.exposure.capture_spec import CaptureSpec
+from pacam_render.exposure.camera import capture_design
+from pacam_render.exposure.direct import render_capture
+from pacam_render.exposure.spec import CaptureSpec
 from pacam_render.render.samplers import DEFAULT_SAMPLER, SAMPLERS
 from pacam_render.scenes import load_scene, psf_scene
 from pacam_render.sensor.apply import SensorTarget
@@ -76,7 +76,7 @@ def two_seeds(spec: CaptureSpec, desc=None) -> tuple[float, float, float, float,
     b = capture(CaptureSpec.geometric(**{**spec.__dict__, "seed": spec.seed + 1}), desc)
     cpu = 0.5 * (time.process_time() - cpu0)
     sigma = float(np.sqrt(np.mean((a.image - b.image) ** 2) / 2))
-    recorded = 0.5 * (a.record.render_error["mc_sigma"] + b.record.render_error["mc_sigma"])
+    recorded = 0.5 * (a.record.render_error.mc_sigma + b.record.render_error.mc_sigma)
     seconds = 0.5 * (a.record.render_seconds + b.record.render_seconds)
     return sigma, recorded, seconds, cpu, 0.5 * (a.image + b.image)
 
@@ -158,7 +158,7 @@ def time_step_rows(full: bool) -> list[dict]:
                 with midpoint_rule() if rule == "midpoint" else contextlib.nullcontext():
                     cap = make(step, spp, 0)
                 err2 = float(np.mean((cap.image - ref.image) ** 2)) - ref_var
-                sigma = cap.record.render_error["mc_sigma"]
+                sigma = cap.record.render_error.mc_sigma
                 uncounted = np.sqrt(max(err2 - sigma**2, 0.0))
                 t = cap.record.render_seconds
                 rows.append(
@@ -218,7 +218,7 @@ def shifted_rows() -> list[dict]:
                         "spp": spp,
                         "RMS error (2 seeds)": float(np.sqrt(max(np.mean(err2), 0.0))),
                         "recorded sigma (2 seeds)": float(
-                            np.sqrt(np.mean([c.record.render_error["mc_sigma"] ** 2 for c in caps]))
+                            np.sqrt(np.mean([c.record.render_error.mc_sigma**2 for c in caps]))
                         ),
                     }
                 )
@@ -307,7 +307,7 @@ def seconds_rows(ref_spp: int, spps: tuple[int, ...]) -> list[dict]:
                     "spp": cap.record.effective_spp,
                     "seconds": cap.record.render_seconds,
                     "CPU seconds": cpu,
-                    "recorded sigma": cap.record.render_error["mc_sigma"],
+                    "recorded sigma": cap.record.render_error.mc_sigma,
                     "error vs reference": err,
                 }
             )
@@ -408,17 +408,17 @@ def planner_rows() -> list[dict]:
             with one_size_planner() if planner == "one size" else contextlib.nullcontext():
                 cap = render_capture(spec, progress=False, truth=False, target=target)
             err = cap.record.render_error
-            sizes = dict.fromkeys(err["pass_spp"])
+            sizes = dict.fromkeys(err.pass_spp)
             rows.append(
                 {
                     "mode": mode,
                     "planner": planner,
-                    "target": err["target_sigma"],
-                    "mc_sigma": err["mc_sigma"],
-                    "met": err["target_met"],
-                    "passes": err["passes"],
-                    "pass sizes (spp)": " ".join(f"{s}x{err['pass_spp'].count(s)}" for s in sizes),
-                    "spp": err["spp"],
+                    "target": err.target_sigma,
+                    "mc_sigma": err.mc_sigma,
+                    "met": err.target_met,
+                    "passes": err.passes,
+                    "pass sizes (spp)": " ".join(f"{s}x{err.pass_spp.count(s)}" for s in sizes),
+                    "spp": err.spp,
                     "seconds": cap.record.render_seconds,
                     "CPU seconds": time.process_time() - cpu0,
                 }

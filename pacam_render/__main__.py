@@ -17,6 +17,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     caught: list[int] = []
     old = signal.signal(signal.SIGINT, lambda signum, frame: caught.append(signum))
     try:
+        # inside: the libraries load with SIGINT deferred (module docstring)
         from . import scenes  # noqa: F401  (trimesh, imported by the commands that render)
         from .cli import main as cli_main
     finally:

@@ -19,6 +19,7 @@ import re
 import sys
 import tempfile
 import warnings
+from dataclasses import replace
 
 import numpy as np
 
@@ -35,7 +36,7 @@ def scrub(x):
 
 
 def cases(folder: str) -> dict:
-    from pacam_render.exposure.capture_spec import CaptureSpec
+    from pacam_render.exposure import CaptureSpec
     from pacam_render.model.camera import prototype
     from pacam_render.model.design_file import write_design
 
@@ -71,13 +72,35 @@ def cases(folder: str) -> dict:
     }
 
 
+def synthesised(folder: str) -> dict:
+    """Captures synthesised from one light-field store (issue 55: the second producer)."""
+    from pacam_render.exposure import CaptureSpec
+    from pacam_render.lightfield import StoreSpec, render_lightfield, synthesize
+
+    base = CaptureSpec.geometric(scene="train", width=1280, height=960, crop=(456, 410, 48, 32),
+                                 spp=16, passes=4, seed=1)  # fmt: skip
+    designs = (base, replace(base, mode="normal"))
+    store = render_lightfield(StoreSpec(base, designs=designs), os.path.join(folder, "lf"),
+                              progress=False)  # fmt: skip
+    specs = {
+        "syn_coded": base,
+        "syn_normal_cos4": replace(base, mode="normal", relative_illumination="cos4"),
+        "syn_cover": replace(base, cover_px_per_ms=1.4),
+    }
+    return {name: (lambda s=s: synthesize(store, s, progress=False)) for name, s in specs.items()}
+
+
 def main(out: str) -> None:
-    from pacam_render.exposure.capture import render_capture
+    from pacam_render.exposure import render_capture
 
     warnings.simplefilter("ignore")
     res = {}
-    for name, spec in cases(tempfile.mkdtemp()).items():
-        cap = render_capture(spec, progress=False)
+    folder = tempfile.mkdtemp()
+    makers = {n: (lambda s=s: render_capture(s, progress=False)) for n, s in cases(folder).items()}
+    if "--synthesis" in sys.argv:  # the light-field producer's captures too
+        makers.update(synthesised(folder))
+    for name, make in makers.items():
+        cap = make()
         h = hashlib.sha256(np.ascontiguousarray(cap.image).tobytes())
         for k in sorted(cap.extra_layers):
             h.update(k.encode() + np.ascontiguousarray(cap.extra_layers[k]).tobytes())
@@ -88,6 +111,7 @@ def main(out: str) -> None:
         record = scrub(json.loads(json.dumps(cap.record.to_json())))
         record["spec"].pop("design", None)  # a temporary path
         record["spec"].pop("schedule", None)
+        record.get("lightfield", {}).pop("store", None)
         res[name] = {"arrays": h.hexdigest(), "record": record}
         print(name, h.hexdigest()[:16], flush=True)
     with open(out, "w") as f:
@@ -95,4 +119,4 @@ def main(out: str) -> None:
 
 
 if __name__ == "__main__":
-    main(sys.argv[1])
+    main(sys.argv[1])  # --synthesis: add captures synthesised from a light-field store

@@ -19,8 +19,8 @@ import tempfile
 import warnings
 
 LAYERS = ("errors", "limits", "io", "model", "wave", "psf", "render", "scenes", "capture",
-          "sensor", "restore", "exposure", "psf_render", "lightfield", "optimize", "study", "experiments",
-          "cli")  # fmt: skip
+          "sensor", "restore", "exposure", "psf_render", "lightfield", "optimize", "study",
+          "experiments", "cli")  # fmt: skip
 TRACKED = ("CaptureSpec", "CapturePlan")
 """What a counted call takes; ``--with-designs`` adds the cameras resolved from it."""
 
@@ -31,8 +31,8 @@ def _floor(module: str) -> str:
 
 
 def main() -> None:
-    from pacam_render.exposure.capture import render_capture
-    from pacam_render.exposure.capture_spec import CaptureSpec
+    from pacam_render.exposure.direct import render_capture
+    from pacam_render.exposure.spec import CaptureSpec
     from pacam_render.model.camera import prototype
     from pacam_render.model.design_file import write_design
 

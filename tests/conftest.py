@@ -24,7 +24,7 @@ RENDER_FIXTURES = {"quick_dir", "renderer", "mi"}  # fixtures of tests that rend
 
 
 def pytest_configure(config):
-    # the suite's renders go in a history of their own, not the user's (exposure.cost)
+    # the suite's renders go in a history of their own, not the user's (exposure.render_time)
     if not os.environ.get("PACAM_RENDER_TIMES"):
         folder = tempfile.mkdtemp(prefix="pacam-test-times-")
         os.environ["PACAM_RENDER_TIMES"] = os.path.join(folder, "render_times.jsonl")

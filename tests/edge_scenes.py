@@ -7,8 +7,8 @@ import warnings
 
 import numpy as np
 
-from pacam_render.exposure.capture import render_capture
-from pacam_render.exposure.capture_spec import CaptureSpec
+from pacam_render.exposure.direct import render_capture
+from pacam_render.exposure.spec import CaptureSpec
 from pacam_render.scenes.description import SceneDescription
 
 BIG_MM = 400.0

@@ -14,8 +14,8 @@ import pytest
 import pacam_render
 from pacam_render.capture.record import CaptureRecord, SensorRecord
 from pacam_render.errors import ParameterError
-from pacam_render.exposure.capture_camera import mode_camera
-from pacam_render.exposure.capture_spec import CaptureSpec
+from pacam_render.exposure.camera import mode_camera
+from pacam_render.exposure.spec import CaptureSpec
 from pacam_render.model import paper
 from pacam_render.model.camera import prototype
 from pacam_render.model.modes import MODES, MODES_WITH_PSF, capture_camera, mode, t0_offset_px
@@ -89,10 +89,60 @@ def import_cycles(graph: dict[str, set[str]]) -> list[set[str]]:
 
 def test_the_import_graph_counts_function_level_imports():
     graph = import_graph()
-    assert "pacam_render.render.registry" in graph["pacam_render.exposure.capture"]  # module level
+    assert "pacam_render.render.registry" in graph["pacam_render.exposure.direct"]  # module level
     assert "pacam_render.render.backend" in graph["pacam_render.scenes.motion"]  # in _mi()
     assert "pacam_render.render.__init__" not in graph  # package files are left out
     assert import_cycles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == [{"a", "b", "c"}]
+
+
+def inner_imports() -> list[tuple[str, int, bool]]:
+    """(module, line, says why) of every import of the package's own modules inside a function
+    body; it says why when a comment stands on its line or the line above."""
+    out = []
+    for name, path in _modules().items():
+        lines = path.read_text().split("\n")
+        tree = ast.parse("\n".join(lines))
+        for fn in ast.walk(tree):
+            if not isinstance(fn, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                continue
+            for node in ast.walk(fn):
+                own = isinstance(node, ast.ImportFrom) and (
+                    node.level or (node.module or "").startswith("pacam_render")
+                ) or isinstance(node, ast.Import) and any(
+                    a.name.startswith("pacam_render") for a in node.names
+                )  # fmt: skip
+                if own:
+                    here = lines[node.lineno - 1] + lines[node.lineno - 2]
+                    out.append((name, node.lineno, "#" in here))
+    return out
+
+
+def test_the_package_imports_its_own_modules_at_the_top():
+    """Imports of the package's own modules sit at the top of each module (issue 55 item 5); one
+    inside a function says why (a cycle, a measured import cost) in a comment beside it."""
+    silent = [f"{m}:{line}" for m, line, why in inner_imports() if not why]
+    assert not silent, f"inner imports that do not say why: {silent}"
+    assert len({(m, line) for m, line, _ in inner_imports()}) == len(inner_imports())
+
+
+def test_the_inner_import_check_finds_one(tmp_path, monkeypatch):
+    """The check above sees a silent inner import (it can fail)."""
+    (tmp_path / "pacam_render").mkdir()
+    (tmp_path / "pacam_render" / "m.py").write_text("def f():\n    from . import x\n")
+    monkeypatch.setattr(sys.modules[__name__], "PACKAGE", tmp_path / "pacam_render")
+    assert inner_imports() == [("pacam_render.m", 2, False)]
+
+
+MAX_MODULES = 16
+"""The most modules (``__init__`` included) one folder of the package may hold (issue 55)."""
+
+
+def test_no_folder_holds_more_than_16_modules():
+    """Modules are grouped by what they make: a folder past 16 is split (render/kernels/ and
+    exposure/optics/ were)."""
+    folders = {p.parent for p in PACKAGE.rglob("*.py")}
+    sizes = {str(f.relative_to(PACKAGE.parent)): len(list(f.glob("*.py"))) for f in folders}
+    assert max(sizes.values()) <= MAX_MODULES, {f: n for f, n in sizes.items() if n > MAX_MODULES}
 
 
 def test_no_import_cycles_between_files():

@@ -8,8 +8,8 @@ from pacam_render.errors import ParameterError
 
 
 def test_write_capture_takes_a_str_folder_and_refuses_by_default(tmp_path):
-    from pacam_render.exposure.capture import render_capture, write_capture
-    from pacam_render.exposure.capture_spec import CaptureSpec
+    from pacam_render.exposure.direct import render_capture, write_capture
+    from pacam_render.exposure.spec import CaptureSpec
 
     spec = CaptureSpec.geometric(scene="train", width=32, height=24, mode="reference", spp=4)
     cap = render_capture(spec, progress=False, truth=False)

@@ -58,8 +58,8 @@ def test_a_colour_mask_png_is_read_as_luminance(tmp_path):
 
 
 def test_a_capture_record_nested_too_deep_is_one_line(tmp_path, capsys):
-    from pacam_render.exposure.capture import render_capture, write_capture
-    from pacam_render.exposure.capture_spec import CaptureSpec
+    from pacam_render.exposure.direct import render_capture, write_capture
+    from pacam_render.exposure.spec import CaptureSpec
 
     folder = tmp_path / "cap"
     spec = CaptureSpec.geometric(scene="train", width=32, height=24, mode="reference", spp=4)
@@ -93,8 +93,8 @@ def test_a_forced_kernel_without_render_takes_the_old_rendered_kernel_away(tmp_p
 
 
 def _capture_folder(tmp_path):
-    from pacam_render.exposure.capture import render_capture, write_capture
-    from pacam_render.exposure.capture_spec import CaptureSpec
+    from pacam_render.exposure.direct import render_capture, write_capture
+    from pacam_render.exposure.spec import CaptureSpec
 
     folder = tmp_path / "cap"
     spec = CaptureSpec.geometric(scene="train", width=32, height=24, mode="coded", spp=4)

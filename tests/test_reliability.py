@@ -16,9 +16,9 @@ import pytest
 
 from pacam_render.cli import main
 from pacam_render.errors import ParameterError
-from pacam_render.exposure.capture import CaptureInterrupted, check_budget, render_capture
-from pacam_render.exposure.capture_spec import CaptureSpec
 from pacam_render.exposure.checkpoint import Checkpoint
+from pacam_render.exposure.direct import CaptureInterrupted, check_budget, render_capture
+from pacam_render.exposure.spec import CaptureSpec
 from pacam_render.exposure.steps import plan_steps
 from pacam_render.io.exr import read_layer, write_exr
 from pacam_render.limits import PacamWarning
@@ -26,6 +26,7 @@ from pacam_render.model.camera import CameraDesign, prototype
 from pacam_render.model.report import design_report
 from pacam_render.render.passes import MAX_PASS_SPP, split_spp
 from pacam_render.restore.deconvolve import METHODS, deconvolve
+from tests.patching import patch_everywhere
 
 SCENE_XML = """<scene version='3.0.0'>
     <shape type='rectangle' id='wall'>
@@ -231,13 +232,13 @@ def test_sigterm_and_sigint_save_the_finished_steps_and_resume(tmp_path):
 @pytest.mark.parametrize("where", ["proc", "under_a_file"])
 def test_bad_output_paths_are_refused_before_any_work(argv, where, tmp_path, capsys, monkeypatch):
     import pacam_render.experiments.reproduce as reproduce
-    import pacam_render.exposure.capture as capture
+    import pacam_render.exposure.direct as capture
 
     def no_work(*a, **k):
         raise AssertionError("work started before the output path was checked")
 
-    monkeypatch.setattr(capture, "render_capture", no_work)
-    monkeypatch.setattr(reproduce, "run", no_work)
+    patch_everywhere(monkeypatch, capture, "render_capture", no_work)
+    patch_everywhere(monkeypatch, reproduce, "run", no_work)
     (tmp_path / "file").write_text("x")
     bad = "/proc/pacam_x" if where == "proc" else str(tmp_path / "file" / "sub")
     assert main([*argv, "--out", bad]) == 2

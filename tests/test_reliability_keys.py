@@ -9,10 +9,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pacam_render.exposure.capture import CaptureInterrupted, render_capture
-from pacam_render.exposure.capture_spec import CaptureSpec
+from pacam_render.exposure.direct import CaptureInterrupted, render_capture
+from pacam_render.exposure.spec import CaptureSpec
 from pacam_render.limits import PacamWarning
 from pacam_render.study.spec import parse_study
+from tests.patching import patch_everywhere
 
 WALL = """<scene version='3.0.0'>
     <shape type='rectangle' id='wall'>
@@ -121,14 +122,14 @@ def test_a_full_disk_at_the_exr_write_keeps_the_render(tmp_path, capsys, monkeyp
             raise OSError(errno.ENOSPC, "No space left on device", str(path))
         return real(path, *args, **kwargs)
 
-    monkeypatch.setattr(exr, "write_exr", full_disk)
+    patch_everywhere(monkeypatch, exr, "write_exr", full_disk)
     assert main(argv) == 1
     err = capsys.readouterr().err
     assert "No space left on device" in err and "Traceback" not in err
     assert f"kept in {out / '.partial'}" in err and "written to" in err
     rescue = Path(err.split("written to ")[1].split(":")[0])
     assert (rescue / "capture.exr").is_file()
-    monkeypatch.setattr(exr, "write_exr", real)
+    patch_everywhere(monkeypatch, exr, "write_exr", real)
     assert main(argv) == 0  # resumes from the kept passes: nothing is rendered again
     meta = json.loads((out / "capture.json").read_text())
     assert meta["resumed_from_step"] == meta["n_steps"] * meta["render_error"]["passes"]

@@ -19,16 +19,17 @@ from pacam_render.errors import ParameterError
 from pacam_render.limits import PacamWarning
 from pacam_render.sensor.model import SensorModel
 from pacam_render.study import engine
+from tests.patching import patch_everywhere
 
 
 def _no_render(monkeypatch):
     """Make any capture render fail loudly: the refusals below must come before one."""
-    import pacam_render.exposure.capture as capture
+    import pacam_render.exposure.direct as capture
 
     def refuse(*args, **kwargs):
         raise AssertionError("rendered before refusing")
 
-    monkeypatch.setattr(capture, "render_capture", refuse)
+    patch_everywhere(monkeypatch, capture, "render_capture", refuse)
 
 
 def _refuse(why: str):
@@ -223,8 +224,8 @@ def _schedule(path):
     ],
 )
 def test_a_schedule_the_mode_does_not_show_is_noted_and_recorded_unused(mode, match, tmp_path):
-    from pacam_render.exposure.capture import render_capture
-    from pacam_render.exposure.capture_spec import CaptureSpec
+    from pacam_render.exposure.direct import render_capture
+    from pacam_render.exposure.spec import CaptureSpec
 
     spec = CaptureSpec.geometric(
         mode=mode, width=32, height=24, spp=4, schedule=_schedule(tmp_path / "s")
@@ -262,8 +263,8 @@ def test_flags_are_refused_before_any_work(argv, match, tmp_path, capsys, monkey
     import pacam_render.experiments.validate_scene as vs
 
     _no_render(monkeypatch)
-    monkeypatch.setattr(demo, "run_demo", _refuse("the demo ran before refusing"))
-    monkeypatch.setattr(vs, "run", _refuse("validate-scene ran before refusing"))
+    patch_everywhere(monkeypatch, demo, "run_demo", _refuse("the demo ran before refusing"))
+    patch_everywhere(monkeypatch, vs, "run", _refuse("validate-scene ran before refusing"))
     out = tmp_path / "out"
     assert main([*argv, "--out", str(out)]) == 2
     err = capsys.readouterr().err
@@ -277,7 +278,7 @@ def test_an_empty_out_is_refused(argv, tmp_path, capsys, monkeypatch):
 
     monkeypatch.chdir(tmp_path)  # the old code wrote here
     _no_render(monkeypatch)
-    monkeypatch.setattr(validate_psf, "run", _refuse("validate-psf ran before refusing"))
+    patch_everywhere(monkeypatch, validate_psf, "run", _refuse("validate-psf ran before refusing"))
     assert main([*argv, "--out", ""]) == 2
     assert "--out must name a folder or file, got ''" in capsys.readouterr().err
     assert not any(tmp_path.iterdir())
@@ -408,7 +409,7 @@ def test_study_errors_name_the_toml_key_not_the_flag(render, match, tmp_path, ca
 
 
 def test_render_force_discards_a_stale_checkpoint(tmp_path, capsys, monkeypatch):
-    import pacam_render.exposure.capture as capture
+    import pacam_render.exposure.direct as capture
 
     out = tmp_path / "out"
     stale = out / ".partial"
@@ -420,7 +421,7 @@ def test_render_force_discards_a_stale_checkpoint(tmp_path, capsys, monkeypatch)
         seen.append(Path(partial_dir).exists())
         raise ParameterError("stop here")
 
-    monkeypatch.setattr(capture, "render_capture", render_capture)
+    patch_everywhere(monkeypatch, capture, "render_capture", render_capture)
     argv = ["render", "train", "--width", "16", "--height", "12", "--spp", "1", "--force"]
     assert main([*argv, "--out", str(out)]) == 2
     assert seen == [False]
@@ -434,7 +435,7 @@ def test_an_interrupted_optimize_leaves_no_empty_folder(tmp_path, capsys, monkey
     def interrupted(*args, **kwargs):
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(run, "run_optimize", interrupted)
+    patch_everywhere(monkeypatch, run, "run_optimize", interrupted)
     out = tmp_path / "out"
     assert main(["optimize", "--max-velocity", "1", "--quick", "--out", str(out)]) == 130
     assert capsys.readouterr().err.strip() == "pacam optimize: interrupted"

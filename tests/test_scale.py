@@ -10,8 +10,8 @@ import pytest
 
 from pacam_render.cli import main
 from pacam_render.errors import ParameterError
-from pacam_render.exposure.capture import render_capture
-from pacam_render.exposure.capture_spec import CaptureSpec
+from pacam_render.exposure.direct import render_capture
+from pacam_render.exposure.spec import CaptureSpec
 from pacam_render.io.exr import read_layer
 
 

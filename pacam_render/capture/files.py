@@ -9,8 +9,11 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ..errors import ParameterError
+from ..errors import ParameterError, check_positive
 from ..io.arrays import read_json
+from ..io.exr import read_exr
+from ..limits import PacamWarning
+from ..model.illumination import flat_field
 from .record import CAPTURE_UNIT, WHITE_UNIT, CaptureRecord, image_size, layer_unit
 
 
@@ -54,8 +57,6 @@ def read_capture_layers(path: str | os.PathLike) -> tuple[dict[str, np.ndarray],
         If a file is missing or unreadable.
     """
 
-    from ..io.exr import read_exr
-
     exr = Path(path)
     exr = exr / "capture.exr" if exr.is_dir() else exr
     sidecar = exr.with_suffix(".json")
@@ -91,8 +92,6 @@ def read_record(capture: str | os.PathLike, required: bool = True) -> CaptureRec
         If the sidecar is not valid JSON, or (``required``) not a complete record.
     """
     import warnings
-
-    from ..limits import PacamWarning
 
     path = Path(capture).with_suffix(".json")
     if not path.is_file():
@@ -135,11 +134,9 @@ def read_capture(path: str | os.PathLike) -> CaptureFile:
     ParameterError
         If a file is missing or unreadable, or ``light_factor`` is not > 0.
     """
-    from ..errors import check_positive
 
     stored, record = read_capture_layers(path)
     lf = check_positive("light_factor in the capture's JSON", record.light_factor)
-    from ..model.illumination import flat_field
 
     ri_map = stored.get("relative_illumination")
     layers, units = {}, {}

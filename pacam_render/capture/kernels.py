@@ -3,6 +3,11 @@ the pinhole image, with the capture's diffraction where it includes it."""
 
 from __future__ import annotations
 
+from ..model.camera import CameraDesign
+from ..psf.analytic import design_psf
+from ..psf.diffraction import DECONVOLUTION_MAX_LOST
+from ..psf.exact_defocus import ray_kernel
+from ..psf.robust import speed_robust_psf
 from .record import CaptureRecord
 
 
@@ -33,8 +38,6 @@ def _diffracted(k, record: CaptureRecord, cam, s, size, build, psf: str | None =
     d = capture_diffraction(record)
     if d is None or record.mode == "reference":
         return k
-    from ..psf.diffraction import DECONVOLUTION_MAX_LOST
-    from ..psf.exact_defocus import ray_kernel
 
     wl, pitch = d["wavelength_nm"], d["pixel_pitch_mm"]
     lost = DECONVOLUTION_MAX_LOST if size is None else None
@@ -47,8 +50,6 @@ def analytic_psf(record: CaptureRecord, s: float = 0.0, size=None):
     image as the ``reference`` capture and the scene are (``origin="pinhole"``); with the
     LCoS's leak, when the capture has a finite contrast (:func:`leaky_psf`), and the capture's
     diffraction, when it includes it (:func:`capture_diffraction`)."""
-    from ..model.camera import CameraDesign
-    from ..psf.analytic import design_psf
 
     cam = CameraDesign.from_inputs(record.camera)
     contrast = (record.sensor_params or {}).get("lcos_contrast")
@@ -69,7 +70,6 @@ def leaky_psf(cam, mode: str, s: float, size, contrast: float | None):
     lens and K_full the whole lens's kernel over the same exposure, focus and motion (the rays'
     transmittance: 1 in the opening, 1/C on the rest of the lens). A disc schedule only; the
     leak's own diffraction is taken as the opening's (its light is 1/C)."""
-    from ..psf.analytic import design_psf
 
     k = design_psf(cam, mode, s, size, origin="pinhole")
     if contrast is None or cam.pattern_masks is not None or cam.R_mm >= cam.R_max_mm:
@@ -96,8 +96,6 @@ def robust_psf(record: CaptureRecord, size=None):
     (the speed average of the exact defocused kernels is not built: for a capture whose rays
     drew the exact PSF this kernel is that model's, L1 0.25 from it at r = 2 px).
     """
-    from ..model.camera import CameraDesign
-    from ..psf.robust import speed_robust_psf
 
     cam = CameraDesign.from_inputs(record.camera)
     k = speed_robust_psf(cam, record.mode, size=size, origin="pinhole")

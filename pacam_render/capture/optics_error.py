@@ -13,11 +13,11 @@ rays through an ideal aperture leave out, or include only approximately, gets an
                   (``reference_noise`` names the sensor; ``pacam render --sensor`` replaces it
                   with the capture's own).
 
-The effects: ``diffraction`` (:mod:`.capture_diffraction`), ``relative_illumination``
-(:mod:`pacam_render.model.illumination`), the LCoS's ``lcos_leakage`` (finite contrast),
-``lcos_grid`` (the pixel grid's diffraction orders) and ``lcos_switching`` (the time between
-patterns), and ``bounces`` past the integrator's ``max_depth``. The LCoS is ideal by default
-(infinite contrast, fill factor 1, instant switching: no datasheet value is known for the
+The effects: ``diffraction`` (:mod:`pacam_render.exposure.optics.diffraction`),
+``relative_illumination`` (:mod:`pacam_render.model.illumination`), the LCoS's ``lcos_leakage``
+(finite contrast), ``lcos_grid`` (the pixel grid's diffraction orders) and ``lcos_switching`` (the
+time between patterns), and ``bounces`` past the integrator's ``max_depth``. The LCoS is ideal by
+default (infinite contrast, fill factor 1, instant switching: no datasheet value is known for the
 prototype's display); a finite ``lcos_contrast`` puts the leakage in the rays. An ideal
 effect's entry states its sensitivity instead: the contrast, fill factor and switching time
 at which it would equal the sensor's noise, from closed forms on this capture's image:
@@ -33,6 +33,8 @@ at which it would equal the sensor's noise, from closed forms on this capture's 
 from __future__ import annotations
 
 import numpy as np
+
+from ..render.ray_diffraction import MAX_ORDER, grid_orders
 
 EFFECTS = (
     "diffraction",
@@ -128,8 +130,6 @@ def grid_entry(image, fill_factor: float | None = None) -> dict:
     """In the rays at a ``fill_factor`` < 1; else ideal (fill factor 1), with the ghosts' size
     per (1 - fill factor)."""
     if fill_factor is not None:
-        from ..render.ray_diffraction import MAX_ORDER, grid_orders
-
         _, lost = grid_orders(fill_factor)
         return entry(
             True,

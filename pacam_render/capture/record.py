@@ -21,6 +21,8 @@ from typing import Any
 from ..errors import ParameterError
 from ..limits import note
 from ..model import paper
+from ..model.camera import CameraDesign
+from .render_error import RenderError
 
 PIXEL_UNIT = "radiance x (open area / full aperture) x (exposure / 45 ms)"
 
@@ -124,16 +126,13 @@ class CaptureRecord:
     ``range_px_per_ms`` at its depth where the mode has one, ``off_depth`` and ``too_fast``."""
     units: dict | None = None
     """Each layer of ``capture.exr`` to its unit (:data:`LAYER_UNITS`), written with the file."""
-    render_error: dict | None = None
-    """The render's own error and its cost (:mod:`~pacam_render.exposure.estimate`):
-    ``mc_sigma`` (RMS over the window, the capture's units), ``mc_sigma_white_units``,
-    ``mc_sigma_by_object``, ``sharp_mc_sigma`` (white = 1), ``passes``, ``pass_spp``, ``spp``,
-    ``sampler``, ``seconds``, the time steps' ``time_step_bias`` and ``time_sampling``, and,
-    for a capture rendered to a target, ``target_sigma`` and ``target_met``; the sensor adds
-    ``ratio_to_sensor``."""
+    render_error: RenderError | None = None
+    """The render's own error and its cost (:class:`~.render_error.RenderError`): ``mc_sigma``
+    (RMS over the window, the capture's units), its cost and its time sampling; the sensor
+    adds ``ratio_to_sensor``."""
     relative_illumination: dict | None = None
     """The sensor's relative illumination when not ``off``
-    (:func:`~pacam_render.exposure.capture_camera.illumination_record`): ``setting``, ``law``,
+    (:func:`~pacam_render.exposure.camera.illumination_record`): ``setting``, ``law``,
     the map's ``min`` and ``max``, its ``layer`` and how readers ``flat_field``."""
     optics_error: dict | None = None
     """The physics error budget (:mod:`~pacam_render.capture.optics_error`): ``diffraction``
@@ -157,6 +156,8 @@ class CaptureRecord:
         out). :meth:`from_json` reads it over ``optics``, as it reads older files' full block.
         """
         out = {k: v for k, v in asdict(self).items() if k not in ("extra", "sensor")}
+        if self.render_error is not None:
+            out["render_error"] = self.render_error.to_json()
         if compact:
             same = self.optics
             differs = {k: v for k, v in self.coded_design.items() if k not in same or same[k] != v}
@@ -204,6 +205,10 @@ class CaptureRecord:
         kw.setdefault("reference_exposure_ms", paper.EXPOSURE_MS)
         kw.setdefault("render_seconds", 0.0)
         kw.setdefault("variant", "unknown")
+        if isinstance(kw.get("render_error"), dict):
+            kw["render_error"] = RenderError.from_json(kw["render_error"], f"{where}: render_error")
+        elif kw.get("render_error") is not None:
+            raise ParameterError(f"{where}: render_error must be an object")
         block = d.get("sensor")
         sensor = SensorRecord.from_json(block) if isinstance(block, dict) else None
         old = block.get("noise_sigma_white_units") if isinstance(block, dict) else None
@@ -237,7 +242,6 @@ class CaptureRecord:
 def _check_camera(inputs: dict, where: str) -> None:
     """Refuse camera parameters no design can be built from (a hand-edited record): one line
     naming the record, where a reader would have raised a ValueError or TypeError deep in."""
-    from ..model.camera import CameraDesign
 
     try:
         CameraDesign.from_inputs(inputs)
@@ -251,7 +255,6 @@ def _check_digest(d: dict, where: str) -> None:
     """Refuse a record whose camera no longer has the digest its ``optics`` recorded (a
     hand-edited ``camera``, whose kernels would silently be another camera's); records written
     before the digest pass."""
-    from ..model.camera import CameraDesign
 
     optics = d.get("optics")
     recorded = optics.get("design_digest") if isinstance(optics, dict) else None

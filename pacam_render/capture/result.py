@@ -1,5 +1,5 @@
 """A finished capture in memory: its image, its layers and its record, as every producer of
-captures returns it (:func:`pacam_render.exposure.capture.render_capture`) and every stage after
+captures returns it (:func:`pacam_render.exposure.direct.render_capture`) and every stage after
 the render takes it (the sensor, the writer)."""
 
 from __future__ import annotations

@@ -6,12 +6,15 @@ import shutil
 import tempfile
 from pathlib import Path
 
+from ..capture.optics_error import summary_line
+from ..exposure.direct import write_capture
+from .common import user_words
+
 
 def write_or_rescue(cap, out: Path, force: bool, error_layer: bool = False) -> list[Path]:
     """Write the capture; only then drop its rendered passes (``DIR/.partial``). A failed
     write (a full disk) keeps them, tries the files in a temporary folder too, and says where
     both are: the same command resumes from the passes without rendering again."""
-    from ..exposure.capture import write_capture
 
     try:
         paths = write_capture(cap, out, force=force, error_layer=error_layer)
@@ -80,8 +83,6 @@ def optics_lines(block: dict | None) -> list[str]:
     (:mod:`~pacam_render.capture.optics_error`); none for an older capture."""
     if not block:
         return []
-    from ..capture.optics_error import summary_line
-    from .common import user_words
 
     info = block["diffraction"]
     line = summary_line(block)

@@ -20,6 +20,7 @@ from pathlib import Path
 from ..errors import ParameterError
 from ..io.outputs import writable_dir
 from ..limits import DEFAULT_MAX_SAMPLES, DEFAULT_MAX_STEPS, PacamWarning
+from ..render.variant import choose_variant
 
 FLAGS = {
     "max_step_px": "--max-step-px",
@@ -249,8 +250,6 @@ def check_common(args: argparse.Namespace) -> None:
         and getattr(args, "scheduler", None) is None
     ):  # a sweep renders in local workers: refuse a variant that cannot render here once,
         # before they start, not once per point (a --scheduler's machines may differ)
-        from ..render.variant import choose_variant
-
         choose_variant()
 
 

@@ -12,8 +12,9 @@ from pathlib import Path
 import numpy as np
 
 from ..capture.files import check_layers_fit, read_record
+from ..capture.record import layer_unit
 from ..errors import ParameterError
-from ..exposure.capture_psf import CapturePSF, load_capture_psf, psf_path
+from ..exposure.deblur_psf import CapturePSF, load_capture_psf, psf_path
 from ..io.exr import pick_layer, read_exr, read_layer_shapes, write_exr
 from ..io.outputs import check_writable, prepare_out_dir, write_json
 from ..io.preview import srgb8, write_png
@@ -21,7 +22,6 @@ from ..limits import PacamWarning, gib, note
 from ..psf.origin import to_pinhole
 from ..restore.capture_deblur import deblur_input
 from ..restore.capture_noise import check_noise_sigma, deblur_layer, sparse_options
-from ..restore.cost import check_deconvolve
 from ..restore.deconvolve import (
     BM3D_LICENCE,
     METHODS,
@@ -29,6 +29,9 @@ from ..restore.deconvolve import (
     nonnegative_for,
     require_method,
 )
+from ..restore.deconvolve_cost import check_deconvolve
+from ..restore.model_error import capture_model_sigma
+from ..restore.object_score import score_capture
 from .common import add_force, add_out
 
 _FILE_SUFFIXES = {".txt", ".json", ".npy", ".tif", ".tiff", ".jpg", ".jpeg", ".hdr", ".pfm"}
@@ -173,7 +176,6 @@ def _model_sigma(args: argparse.Namespace) -> float | None:
         return check_model_sigma(args.model_sigma)
     if args.model_sigma_from is None:
         return None
-    from ..restore.model_error import capture_model_sigma
 
     cal = Path(args.model_sigma_from)
     cal = cal / "capture.exr" if cal.is_dir() else cal
@@ -217,9 +219,10 @@ def _cost_before_reading(args: argparse.Namespace, capture: Path, psf_file, shap
 
 
 def _check_cost(shapes: dict, layer: str, psf_shape, method: str, kw: dict):
-    """The deconvolution's estimated memory and seconds (:mod:`~..restore.cost`), from the
-    EXR's header, before its pixels are read: refused when the memory is not available
-    (every layer is read, as float32, besides the method's arrays), noted when long."""
+    """The deconvolution's estimated memory and seconds
+    (:mod:`~pacam_render.restore.deconvolve_cost`), from the EXR's header, before its pixels are
+    read: refused when the memory is not available (every layer is read, as float32, besides the
+    method's arrays), noted when long."""
     shape = shapes[layer]
     channels = shape[2] if len(shape) == 3 else 1
     read = 4.0 * sum(float(np.prod(s)) for s in shapes.values())
@@ -264,7 +267,6 @@ def _deconvolve_score(est, layers: dict, layer: str, record) -> dict:
     """PSNR and SSIM against ``sharp`` as a study scores
     (:func:`~pacam_render.restore.object_score.score_capture`), on the white scale; empty
     without the truth layers (``--no-truth``) or for a layer that is not the image."""
-    from ..restore.object_score import score_capture
 
     truth = {"sharp", "object_id", "velocity"}
     if record is None or layer not in ("capture", "noisy") or not truth <= set(layers):
@@ -321,7 +323,6 @@ def _write_deconvolved_file(out: Path, est, force: bool) -> None:
 
 def _write_deconvolved(out: Path, est, record, info: dict, noise: dict) -> None:
     """deconvolved.exr (the layer's units), .png (exposed like capture.png) and .json."""
-    from ..capture.record import layer_unit
 
     lf = None if record is None else record.light_factor
     exposure = 1.0 / lf if lf else None

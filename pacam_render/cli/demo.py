@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import argparse
 
+from ..experiments.demo import DEMO_SPP, check_size, run_demo
+from ..io.lock import output_lock
 from ..io.outputs import prepare_out_dir
 from ..model.camera import prototype
 from ..model.report import design_report
@@ -11,7 +13,6 @@ from .common import add_force, add_out
 
 
 def add(sub) -> None:
-    from ..experiments.demo import DEMO_SPP
 
     p = sub.add_parser("demo", help="the main job on built-in defaults")
     add_out(p, default="demo_out", help="default demo_out/")
@@ -28,8 +29,6 @@ def add(sub) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..experiments.demo import check_size, run_demo
-    from ..io.lock import output_lock
 
     check_size(args.width, args.height, args.spp)
     out = prepare_out_dir(args.out, args.force)

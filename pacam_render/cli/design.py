@@ -9,7 +9,10 @@ import json
 from ..errors import ParameterError, check_positive
 from ..model.camera import CameraDesign, preset
 from ..model.design import solve
+from ..model.design_file import resolve_design, write_design
+from ..model.masks import read_mask_stack
 from ..model.report import design_report
+from ..model.schedule_file import apply_schedule, read_schedule
 from .common import add_force, add_preset
 
 
@@ -60,8 +63,6 @@ def add(sub) -> None:
 def run(args: argparse.Namespace) -> int:
     d = _design_from_args(args)
     if args.write is not None:
-        from ..model.design_file import write_design
-
         written = write_design(args.write, d, args.force)
         print(f"wrote {', '.join(map(str, written))} (design digest {d.digest()})")
     if args.json:
@@ -77,8 +78,6 @@ def _base(args: argparse.Namespace) -> CameraDesign:
         raise ParameterError("give --design or --preset, not both: each is the camera")
     depth = {} if args.depth is None else {"object_depth_mm": args.depth}
     if args.design is not None:
-        from ..model.design_file import resolve_design
-
         base = resolve_design(args.design, **depth)
     else:
         base = preset(args.preset, **depth)
@@ -97,12 +96,9 @@ def _schedule(args: argparse.Namespace, base: CameraDesign) -> CameraDesign:
     if args.schedule is not None and args.masks is not None:
         raise ParameterError("give --schedule or --masks, not both: each is the schedule")
     if args.schedule is not None:
-        from ..model.schedule_file import apply_schedule, read_schedule
-
         return apply_schedule(base, read_schedule(args.schedule), args.schedule)
     if args.masks is None:
         return base
-    from ..model.masks import read_mask_stack
 
     stack = read_mask_stack(args.masks, base.lcos_pitch_mm, args.masks, "`masks`")
     return base.with_(

@@ -7,6 +7,8 @@ import argparse
 from pathlib import Path
 
 from ..errors import ParameterError, check_positive
+from ..exposure.spec import CaptureSpec, parse_crop
+from ..lightfield import StoreSpec, render_lightfield
 from ..lightfield.proposal import DEFENSIVE
 from ..lightfield.target import PILOT_SPP
 from ..limits import gib
@@ -108,8 +110,6 @@ def _add_noise_target(p) -> None:
 
 
 def _spec(args: argparse.Namespace):
-    from ..exposure.capture_spec import CaptureSpec, parse_crop
-    from ..lightfield import StoreSpec
 
     crop = parse_crop(args.crop) if args.crop else None
     base = dict(
@@ -133,7 +133,6 @@ def _spec(args: argparse.Namespace):
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..lightfield import render_lightfield
 
     check_positive("--max-disk-gib", args.max_disk_gib, "GiB")
     if args.passes < 2:
@@ -151,8 +150,8 @@ def run(args: argparse.Namespace) -> int:
         target=target,
     )
     m = store.manifest
-    if "noise_target" in m:
-        plan = m["noise_target"]
+    if "noise_target" in m.raw:
+        plan = m.raw["noise_target"]
         worst = max(plan["designs"], key=lambda r: r["spp_needed"])
         name = worst["mode"] + (f" {worst['design']}" if worst["design"] else "")
         print(
@@ -160,15 +159,14 @@ def run(args: argparse.Namespace) -> int:
             f"{worst['pilot_sigma']:.3g} at {PILOT_SPP} spp, target {worst['target_sigma']:.3g})"
         )
     size = sum(f.stat().st_size for f in Path(args.out).glob("*.npz"))
-    steps = len(m["steps"][0])
-    cam = m["camera"]
+    steps, cam = len(m.steps[0]), m.camera
     print(
-        f"light-field store of {m['scene']}: window {cam['window']} (+{cam['margin_px']} px "
-        f"margin), {m['passes']} passes of {steps} step(s), {m['seconds']:.1f} s of tracing, "
+        f"light-field store of {m.scene}: window {list(cam.window)} (+{cam.margin_px} px "
+        f"margin), {m.passes} passes of {steps} step(s), {m.seconds:.1f} s of tracing, "
         f"{gib(size)} -> {args.out}"
     )
     print(
         f"digest {store.digest}; synthesise a design's capture with: pacam render "
-        f"{m['scene']} --from {args.out} ..."
+        f"{m.scene} --from {args.out} ..."
     )
     return 0

@@ -5,10 +5,23 @@ from __future__ import annotations
 import argparse
 
 from ..errors import ParameterError
+from ..io.lock import output_lock
 from ..io.outputs import prepare_out_dir
+from ..limits import PacamWarning
 from ..model.camera import preset
+from ..model.design_file import resolve_design
 from ..optimize.rendered import DEFAULT_METHOD
-from ..optimize.rendered_run import CHECK_SEEDS, NOISE_DRAWS, POSITIONS, SWEEPS
+from ..optimize.rendered_run import (
+    CHECK_SEEDS,
+    NOISE_DRAWS,
+    POSITIONS,
+    SWEEPS,
+    RenderedProblem,
+    open_stores,
+    run_rendered_optimize,
+)
+from ..optimize.run import run_optimize
+from ..optimize.search import DEFAULT_LIGHT_LEVEL, Problem, check_problem, reference_design
 from .common import add_outputs, add_preset, new_folder
 
 FOURIER_ONLY = ("depth_range", "n_patterns", "free_radius", "f_number", "r_px", "design",
@@ -118,9 +131,6 @@ def run(args: argparse.Namespace) -> int:
         return _run_lightfield(args)
     if args.max_velocity is None:
         raise ParameterError("--max-velocity is required (or search stores with --lightfield)")
-    from ..io.lock import output_lock
-    from ..optimize.run import run_optimize
-    from ..optimize.search import Problem, check_problem, reference_design
 
     problem = Problem(
         max_velocity_px_per_ms=args.max_velocity,
@@ -163,8 +173,6 @@ def _n_patterns(n: int | None, preset_name: str, design: str | None) -> int:
     if n is not None:
         return n
     if design is not None:
-        from ..model.design_file import resolve_design
-
         return resolve_design(design).n_patterns
     return preset(preset_name).n_patterns
 
@@ -172,8 +180,6 @@ def _n_patterns(n: int | None, preset_name: str, design: str | None) -> int:
 def _depth_range(text: str | None, preset_name: str, design: str | None) -> tuple[float, float]:
     if text is None:
         if design is not None:
-            from ..model.design_file import resolve_design
-
             d = resolve_design(design).object_depth_mm
         else:
             d = preset(preset_name).object_depth_mm
@@ -188,11 +194,6 @@ def _depth_range(text: str | None, preset_name: str, design: str | None) -> tupl
 def _run_lightfield(args: argparse.Namespace) -> int:
     """``--lightfield``: the schedule searched on rendered captures (:mod:`..optimize.rendered`)."""
     import warnings
-
-    from ..io.lock import output_lock
-    from ..limits import PacamWarning
-    from ..optimize.rendered_run import RenderedProblem, open_stores, run_rendered_optimize
-    from ..optimize.search import DEFAULT_LIGHT_LEVEL
 
     for name in FOURIER_ONLY:
         if getattr(args, name) not in (None, False):

@@ -9,15 +9,25 @@ from pathlib import Path
 import numpy as np
 
 from ..capture.files import read_record
+from ..capture.kernels import capture_diffraction
 from ..errors import ParameterError, check_finite, check_positive
+from ..exposure.camera import binned_pitch_mm, capture_design, full_design
+from ..exposure.spec import CaptureSpec, check_crop, parse_crop
 from ..io.exr import write_exr
 from ..io.outputs import prepare_out_dir, write_json
 from ..io.preview import write_psf_preview
 from ..limits import DEFAULT_MAX_SAMPLES, PacamWarning
-from ..model.camera import CameraDesign
-from ..model.modes import MODES_WITH_PSF
-from ..psf.analytic import design_psf
+from ..model.camera import CameraDesign, preset
+from ..model.design_file import resolve_design
+from ..model.modes import MODES_WITH_PSF, capture_camera
+from ..psf.analytic import MAX_LOST_FRACTION, PSFTruncationWarning, design_psf, least_lost_fraction
+from ..psf.diffraction import DECONVOLUTION_MAX_LOST
+from ..psf.exact_defocus import ray_kernel
 from ..psf.origin import origin_record
+from ..psf_render.render import check_request, render_psf
+from ..render.backend import select_variant
+from ..render.variant import grey_request
+from ..restore.metrics import rel_l1
 from .common import (
     add_design_flags,
     add_force,
@@ -105,7 +115,6 @@ def add(sub) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..render.variant import grey_request
 
     args.grey = grey_request(args.grey)  # refused with an RGB PACAM_VARIANT, before any work
     if args.origin is None:  # a kernel made for a capture is centred as deconvolve centres it
@@ -121,8 +130,6 @@ def run(args: argparse.Namespace) -> int:
         _odd_size(args.size)
     seed = 0 if args.seed is None else args.seed
     if args.render:  # check everything before computing or writing anything
-        from ..psf_render.render import check_request
-
         check_request(cam, args.spp, seed, args.film)
         check_positive("--max-samples", args.max_samples)
     elif args.spp is not None or args.seed is not None:
@@ -152,8 +159,6 @@ def run(args: argparse.Namespace) -> int:
     }
     written = "psf_analytic.exr, psf_analytic.png"
     if r is not None:
-        from ..restore.metrics import rel_l1
-
         write_exr(out / "psf_rendered.exr", {"psf": r.kernel}, force=args.force)
         title = f"rendered PSF, {what}"
         write_psf_preview(out / "psf_rendered.png", r.kernel, title, force=args.force)
@@ -180,9 +185,6 @@ def run(args: argparse.Namespace) -> int:
 def _diffracted(cam: CameraDesign, args: argparse.Namespace, k, diffraction: dict):
     """The analytic kernel ``k`` with ``diffraction`` as the rays draw it, the pixel's box
     counted once (:func:`~pacam_render.psf.exact_defocus.ray_kernel`)."""
-    from ..psf.analytic import design_psf
-    from ..psf.diffraction import DECONVOLUTION_MAX_LOST
-    from ..psf.exact_defocus import ray_kernel
 
     wl, pitch = diffraction["wavelength_nm"], diffraction["pixel_pitch_mm"]
 
@@ -197,16 +199,12 @@ def _diffraction(args: argparse.Namespace, cam: CameraDesign) -> dict | None:
     """The diffraction the kernel gets: --diffraction, or with --like the capture's
     (:func:`~pacam_render.capture.kernels.capture_diffraction`, at the capture's pixels);
     None for none."""
-    from ..capture.kernels import capture_diffraction
 
     own = capture_diffraction(read_record(Path(args.like))) if args.like is not None else None
     if args.diffraction == "off" or (args.diffraction is None and own is None):
         return None
     if own is not None:
         return own
-    from ..exposure.capture_camera import binned_pitch_mm
-    from ..model.camera import preset
-    from ..model.design_file import resolve_design
 
     full = resolve_design(args.design) if args.design else preset(args.preset)
     return {  # a binned sensor's pixels are larger than the preset's
@@ -220,11 +218,8 @@ def _rendered_psf(cam: CameraDesign, k: np.ndarray, seed: int, args, diffraction
     """The ray-traced kernel of the geometric kernel ``k``'s camera, with the opening's
     diffraction in the rays when ``diffraction`` (its model then too); refused beyond
     --max-samples before any rendering."""
-    from ..psf_render.render import render_psf
 
     if args.grey:  # before the renderer activates a (colour) variant of its own
-        from ..render.backend import select_variant
-
         select_variant(mono=True)
     return render_psf(
         cam, args.mode, args.velocity, size=k.shape, spp=args.spp, seed=seed, film=args.film,
@@ -241,8 +236,6 @@ def _psf_geometry(args: argparse.Namespace) -> tuple[CameraDesign, dict | None, 
     kernel, only where it applies."""
     if args.like is not None:
         return _like_geometry(args)
-    from ..exposure.capture_camera import capture_design, full_design
-    from ..exposure.capture_spec import CaptureSpec, check_crop, parse_crop
 
     fields = design_spec_fields(args)
     full = full_design(CaptureSpec(**fields))
@@ -281,7 +274,6 @@ def _like_geometry(args: argparse.Namespace) -> tuple[CameraDesign, dict | None,
         )
     if mode == record.mode:
         return CameraDesign.from_inputs(record.camera), record.crop, mode
-    from ..model.modes import capture_camera
 
     design = CameraDesign.from_inputs(record.design_inputs())
     return capture_camera(design, mode), record.crop, mode
@@ -289,7 +281,6 @@ def _like_geometry(args: argparse.Namespace) -> tuple[CameraDesign, dict | None,
 
 def _checked_psf(cam: CameraDesign, args: argparse.Namespace) -> np.ndarray:
     """The analytic kernel, refused if more than MAX_LOST_FRACTION of it falls outside."""
-    from ..psf.analytic import MAX_LOST_FRACTION, PSFTruncationWarning, least_lost_fraction
 
     size = None if args.size is None else _odd_size(args.size)
     # a bound first: the kernel of a huge defocus takes minutes to compute, then is refused

@@ -7,11 +7,21 @@ import warnings
 from pathlib import Path
 
 from ..errors import ParameterError, check_positive
+from ..exposure.direct import check_budget, render_capture
+from ..exposure.estimate import AbsoluteTarget
+from ..exposure.plan import grey_for_sensor, plan_capture
+from ..exposure.spec import CaptureSpec, parse_crop
+from ..exposure.truth import TRUTH_LAYERS
+from ..io.lock import output_lock
+from ..lightfield import Store, synthesize
 from ..limits import PacamWarning
 from ..model.camera import preset
+from ..model.design_file import resolve_design
 from ..model.modes import MODES
 from ..render.samplers import DEFAULT_SAMPLER, SAMPLERS
 from ..render.variant import grey_request
+from ..sensor.apply import SensorTarget, add_sensor_layers, check_grey_sensor
+from ..sensor.model import SensorModel
 from ..sensor.radiometry import DEFAULT_LIGHT_LEVEL
 from .capture_out import error_line, optics_lines, scale_line, write_or_rescue
 from .common import (
@@ -138,8 +148,6 @@ def _add_sensor(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..exposure.capture import check_budget, render_capture
-    from ..io.lock import output_lock
 
     if args.from_store is not None:
         return _run_from_store(args)
@@ -172,8 +180,6 @@ def run(args: argparse.Namespace) -> int:
             keep_partial=True,
         )
         if model is not None:
-            from ..sensor.apply import add_sensor_layers
-
             add_sensor_layers(cap, model, args.sensor, args.light_level, spec.seed)
         paths = write_or_rescue(cap, out, args.force, args.mc_sigma_layer)
     _print_summary(cap, spec, paths, args.mc_sigma_layer)
@@ -187,15 +193,13 @@ FROM_STORE_REFUSED = ("spp", "passes", "noise_ratio", "noise_target", "per_patte
 def _run_from_store(args: argparse.Namespace) -> int:
     """``--from STORE``: the capture synthesised from a light-field store
     (:func:`~pacam_render.lightfield.synthesis.synthesize`), written as a render's."""
-    from ..io.lock import output_lock
-    from ..lightfield import Store, synthesize
 
     for name in FROM_STORE_REFUSED:
         if getattr(args, name) not in (None, False):
             flag = "--" + name.replace("_", "-")
             raise ParameterError(f"{flag}: a capture from --from takes the store's samples")
     store = Store.open(args.from_store)
-    s = store.manifest["spec"]["capture"]
+    s = store.manifest.capture
     args.width, args.height = args.width or s["width"], args.height or s["height"]
     if args.crop is None and s["crop"]:
         args.crop = ",".join(str(v) for v in s["crop"])
@@ -207,12 +211,8 @@ def _run_from_store(args: argparse.Namespace) -> int:
     with new_folder(out), output_lock(out):
         cap = synthesize(store, spec, progress=not args.quiet)
         if args.no_truth:
-            from ..exposure.truth import TRUTH_LAYERS
-
             cap.extra_layers = {k: v for k, v in cap.extra_layers.items() if k not in TRUTH_LAYERS}
         if model is not None:
-            from ..sensor.apply import add_sensor_layers
-
             add_sensor_layers(cap, model, args.sensor, args.light_level, spec.seed)
         paths = write_or_rescue(cap, out, args.force, args.mc_sigma_layer)
     _print_summary(cap, spec, paths, args.mc_sigma_layer)
@@ -224,8 +224,6 @@ def _plan(args: argparse.Namespace, target):
     """The capture the flags ask for, resolved once (:func:`~..exposure.plan.plan_capture`):
     its design (a design file, a schedule) is read and checked here, before any rendering, and
     names the sensor when --sensor does not."""
-    from ..exposure.capture_spec import CaptureSpec
-    from ..exposure.plan import plan_capture
 
     spec = CaptureSpec(
         scene=args.scene,
@@ -247,8 +245,6 @@ def _plan(args: argparse.Namespace, target):
         lcos_switching_ms=args.lcos_switching,
     )
     if args.sensor is not None:  # a monochrome --sensor renders one channel, as --grey
-        from ..exposure.plan import grey_for_sensor
-
         spec = grey_for_sensor(spec, args.sensor, "--sensor")
     plan = plan_capture(spec)
     if args.sensor is None and plan.design.sensor_preset is not None:  # the design names it
@@ -261,8 +257,6 @@ def _checked_sensor(args: argparse.Namespace, spec):
     Bayer sensor on a grey capture refused, before rendering."""
     model = _sensor_model(args.sensor) if args.sensor else None
     if model is not None:
-        from ..sensor.apply import check_grey_sensor
-
         check_grey_sensor(spec.grey, model, args.sensor)
     if args.light_level is not None and model is None:
         raise ParameterError("--light-level needs --sensor")
@@ -310,7 +304,6 @@ def _passes(args: argparse.Namespace, target) -> int:
 
 
 def _sensor_model(name: str):
-    from ..sensor.model import SensorModel
 
     return SensorModel.from_preset(name)
 
@@ -331,7 +324,6 @@ def _discard_partial(partial: Path) -> None:
 
 def noise_target_from_flags(args: argparse.Namespace):
     """The render's noise target from --noise-ratio (with --sensor) or --noise-target."""
-    from ..exposure.estimate import AbsoluteTarget
 
     given = [f for f in ("noise_ratio", "noise_target") if getattr(args, f) is not None]
     if not given:
@@ -350,7 +342,6 @@ def noise_target_from_flags(args: argparse.Namespace):
             "--noise-ratio needs --sensor (it scales the sensor's noise); without a sensor, "
             "give an absolute --noise-target"
         )
-    from ..sensor.apply import SensorTarget
 
     ratio = check_positive("--noise-ratio", args.noise_ratio)
     return SensorTarget(ratio, ((args.sensor, args.light_level),))
@@ -359,14 +350,11 @@ def noise_target_from_flags(args: argparse.Namespace):
 def _sensor_size(args: argparse.Namespace) -> dict:
     """width, height and crop: ``--crop`` alone is a window of the preset's full sensor."""
     if args.design is not None:
-        from ..model.design_file import resolve_design
-
         full = resolve_design(args.design)
     else:
         full = preset(args.preset)
     if args.crop is None:
         return {"width": args.width or 320, "height": args.height or 240}
     width, height = args.width or full.width_px, args.height or full.height_px
-    from ..exposure.capture_spec import parse_crop
 
     return {"width": width, "height": height, "crop": parse_crop(args.crop)}

@@ -5,12 +5,14 @@ from __future__ import annotations
 import argparse
 
 from ..errors import ParameterError
+from ..experiments import reproduce
+from ..experiments.reproduce import FIGURES
 from ..io.outputs import writable_dir
+from ..study.engine import check_workers, probe_scheduler
 from .common import add_engine_args, add_force, add_out
 
 
 def add(sub) -> None:
-    from ..experiments.reproduce import FIGURES
 
     p = sub.add_parser("reproduce", help="the paper's simulation figures: CSV, PNG, Markdown")
     p.add_argument("figure", choices=[*FIGURES, "all"])
@@ -23,8 +25,6 @@ def add(sub) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..experiments import reproduce
-    from ..study.engine import check_workers, probe_scheduler
 
     names = list(reproduce.FIGURES) if args.figure == "all" else [args.figure]
     if not 0 <= args.seed < 2**31:

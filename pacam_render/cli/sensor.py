@@ -7,6 +7,9 @@ import argparse
 from pathlib import Path
 
 from ..errors import ParameterError, check_positive
+from ..io.lock import output_lock
+from ..sensor.model import SensorModel
+from ..sensor.on_capture import sensor_on_capture
 from ..sensor.radiometry import DEFAULT_LIGHT_LEVEL
 from .capture_out import write_or_rescue
 from .common import add_force, add_out, new_folder
@@ -46,9 +49,6 @@ def add(sub) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..io.lock import output_lock
-    from ..sensor.model import SensorModel
-    from ..sensor.on_capture import sensor_on_capture
 
     src = Path(args.capture)
     exr = src / "capture.exr" if src.is_dir() else src

@@ -9,6 +9,9 @@ from pathlib import Path
 from ..errors import check_positive
 from ..exposure.integrate import CaptureInterrupted
 from ..limits import duration
+from ..study import load_study, run_study
+from ..study.engine import check_scheduler, check_workers, probe_scheduler
+from ..study.results import RESULTS, read_csv
 from .common import (
     add_engine_args,
     add_force,
@@ -41,8 +44,6 @@ def add(sub) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..study import load_study, run_study
-    from ..study.engine import check_scheduler, check_workers, probe_scheduler
 
     check_scheduler(args.scheduler)
     # every key checked before any work
@@ -88,7 +89,6 @@ def run(args: argparse.Namespace) -> int:
 def _study_interrupted(out: Path, points: int, exc: BaseException) -> None:
     """Say how many points ``results.csv`` keeps, and whether the render cut short kept its
     finished steps (a serial study's capture saves them in its ``.partial``)."""
-    from ..study.results import RESULTS, read_csv
 
     try:
         saved = len(read_csv(out / RESULTS))

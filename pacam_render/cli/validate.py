@@ -7,6 +7,13 @@ import argparse
 from pathlib import Path
 
 from ..errors import check_positive
+from ..experiments import scene_report
+from ..experiments import validate_psf as validate
+from ..experiments import validate_scene as vs
+from ..exposure.spec import parse_crop
+from ..model.design_file import resolve_design
+from ..psf.scene import MODEL_MODES, QUANTUM_PX
+from ..study.engine import check_workers, probe_scheduler
 from .common import add_engine_args, add_outputs, add_preset
 from .optics_flags import add_camera_optics
 
@@ -33,7 +40,6 @@ def add(sub) -> None:
 
 
 def _add_scene(sub) -> None:
-    from ..psf.scene import MODEL_MODES, QUANTUM_PX
 
     p = sub.add_parser(
         "validate-scene",
@@ -79,12 +85,8 @@ def _add_scene(sub) -> None:
 
 
 def run_psf(args: argparse.Namespace) -> int:
-    from ..experiments import validate_psf as validate
-    from ..study.engine import check_workers, probe_scheduler
 
     if args.design is not None:
-        from ..model.design_file import resolve_design
-
         grid = validate.grid_for(resolve_design(args.design), args.quick)
     else:
         grid = validate.QUICK if args.quick else validate.FULL
@@ -105,9 +107,6 @@ def run_psf(args: argparse.Namespace) -> int:
 
 
 def run_scene(args: argparse.Namespace) -> int:
-    from ..experiments import scene_report
-    from ..experiments import validate_scene as vs
-    from ..exposure.capture_spec import parse_crop
 
     if args.speed is not None:
         check_positive("--speed", args.speed, "px/ms")

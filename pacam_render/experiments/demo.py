@@ -25,13 +25,23 @@ import numpy as np
 
 from ..capture.kernels import analytic_psf
 from ..errors import ParameterError
-from ..exposure.capture import render_capture, write_capture
-from ..exposure.capture_spec import CAMERA_OPTICS, CaptureSpec
-from ..io.outputs import prepare_out_dir, write_text
+from ..exposure.direct import render_capture, write_capture
+from ..exposure.plan import plan_capture
+from ..exposure.render_time import overall_bar
+from ..exposure.spec import CAMERA_OPTICS, CaptureSpec
+from ..io.outputs import prepare_out_dir, save_figure, write_text
 from ..model import paper
+from ..model.camera import CameraDesign
+from ..model.illumination import flat_field
+from ..psf.analytic import design_psf
+from ..psf_render.render import render_psf
+from ..restore.capture_deblur import deblur_input
 from ..restore.deconvolve import deconvolve
+from ..restore.deconvolve_cost import deconvolve_cost
+from ..restore.flat_field import RI_LAYER
 from ..restore.metrics import aligned_psnr, crop, psnr, shift_search_px, ssim
 from ..sensor.apply import add_sensor_layers
+from ..sensor.model import SensorModel
 
 SENSOR_PRESET = "grasshopper-icx285"
 LIGHT_LEVEL = 300.0
@@ -80,7 +90,6 @@ class Panel:
 def _capture(plan, out: Path, seed: int, progress: bool = True):
     """Render one capture (a :class:`~pacam_render.exposure.plan.CapturePlan`); pass all but
     the reference through the sensor model."""
-    from ..sensor.model import SensorModel
 
     partial = out / ".partial"  # no truth layers: the demo renders its own reference
     cap = render_capture(plan, partial_dir=partial, progress=progress, truth=False)
@@ -110,16 +119,12 @@ def _deconvolve(cap, rendered_psf: bool, spp_psf: int, method: str = DEMO_METHOD
     """Estimates of a noisy coded capture (white = 1): analytic PSF, and rendered if asked;
     restored as ``pacam deconvolve`` restores it (the sensor's noise and the render's told,
     the layer flat-fielded: :func:`~pacam_render.restore.capture_deblur.deblur_input`)."""
-    from ..model.camera import CameraDesign
-    from ..restore.capture_deblur import deblur_input
 
     d = deblur_input({**cap.extra_layers, "capture": cap.image}, "noisy", cap.record, method)
     lf = cap.record.light_factor
     k = analytic_psf(cap.record)
     out = {"analytic PSF": deconvolve(d.image, k, method, **d.kw) / lf}
     if rendered_psf:
-        from ..psf_render.render import render_psf
-
         cam = CameraDesign.from_inputs(cap.record.camera)
         rk = render_psf(cam, "coded", 0.0, size=k.shape, spp=spp_psf, origin="pinhole").kernel
         out["rendered PSF"] = deconvolve(d.image, rk, method, **d.kw) / lf
@@ -129,8 +134,6 @@ def _deconvolve(cap, rendered_psf: bool, spp_psf: int, method: str = DEMO_METHOD
 def _noisy(cap) -> np.ndarray:
     """The sensor's noisy image, normalised so that white reads about its reflectance, and
     flat-fielded by the capture's relative illumination, as a camera pipeline does."""
-    from ..model.illumination import flat_field
-    from ..restore.flat_field import RI_LAYER
 
     raw = cap.extra_layers["noisy"] / cap.record.light_factor
     return flat_field(raw, cap.extra_layers.get(RI_LAYER))
@@ -155,8 +158,7 @@ def run_train(
 
     ``crop`` renders that window of a width x height sensor (see :class:`CaptureSpec`). With
     ``progress``, the predicted time is said first and one bar covers every stage
-    (:class:`~pacam_render.exposure.cost.Overall`)."""
-    from ..exposure.plan import plan_capture
+    (:class:`~pacam_render.exposure.render_time.Overall`)."""
 
     out = prepare_out_dir(out, force)
     t0 = time.perf_counter()
@@ -203,11 +205,8 @@ def run_train(
 
 
 def _overall(plans: dict, method: str, name: str, progress: bool):
-    """One bar over the demo's captures (:func:`~pacam_render.exposure.cost.overall_bar`) and
-    its deblurring (:mod:`~pacam_render.restore.cost`), the estimate said first."""
-    from ..exposure.cost import overall_bar
-    from ..psf.analytic import design_psf
-    from ..restore.cost import deconvolve_cost
+    """One bar over the demo's captures (:func:`~pacam_render.exposure.render_time.overall_bar`) and
+    its deblurring (:mod:`~pacam_render.restore.deconvolve_cost`), the estimate said first."""
 
     deblur = 0.0
     for plan in (p for p in plans.values() if p.spec.mode == "coded"):
@@ -247,8 +246,6 @@ def _figure(panels: list[Panel], ref: np.ndarray, path: Path, crops: dict, shift
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-
-    from ..io.outputs import save_figure
 
     h, w = ref.shape[:2]
     ratios = [h / w] + [(f[1] - f[0]) * h / ((f[3] - f[2]) * w) for f in crops.values()]

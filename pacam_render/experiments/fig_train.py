@@ -7,15 +7,14 @@ from pathlib import Path
 
 import numpy as np
 
+from ..restore.metrics import aligned_psnr, psnr, ssim
+from .demo import Coded, _figure, max_shift_px, run_train, window_crops
 from .figures import Figure
 
 
 def fig_train(quick: bool, seed: int = 0) -> Figure:
     """Rendered captures of the train set, deblurred with analytic and rendered PSFs."""
     import tempfile
-
-    from ..restore.metrics import aligned_psnr, psnr, ssim
-    from .demo import Coded, _figure, max_shift_px, run_train, window_crops
 
     w, h, spp, spp_psf = (320, 240, 64, 256) if quick else (640, 480, 256, 1024)
     coded = (

@@ -19,6 +19,7 @@ import numpy as np
 from ..io.outputs import save_figure
 from ..model import paper
 from ..psf import analytic as P
+from ..sensor.model import SensorModel
 from . import simulate as E
 
 T_MS = 0.5 * paper.EXPOSURE_MS
@@ -79,7 +80,6 @@ def light(f_number: float, exposure_ms: float) -> float:
 
 def paper_noise(sigma: float) -> E.NoiseFn:
     """The paper's Gaussian noise through the ``paper`` sensor preset (read noise only)."""
-    from ..sensor.model import SensorModel
 
     model = SensorModel.from_preset("paper", sigma=float(sigma))
     return E.sensor_noise(model, model.full_well_e, EXPOSURE_MS)

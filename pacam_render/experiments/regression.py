@@ -33,9 +33,11 @@ import numpy as np
 from scipy.ndimage import uniform_filter
 
 from ..errors import ParameterError
-from ..exposure.capture import render_capture
-from ..exposure.capture_camera import capture_design
-from ..exposure.capture_spec import CAMERA_OPTICS, CaptureSpec
+from ..exposure.camera import capture_design
+from ..exposure.direct import render_capture
+from ..exposure.spec import CAMERA_OPTICS, CaptureSpec
+from ..io.exr import read_exr, write_exr
+from ..scenes import psf_scene
 
 FOLDER = Path(__file__).resolve().parents[2] / "tests" / "regression"
 SIZE = {"width": 120, "height": 90, "spp": 64, **CAMERA_OPTICS, "diffraction": "off"}
@@ -73,8 +75,6 @@ def render_case_sigma(name: str, seed: int) -> tuple[np.ndarray, np.ndarray]:
     spec = replace(CASES[name], seed=seed)
     desc = None
     if spec.scene == "psf":
-        from ..scenes import psf_scene
-
         desc = psf_scene(500.0, 0.8, camera=capture_design(spec), radius_mm=8.0)
     cap = render_capture(spec, progress=False, description=desc, truth=False)
     return cap.image, cap.mc_sigma
@@ -154,7 +154,6 @@ def compare(
 
 
 def load_reference(name: str, folder: Path = FOLDER) -> tuple[np.ndarray, np.ndarray]:
-    from ..io.exr import read_exr
 
     layers = read_exr(folder / f"{name}.exr")
     return layers["seed0"].astype(np.float64), layers["seed1"].astype(np.float64)
@@ -163,7 +162,6 @@ def load_reference(name: str, folder: Path = FOLDER) -> tuple[np.ndarray, np.nda
 def check(name: str, fresh: np.ndarray, fresh_sigma: np.ndarray, folder: Path = FOLDER):
     """:func:`compare` of a fresh render of case ``name`` with its references, with their
     recorded sigmas for a case of :data:`PASS_VARIANCE` passes or more."""
-    from ..io.exr import read_exr
 
     layers = read_exr(folder / f"{name}.exr")
     seeds = [layers[f"seed{s}"].astype(np.float64) for s in (0, 1)]
@@ -175,7 +173,6 @@ def check(name: str, fresh: np.ndarray, fresh_sigma: np.ndarray, folder: Path = 
 
 def bless(folder: Path = FOLDER, names=None) -> list[Path]:
     """Re-render and store the references (seeds 0 and 1). Overwrites: that is its purpose."""
-    from ..io.exr import write_exr
 
     folder.mkdir(parents=True, exist_ok=True)
     out = []

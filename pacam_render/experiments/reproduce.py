@@ -14,6 +14,7 @@ from pathlib import Path
 
 from ..errors import ParameterError
 from ..io.outputs import csv_text, write_text
+from ..study.engine import run_tasks
 from .fig6 import fig6
 from .fig7 import fig7
 from .fig8 import fig8
@@ -46,8 +47,6 @@ def run(
     0 for serial, or an existing Dask ``scheduler``); files are written here as each ends.
     """
     import matplotlib
-
-    from ..study.engine import run_tasks
 
     matplotlib.use("Agg")
     unknown = [n for n in names if n not in FIGURES]

@@ -15,7 +15,12 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import ParameterError
+from ..io.exr import write_exr
 from ..io.outputs import csv_text, save_figure, write_json, write_text
+from ..model.camera import preset
+from ..model.design_file import resolve_design
+from ..scenes import load_scene
+from ..scenes.edit import scene_speed_px_per_ms
 from .scene_error import PROFILE_RATIO, residuals
 from .scene_regions import REGIONS
 
@@ -60,7 +65,6 @@ def z_map(captures, predicted) -> np.ndarray:
 
 
 def _layers(out: Path, r, predicted: dict, z: dict, reg, summary: dict, force: bool) -> str:
-    from ..io.exr import write_exr
 
     x, y, w, h = _inner_box(summary)
     truth = {k: v[y : y + h, x : x + w] for k, v in r.truths[0].items()}
@@ -274,15 +278,10 @@ def collect(folder) -> str:
 def _default_speed(settings: dict) -> float:
     """The scene's own fastest speed at the capture's resolution (for reports written before
     the summary recorded it)."""
-    from ..model.camera import preset
-    from ..scenes import load_scene
-    from ..scenes.edit import scene_speed_px_per_ms
 
     if settings.get("speed_px_per_ms"):
         return settings["speed_px_per_ms"]
     if settings.get("design"):
-        from ..model.design_file import resolve_design
-
         return scene_speed_px_per_ms(
             load_scene(settings["scene"]), resolve_design(settings["design"])
         )

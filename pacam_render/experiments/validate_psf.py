@@ -36,14 +36,22 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import ParameterError
+from ..exposure.render_time import Estimate, Work, rates, say
 from ..io.outputs import csv_text, prepare_out_dir, save_figure, write_text
+from ..io.preview import psf_extent
+from ..limits import duration
 from ..model.camera import CameraDesign, prototype
-from ..psf.analytic import design_psf
+from ..model.modes import pattern_offsets_px
+from ..model.schedule_fit import schedule_figures
+from ..psf.analytic import design_psf, discrete_segments, parabola_segments
+from ..psf.trajectory import extent
 from ..psf_render import render as prd
 from ..psf_render.mode_setup import model_window_kernels
+from ..psf_render.render import psf_history_key, psf_work
 from ..psf_render.result import source_blur_l1
 from ..psf_render.spec import PSFSpec
 from ..restore import metrics
+from ..study.engine import run_tasks
 
 SIZE_LADDER = (15, 31, 47, 63, 95, 127, 159, 191, 255, 319, 383, 511, 639, 767, 959)
 """Kernel sides used for renders: rounding up to these lets many points share one loaded scene
@@ -133,8 +141,6 @@ def coded_kernel_side(design: CameraDesign, speed: float) -> int:
     """Odd kernel side that holds both the discrete and the continuous (Eq. 14) coded PSF,
     from the trajectories' extents (as design_psf sizes them, without computing them); a
     designed schedule's, from its own kernel."""
-    from ..psf.analytic import discrete_segments, parabola_segments
-    from ..psf.trajectory import extent
 
     if design.designed:
         h, w = design_psf(design, "coded", speed).shape
@@ -272,7 +278,6 @@ def model_a_i(design: CameraDesign) -> float:
     (:func:`~pacam_render.model.schedule_fit.schedule_figures`), 0 where none fits."""
     if not design.designed:
         return design.a_i_px_per_ms2
-    from ..model.schedule_fit import schedule_figures
 
     fitted = schedule_figures(design).get("a_i_fitted_px_per_ms2")
     return 0.0 if fitted is None else float(fitted)
@@ -307,8 +312,6 @@ def run(
     0 for serial, or an existing Dask ``scheduler``); the rows are the same either way.
     """
     from tqdm import tqdm
-
-    from ..study.engine import run_tasks
 
     out_dir = prepare_out_dir(out, force)
     t_start = time.perf_counter()
@@ -385,9 +388,7 @@ def speed_range(design: CameraDesign, depth_mm: float, grid: Grid) -> float:
 
 def estimate(grid: Grid):
     """The grid's PSF renders before any (:func:`~pacam_render.psf_render.render.psf_work`),
-    at this machine's rates for them: an :class:`~pacam_render.exposure.cost.Estimate`."""
-    from ..exposure.cost import Estimate, Work, rates
-    from ..psf_render.render import psf_history_key, psf_work
+    at this machine's rates for them: an :class:`~pacam_render.exposure.render_time.Estimate`."""
 
     static, points = Work(), Work()
     for Z in grid.depths_mm:
@@ -404,8 +405,6 @@ def estimate(grid: Grid):
 
 def _announce(grid: Grid, workers: int) -> None:
     """Say the grid's predicted time (:func:`estimate`) on stderr, shared among ``workers``."""
-    from ..exposure.cost import say
-    from ..limits import duration
 
     est = estimate(grid)
     share = f"; on {workers} workers about {duration(est.seconds / workers)}" if workers > 1 else ""
@@ -414,7 +413,6 @@ def _announce(grid: Grid, workers: int) -> None:
 
 def last_step_over_r(design: CameraDesign) -> float:
     """The distance between the last two patterns' images over the defocus radius r."""
-    from ..model.modes import pattern_offsets_px
 
     off = pattern_offsets_px(design)
     return float(np.hypot(*(off[-1] - off[-2])) / design.r_px) if design.r_px > 0 else math.nan
@@ -724,7 +722,6 @@ def _example_picks(rows: list[dict], examples: dict) -> list[tuple]:
 def _plot_examples(plt, out_dir: Path, examples: dict, picks: list[tuple]) -> str:
     """Rendered, discrete and Eq. 14 kernels of the ``picks`` (px from the centre pixel, one
     colour scale per row), with their column sums."""
-    from ..io.preview import psf_extent
 
     fig, ax = plt.subplots(
         len(picks), 4, figsize=(13, 3 * len(picks)), squeeze=False, layout="constrained"

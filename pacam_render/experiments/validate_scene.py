@@ -11,11 +11,11 @@ region (:mod:`.scene_regions`) and against the distance to a moving edge
 (:mod:`.scene_error`, whose docstring gives the noise floor).
 
 The optics are a camera's, as ``pacam render``'s (``relative_illumination`` and
-``diffraction``, default :data:`~pacam_render.exposure.capture_spec.CAMERA_OPTICS`), and the
+``diffraction``, default :data:`~pacam_render.exposure.spec.CAMERA_OPTICS`), and the
 comparison is like with like: a capture with a relative illumination is flat-fielded by its map
 (the model is radiance), and when the capture includes its openings' diffraction the model is
 convolved with the same Fraunhofer kernels
-(:func:`~pacam_render.exposure.capture_diffraction.diffract_model`).
+(:func:`~pacam_render.exposure.optics.diffraction.diffract_model`).
 """
 
 from __future__ import annotations
@@ -27,12 +27,20 @@ import numpy as np
 
 from ..capture.kernels import capture_diffraction
 from ..errors import ParameterError, check_range
-from ..exposure.capture_diffraction import check_diffraction, diffract_model
-from ..exposure.capture_spec import CAMERA_OPTICS
+from ..exposure.camera import capture_design, full_design, mode_camera
+from ..exposure.direct import check_budget, render_capture
+from ..exposure.optics.diffraction import check_diffraction, diffract_model
+from ..exposure.plan import plan_capture
+from ..exposure.render_time import overall_bar
+from ..exposure.spec import CAMERA_OPTICS, CaptureSpec
 from ..io.outputs import prepare_out_dir
+from ..model.camera import CameraDesign
 from ..model.illumination import flat_field, parse_relative_illumination
-from ..psf.scene import MODEL_MODES, QUANTUM_PX, beta_px_per_mm, convolution_model
+from ..psf.scene import MODEL_MODES, QUANTUM_PX, beta_px_per_mm, convolution_model, window_reach_px
 from ..restore.flat_field import RI_LAYER
+from ..scenes import load_scene
+from ..scenes.edit import scene_speed_px_per_ms, shape_speed_px_per_ms, with_speed
+from ..scenes.motion import _bbox_corners, project_px
 from . import scene_report
 from .scene_error import edge_profile, profile_width, region_rows
 from .scene_regions import moving_edge_distance, region_map
@@ -109,12 +117,6 @@ class Plan:
 def plan(check: SceneCheck, description=None) -> Plan:
     """Build and check everything before any rendering (every error names its flag);
     ``description`` is a scene to use instead of ``check.scene``."""
-    from ..exposure.capture import check_budget
-    from ..exposure.capture_camera import capture_design, full_design, mode_camera
-    from ..exposure.capture_spec import CaptureSpec
-    from ..psf.scene import window_reach_px
-    from ..scenes import load_scene
-    from ..scenes.edit import scene_speed_px_per_ms, with_speed
 
     full = full_design(CaptureSpec(preset=check.preset, design=check.design))
     desc = description if description is not None else load_scene(check.scene)
@@ -154,8 +156,6 @@ def default_window(desc, cam, margin: int, quick: bool) -> tuple[int, int, int, 
     """The moving objects' t = 0 image, padded by ``margin`` and clipped to the sensor; with
     ``quick``, a small window on the fastest object's leading edge. The whole sensor for a
     scene without moving shapes of known extent."""
-    from ..scenes.edit import shape_speed_px_per_ms
-    from ..scenes.motion import _bbox_corners, project_px
 
     boxes = {
         s: project_px(_bbox_corners(*desc.bboxes_mm[s]), cam)
@@ -212,9 +212,6 @@ class Renders:
 def render(p: Plan, progress: bool) -> Renders:
     """The capture and the padded truth, for each of the two seeds, under one bar (each
     capture resolved once, for its estimate and its render)."""
-    from ..exposure.capture import render_capture
-    from ..exposure.cost import overall_bar
-    from ..exposure.plan import plan_capture
 
     t0 = time.perf_counter()
     caps, truths = [], []
@@ -237,7 +234,6 @@ def render(p: Plan, progress: bool) -> Renders:
 
 def models(p: Plan, r: Renders, quantum_px: float) -> tuple[dict, list, float]:
     """Both models for both seeds, cut to the capture's window; and the reaches."""
-    from ..model.camera import CameraDesign
 
     cam = CameraDesign.from_inputs(r.record.camera)
     diffraction = capture_diffraction(r.record)  # the capture's: the model gets it too
@@ -263,7 +259,6 @@ def _inner(img: np.ndarray, p: Plan) -> np.ndarray:
 def regions(p: Plan, r: Renders, built: list) -> tuple[np.ndarray, np.ndarray]:
     """The region map of the capture's window (from seed S's truth and cells), and each
     pixel's signed distance to a moving edge (:func:`.scene_regions.moving_edge_distance`)."""
-    from ..model.camera import CameraDesign
 
     cam = CameraDesign.from_inputs(r.record.camera)
     truth, cells = r.truths[0], built[0].cells

@@ -2,11 +2,11 @@
 
 A capture is the mean of independent passes. Each pass is an unbiased estimate of the whole
 exposure: it has its own seeds, and, in a moving scene, its own random times within the time
-steps (:mod:`.capture`). The spread of the passes therefore measures the render's error, whatever
-the sampler. A stratified or low-discrepancy sampler has no per-sample variance that would say
-it. Passes come in groups of equal size: the two pilot passes of a capture rendered to a noise
-target, then the main passes. For a group g of n_g passes of N_g samples per pixel each, with
-per-pixel sample variance v_g, and N the total samples per pixel:
+steps (:mod:`pacam_render.exposure.direct`). The spread of the passes therefore measures the
+render's error, whatever the sampler. A stratified or low-discrepancy sampler has no per-sample
+variance that would say it. Passes come in groups of equal size: the two pilot passes of a capture
+rendered to a noise target, then the main passes. For a group g of n_g passes of N_g samples per
+pixel each, with per-pixel sample variance v_g, and N the total samples per pixel:
 
     mean = sum_g N_g sum_p I_gp / N,     Var(mean) = sum_g N_g^2 n_g v_g / N^2,
 

@@ -15,7 +15,7 @@ from typing import Any
 
 from ..errors import ParameterError
 from ..limits import DEFAULT_MAX_STEPS, note
-from .cost import count_step
+from ..render.passes import render_passes
 from .estimate import rms
 from .progress import (
     Progress,
@@ -29,12 +29,12 @@ from .progress import (
     pilot_schedule,
     resume,
 )
+from .render_time import count_step
 from .steps import Exposure, step_draws, step_time
 
 
 def render_pass_steps(exp: Exposure, prog: Progress, spec, run, store, bar) -> bool:
     """Render the pass under way from ``prog.step`` on; False when a signal stopped it."""
-    from ..render.passes import render_passes
 
     group, spp = prog.sched.next_pass()
     j = prog.sched.done_passes
@@ -230,7 +230,6 @@ def predict_seconds(exp: Exposure, prog: Progress, spec) -> float:
     """The seconds the planned passes still need: one step of a main pass is rendered and
     timed (then dropped), since a pilot pass of the smallest size is mostly per-step overhead
     and would not scale with the samples. Geometry and window are those of that step."""
-    from ..render.passes import render_passes
 
     spp = prog.sched.groups[-1][0]
     steps = exp.steps(spp)

@@ -1,11 +1,11 @@
 """A capture resolved once: :class:`CapturePlan`, which every stage of a capture reads.
 
-A :class:`~.capture_spec.CaptureSpec` says what to capture in the user's words (a preset or a
-design file, a speed to cover, a schedule, the optics settings). :func:`plan_capture` turns it
-into what is rendered: the Mitsuba variant, the design read once
-(:func:`~.capture_camera.full_design`, the one call of the resolver per capture), the design at
-the capture's resolution, the mode's camera, the sensor's parameters, the film's pixel pitch,
-and the notes the user is told about the camera. The render, the ground truth, diffraction's
+A :class:`~pacam_render.exposure.spec.CaptureSpec` says what to capture in the user's words (a
+preset or a design file, a speed to cover, a schedule, the optics settings). :func:`plan_capture`
+turns it into what is rendered: the Mitsuba variant, the design read once
+(:func:`~pacam_render.exposure.camera.full_design`, the one call of the resolver per capture), the
+design at the capture's resolution, the mode's camera, the sensor's parameters, the film's pixel
+pitch, and the notes the user is told about the camera. The render, the ground truth, diffraction's
 decision, the optics budget and the record all read the plan instead of resolving the spec
 again, and a second producer of captures builds the same plan and writes the same record.
 """
@@ -15,10 +15,17 @@ from __future__ import annotations
 import warnings
 from dataclasses import dataclass, field, replace
 
+from ..errors import ParameterError
 from ..limits import PacamWarning, note
+from ..model import paper
 from ..model.camera import CameraDesign
 from ..model.modes import mode as mode_of
-from .capture_camera import (
+from ..model.optics import focal_length_px
+from ..render.backend import select_variant
+from ..render.plan import PROP_KEYS, build_plan
+from ..render.variant import grey_request, is_mono
+from ..sensor.model import SensorModel
+from .camera import (
     binned_pitch_mm,
     contrast_params,
     full_design,
@@ -29,7 +36,8 @@ from .capture_camera import (
     scaled_design,
     switching_params,
 )
-from .capture_spec import CaptureSpec
+from .optics.budget import diffraction_params
+from .spec import CaptureSpec
 
 
 @dataclass(frozen=True)
@@ -48,8 +56,8 @@ class CapturePlan:
         The coded design at the capture's resolution (solved to cover a speed, or from a
         schedule file, as the spec asks).
     cam : CameraDesign
-        The mode's camera (:func:`~.capture_camera.mode_camera`): its focus, opening and
-        exposure, whose analytic PSF is ``design_psf(cam, mode)``.
+        The mode's camera (:func:`~pacam_render.exposure.camera.mode_camera`): its focus, opening
+        and exposure, whose analytic PSF is ``design_psf(cam, mode)``.
     mode_params : dict
         The ``programmable_aperture`` parameters that show the mode (lengths in mm).
     optics_params : dict
@@ -62,7 +70,8 @@ class CapturePlan:
         What the user is told about the camera while it is resolved.
     diffraction : tuple of (bool, str), optional
         Whether the openings' diffraction is in the capture, and the decision in words; None
-        until :func:`~.capture.render_capture` decides it (``auto`` renders a preview).
+        until :func:`~pacam_render.exposure.direct.render_capture` decides it (``auto`` renders a
+        preview).
     """
 
     spec: CaptureSpec
@@ -91,7 +100,6 @@ class CapturePlan:
         """The ``programmable_aperture`` parameters of this capture: the mode's, then the
         relative illumination, the diffraction decided (none before it is), the LCoS's
         contrast and switching, in the order the record has always listed them."""
-        from .capture_optics import diffraction_params
 
         on = self.diffraction is not None and self.diffraction[0]
         ri = {k: v for k, v in self.optics_params.items() if k in ("relative_illumination",
@@ -103,10 +111,6 @@ class CapturePlan:
     def aperture(self, params: dict | None = None):
         """The :class:`~pacam_render.render.plan.AperturePlan` the plugin builds from
         ``params`` (default :meth:`sensor_params`), without Mitsuba; a lens mode only."""
-        from ..errors import ParameterError
-        from ..model import paper
-        from ..model.optics import focal_length_px
-        from ..render.plan import PROP_KEYS, build_plan
 
         if not self.lens:
             raise ParameterError("mode reference is a pinhole: render it directly (it has no lens)")
@@ -131,8 +135,8 @@ class CapturePlan:
         return replace(self, spec=replace(self.spec, **changes), diffraction=None)
 
     def key(self) -> str:
-        """The spec's resume key (:meth:`~.capture_spec.CaptureSpec.key`), with the design's
-        digest from this plan rather than from the file read again."""
+        """The spec's resume key (:meth:`~pacam_render.exposure.spec.CaptureSpec.key`), with the
+        design's digest from this plan rather than from the file read again."""
         return self.spec.key(design_digest=self.design_digest)
 
     def replay_notes(self) -> None:
@@ -168,8 +172,6 @@ def plan_capture(spec: CaptureSpec) -> CapturePlan:
     once: every later figure (the capture's pixel pitch, the binning note, the resume key)
     comes from this read.
     """
-    from ..render.backend import select_variant
-    from ..render.variant import is_mono
 
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", PacamWarning)
@@ -205,8 +207,6 @@ def grey_for_sensor(spec: CaptureSpec, preset: str | None, whose: str) -> Captur
     ``whose`` names the sensor in the note."""
     if preset is None or spec.grey:
         return spec
-    from ..render.variant import grey_request
-    from ..sensor.model import SensorModel
 
     model = SensorModel.from_preset(preset)
     if model.bayer is not None or not model.shot_noise:

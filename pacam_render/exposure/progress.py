@@ -19,6 +19,7 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
+from ..limits import check_count, duration
 from .estimate import (
     MAIN_PASSES,
     MARGIN,
@@ -104,7 +105,6 @@ def check_samples(sched: Schedule, exp: Exposure, spec, max_samples: int) -> Non
     ParameterError
         Naming ``max_samples``, the spp that will be rendered and why they exceed ``spec.spp``.
     """
-    from ..limits import check_count
 
     if not max_samples:
         return
@@ -168,7 +168,6 @@ def out_of_reach(prog: Progress, exp: Exposure, target, record, max_samples: int
     sigma^2 ~ 1 / N); their seconds are the pilot's, per unit of :func:`pass_cost`, times the
     cost of the rest in :data:`~.estimate.MAIN_PASSES` passes.
     """
-    from ..limits import duration
 
     goal = float(target.sigma(prog.stats.mean(), record))
     sigma = rms(prog.stats.variance())

@@ -31,6 +31,7 @@ import numpy as np
 
 from ..limits import DEFAULT_MAX_STEPS, check_count, note
 from ..render.samplers import quantum
+from ..scenes import fastest_image_speed_px_per_ms
 
 
 @dataclass(frozen=True)
@@ -228,7 +229,6 @@ def exposure_windows(desc, design, cam, spec, aperture, max_steps: int = DEFAULT
     """A moving capture's time steps (:func:`plan_windows` over ``aperture``'s patterns, an
     :class:`~pacam_render.render.plan.AperturePlan`) and its fastest image speed, px/ms; no
     scene is loaded (the planner's cost model takes them before any render)."""
-    from ..scenes import fastest_image_speed_px_per_ms
 
     exposure = cam.exposure_ms
     speed = fastest_image_speed_px_per_ms(desc, design, (-0.5 * exposure, 0.5 * exposure))

@@ -29,6 +29,12 @@ from dataclasses import replace
 import numpy as np
 
 from ..render.registry import sensor_entry
+from ..render.samplers import quantum
+from ..scenes.motion import project_px
+from .checkpoint import Checkpoint
+from .estimate import AbsoluteTarget
+from .integrate import Run, integrate
+from .steps import Exposure
 
 TRUTH_LAYERS = ("sharp", "depth", "object_id", "velocity")
 """The ground-truth layers, in the order they are written."""
@@ -90,11 +96,6 @@ def render_truth(
 
 def _sharp_passes(scene, sensor, spec, run, target_sigma):
     """The t = 0 pinhole image's passes, as a static capture's (same seeds and sizes)."""
-    from ..render.samplers import quantum
-    from .checkpoint import Checkpoint
-    from .estimate import AbsoluteTarget
-    from .integrate import Run, integrate
-    from .steps import Exposure
 
     w, h = (int(v) for v in sensor.film().crop_size())
     exp = Exposure(scene, sensor, quantum=quantum(spec.sampler), pixels=w * h)
@@ -150,7 +151,6 @@ def velocity_layer(position, ids, objects: dict, desc, design) -> np.ndarray:
         (H, W, 2): d/dt of the projected position at t = 0, by a central difference of
         +-1 us (exact for translations up to rounding); 0 for still shapes and no surface.
     """
-    from ..scenes.motion import project_px
 
     out = np.zeros(ids.shape + (2,))
     for key, name in objects.items():

@@ -21,7 +21,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import ParameterError
+from ..exposure.plan import plan_capture
+from .codes import design_aperture
 from .store import Store
+from .synthesis import _resolve, _scene, weighted_samples
 
 
 @dataclass(frozen=True)
@@ -61,8 +64,6 @@ class CentreBasis:
 def plugin_sign(spec) -> float:
     """+1 or -1: the plugin's local x of a design's centre over the design's own x (the
     plugin's frame mirrors the lens's x), from the base design's own centres."""
-    from ..exposure.plan import plan_capture
-    from .codes import design_aperture
 
     plan = plan_capture(spec)
     params = plan.sensor_params()
@@ -92,7 +93,6 @@ def centre_basis(store: Store, spec, positions_mm, progress: bool = False) -> Ce
     -------
     CentreBasis
     """
-    from .synthesis import _resolve, _scene, weighted_samples
 
     _scene(store, spec, None)
     plan, params, design_plan = _resolve(store, spec)
@@ -108,8 +108,8 @@ def centre_basis(store: Store, spec, positions_mm, progress: bool = False) -> Ce
         )
     x_plugin = plugin_sign(spec) * X
     n, J = len(design_plan.is_open), len(X)
-    _, _, w, h = store.manifest["camera"]["window"]
-    c, passes = store.manifest["channels"], store.manifest["passes"]
+    _, _, w, h = store.manifest.camera.window
+    c, passes = store.manifest.channels, store.manifest.passes
     hw = h * w
     sums = np.zeros((c, (n * (J + 1)) * hw + 1))
     samples = 0

@@ -21,10 +21,7 @@ import math
 
 import numpy as np
 
-
-def focal_px(width_px: int, fov_deg: float) -> float:
-    """The focal length in px of a ``width_px`` wide sensor with horizontal field ``fov_deg``."""
-    return 0.5 * width_px / math.tan(math.radians(fov_deg) / 2)
+from ..model.optics import focal_length_px
 
 
 def shear_px_per_mm(f_px: float, store_focus_mm: float, focus_mm: float) -> float:
@@ -47,4 +44,6 @@ def margin_px(k_px_per_mm: float, lens_radius_mm: float) -> int:
 
 def enlarged_fov_deg(width_px: int, fov_deg: float, margin: int) -> float:
     """The horizontal field of a sensor ``margin`` px wider on each side, same focal length."""
-    return math.degrees(2 * math.atan((0.5 * width_px + margin) / focal_px(width_px, fov_deg)))
+    return math.degrees(
+        2 * math.atan((0.5 * width_px + margin) / focal_length_px(fov_deg, width_px))
+    )

@@ -17,12 +17,23 @@ from dataclasses import replace
 from pathlib import Path
 
 from ..errors import ParameterError
+from ..exposure.assemble import versions
+from ..exposure.estimate import rms
 from ..exposure.integrate import CaptureInterrupted
+from ..exposure.plan import plan_capture
+from ..exposure.steps import merge_windows, plan_windows, share_spp, step_draws, step_time
+from ..exposure.truth import render_truth
 from ..io.lock import output_lock
 from ..io.signals import deferred_signals
 from ..limits import DEFAULT_MAX_STEPS
 from ..model import paper
+from ..model.optics import focal_length_px
+from ..render.registry import sensor_dict
+from ..render.samplers import sampler_dict
+from ..scenes import fastest_image_speed_px_per_ms, load_scene
+from ..scenes.units import check_units
 from . import geometry as geo
+from .codes import design_aperture
 from .proposal import Proposal, disc_plans
 from .store import (
     DISK_BYTES,
@@ -39,7 +50,8 @@ from .store import (
     store_digest,
     write_manifest,
 )
-from .trace import Strata
+from .target import target_spp
+from .trace import Strata, trace_records
 
 QUANTUM = 4
 """Samples per pixel of each of a moving scene's steps (as a capture's ldsampler steps): the
@@ -55,8 +67,6 @@ class StoreInterrupted(CaptureInterrupted):
 def proposal_designs(spec: StoreSpec, plan) -> list:
     """The proposal's designs as (capture plan, aperture plan, clock offset ms): the given
     ones, else the capture's design in its coded and normal modes."""
-    from ..exposure.plan import plan_capture
-    from .codes import design_aperture
 
     geometric = {"diffraction": "off", "relative_illumination": "off"}
     specs = spec.designs or tuple(replace(plan.spec, mode=m) for m in ("coded", "normal"))
@@ -75,7 +85,7 @@ def store_geometry(spec: StoreSpec, plan, designs: list) -> tuple[float, int]:
     focus = spec.focus_mm if spec.focus_mm is not None else design.focus_distance_mm
     if spec.margin_px is not None:
         return focus, int(spec.margin_px)
-    f_px = geo.focal_px(plan.spec.width, design.fov_deg)
+    f_px = focal_length_px(design.fov_deg, plan.spec.width)
     shears = [geo.shear_px_per_mm(f_px, focus, d.sensor_params()["focus_distance"])
               for d, _, _ in designs]  # fmt: skip
     need = [geo.margin_px(k, design.R_max_mm) for k in shears]
@@ -85,8 +95,6 @@ def store_geometry(spec: StoreSpec, plan, designs: list) -> tuple[float, int]:
 def store_camera(spec: StoreSpec, plan, focus: float, m: int) -> dict:
     """The store's sensor dict and its geometry: the design's lens wide open on the enlarged
     film (same focal length in px), and what a synthesis needs to place its samples."""
-    from ..render.registry import sensor_dict
-    from ..render.samplers import sampler_dict
 
     cap, design = plan.spec, plan.design
     W, H = cap.width, cap.height
@@ -103,14 +111,13 @@ def store_camera(spec: StoreSpec, plan, focus: float, m: int) -> dict:
                          sampler=sampler_dict("independent", 1), **lens)  # fmt: skip
     info = {"window": [x, y, w, h], "sensor_px": [W, H], "margin_px": m, "focus_mm": focus,
             "lens_radius_mm": design.R_max_mm, "fov_deg": design.fov_deg,
-            "f_px": geo.focal_px(W, design.fov_deg), "exposure_ms": paper.EXPOSURE_MS}  # fmt: skip
+            "f_px": focal_length_px(design.fov_deg, W),
+            "exposure_ms": paper.EXPOSURE_MS}  # fmt: skip
     return {"sensor": sensor, "info": info}
 
 
 def plan_store_steps(spec: StoreSpec, desc, design, max_steps: int) -> list[tuple]:
     """(t0, t1, spp) per step of a pass, ms on the store's shutter clock [0, 45]."""
-    from ..exposure.steps import merge_windows, plan_windows, share_spp
-    from ..scenes import fastest_image_speed_px_per_ms
 
     E, cap = paper.EXPOSURE_MS, spec.capture
     if desc.is_static:
@@ -149,7 +156,6 @@ def _planned(spec: StoreSpec, target, progress: bool, description):
     for the manifest; ``spec`` and None without a target."""
     if target is None:
         return spec, None
-    from .target import target_spp
 
     spp, rows = target_spp(render_lightfield, spec, target, progress, description, QUANTUM)
     spec = replace(spec, capture=replace(spec.capture, spp=spp))
@@ -205,8 +211,6 @@ def render_lightfield(
     StoreInterrupted
         On SIGINT or SIGTERM, or after ``stop_after`` shards; the finished shards are kept.
     """
-    from ..exposure.plan import plan_capture
-    from ..scenes import load_scene
 
     out = Path(out)
     spec, planned = _planned(spec, target, progress, description)
@@ -236,8 +240,6 @@ def _manifest(spec: StoreSpec, plan, cam: dict, steps, out: Path, scene_digest: 
     """The store's manifest: a new one, or the one on disk when it is this spec's (resume)."""
     import json
 
-    from ..exposure.capture_record import versions
-
     path = out / "store.json"
     if path.is_file():
         old = json.loads(path.read_text())
@@ -266,9 +268,6 @@ def _manifest(spec: StoreSpec, plan, cam: dict, steps, out: Path, scene_digest: 
 def _render_shards(spec, plan, cam, desc, steps, out, manifest, flag, progress, stop_after):
     """Every shard not yet on disk; returns each shard's digest, pass by pass."""
     from tqdm import tqdm
-
-    from ..exposure.steps import step_draws, step_time
-    from ..scenes.units import check_units
 
     scene = desc.load(sensor=cam["sensor"])
     sensor = scene.sensors()[0]
@@ -322,7 +321,6 @@ def _render_shards(spec, plan, cam, desc, steps, out, manifest, flag, progress, 
 
 def _records(scene, sensor, window, spp, seed, times, cam, margin, strata) -> dict:
     """One step's records, film points in px of the capture's sensor (the margin taken off)."""
-    from .trace import trace_records
 
     rec = trace_records(scene, sensor, window, spp, seed, times, cam["proposal"], strata)
     rec["x"] += float(window[0] - margin)  # the crop's corner, in px of the enlarged film
@@ -333,8 +331,8 @@ def _records(scene, sensor, window, spp, seed, times, cam, margin, strata) -> di
 def _render_truth(cap, plan, cam: dict, desc, out: Path) -> None:
     """The capture window's ground-truth layers, rendered once (the scene at t = 0; the
     layers' own pinhole sensors are :func:`~pacam_render.exposure.truth.render_truth`'s)."""
-    from ..exposure.truth import render_truth
 
     scene = desc.load(sensor=cam["sensor"])
-    layers, objects, _ = render_truth(scene, desc, cap, plan.design, True, None, None)
-    save_shard(out, "truth.npz", dict(layers), {"objects": objects})
+    layers, objects, sharp = render_truth(scene, desc, cap, plan.design, True, None, None)
+    meta = {"objects": objects, "sharp_mc_sigma": None if sharp is None else rms(sharp.variance())}
+    save_shard(out, "truth.npz", dict(layers), meta)

@@ -20,12 +20,15 @@ import json
 import shutil
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 
 from ..errors import ParameterError, check_positive
+from ..exposure.spec import CaptureSpec
 from ..io.outputs import atomic_save, write_json
 from ..limits import available_bytes, gib
+from .trace import CHUNK_LANES
 
 FORMAT = "pacam-lightfield/1"
 RECORD_FIELDS = ("x", "y", "u", "v", "p")
@@ -39,7 +42,7 @@ DISK_BYTES = 20 * 2**30
 class StoreSpec:
     """What a store renders: a capture's window, its samples and the designs it must serve.
 
-    ``capture`` (a :class:`~pacam_render.exposure.capture_spec.CaptureSpec`) gives the scene,
+    ``capture`` (a :class:`~pacam_render.exposure.spec.CaptureSpec`) gives the scene,
     the sensor size, the window (``crop``), the design whose field of view and focus the store
     camera takes (``preset`` or ``design``, ``object_depth_mm``), ``spp`` per pass, ``passes``,
     ``seed``, ``max_step_px`` and ``grey``. ``margin_px`` widens the film on every side, so
@@ -48,7 +51,7 @@ class StoreSpec:
     ``focus_mm`` is the store camera's focus (None: the design's coded focus).
     """
 
-    capture: object
+    capture: CaptureSpec
     margin_px: int | None = None
     focus_mm: float | None = None
     designs: tuple = ()
@@ -97,7 +100,6 @@ def check_budget(samples: int, largest: int, per: int, out: Path, max_disk: int)
     ``samples`` in all, ``largest`` in one shard, ``per`` bytes each on disk. A shard's rays
     are traced in wavefronts of at most :data:`~.trace.CHUNK_LANES`; its records are held
     about three times (the wavefronts' parts, their concatenation, the file)."""
-    from .trace import CHUNK_LANES
 
     nbytes = samples * per
     if nbytes > max_disk:
@@ -150,6 +152,117 @@ def load_shard(path: Path) -> tuple[dict, dict]:
         raise ParameterError(f"{path}: not a readable light-field shard ({exc})") from None
 
 
+@dataclass(frozen=True)
+class StoreCamera:
+    """The store camera's geometry (``store.json``'s ``camera``): what a synthesis needs to
+    place its samples.
+
+    Attributes
+    ----------
+    window : (int, int, int, int)
+        The capture window (x, y, w, h), px of the sensor.
+    sensor_px : (int, int)
+        The sensor's (W, H), px.
+    margin_px : int
+        The film's margin around the window on every side, px.
+    focus_mm, lens_radius_mm, fov_deg : float
+        The store camera's focus, its lens radius R_max (mm) and horizontal field (deg).
+    f_px : float
+        The focal length in px of the sensor (:func:`~pacam_render.model.optics.focal_length_px`).
+    exposure_ms : float
+        The store's shutter interval, ms.
+    """
+
+    window: tuple[int, int, int, int]
+    sensor_px: tuple[int, int]
+    margin_px: int
+    focus_mm: float
+    lens_radius_mm: float
+    fov_deg: float
+    f_px: float
+    exposure_ms: float
+
+
+class StoreStep(NamedTuple):
+    """One time step of a store pass: its interval on the store's shutter clock (ms) and its
+    samples per pixel."""
+
+    t0_ms: float
+    t1_ms: float
+    spp: int
+
+
+@dataclass(frozen=True)
+class Manifest:
+    """A finished store's ``store.json``, read and typed in one place (:meth:`from_json`).
+
+    Attributes
+    ----------
+    key : str
+        The hash of what changes the samples (:meth:`StoreSpec.key`).
+    capture : dict
+        The capture the store renders (``spec.capture``: a
+        :class:`~pacam_render.exposure.spec.CaptureSpec`'s fields).
+    camera : StoreCamera
+        The store camera's geometry.
+    scene, scene_digest : str
+        The scene's name and the digest of its description and motion.
+    channels, passes : int
+        Radiance channels (1 grey, 3 RGB) and independent passes.
+    steps : tuple of tuple of StoreStep
+        Each pass's time steps.
+    mid_ms : float
+        The paper's t = 0 on the store's shutter clock, ms.
+    seconds : float
+        The tracing's seconds in all.
+    digest : str
+        The store's digest (:func:`store_digest`).
+    raw : dict
+        The JSON as read (the spec, proposal, noise target, versions).
+    """
+
+    key: str
+    capture: dict
+    camera: StoreCamera
+    scene: str
+    scene_digest: str
+    channels: int
+    passes: int
+    steps: tuple
+    mid_ms: float
+    seconds: float
+    digest: str
+    raw: dict = field(repr=False)
+
+    @property
+    def samples_per_pass(self) -> int:
+        """Samples per pixel of one pass (every pass has the same steps)."""
+        return sum(s.spp for s in self.steps[0])
+
+    @classmethod
+    def from_json(cls, d: dict, where: str) -> Manifest:
+        """The manifest of ``d`` (read from ``where``), or a one-line refusal naming it."""
+        try:
+            cam = d["camera"]
+            camera = StoreCamera(
+                tuple(int(v) for v in cam["window"]), tuple(int(v) for v in cam["sensor_px"]),
+                int(cam["margin_px"]), float(cam["focus_mm"]), float(cam["lens_radius_mm"]),
+                float(cam["fov_deg"]), float(cam["f_px"]), float(cam["exposure_ms"]),
+            )  # fmt: skip
+            steps = tuple(tuple(StoreStep(float(a), float(b), int(n)) for a, b, n in row)
+                          for row in d["steps"])  # fmt: skip
+            out = cls(
+                str(d["key"]), dict(d["spec"]["capture"]), camera, str(d["scene"]),
+                str(d.get("scene_digest")), int(d["channels"]), int(d["passes"]), steps,
+                float(d["mid_ms"]), float(d.get("seconds", 0.0)), str(d["digest"]), d,
+            )  # fmt: skip
+        except (KeyError, TypeError, ValueError, IndexError, AttributeError) as exc:
+            raise ParameterError(f"{where}: not a readable store manifest ({exc!r})") from None
+        if len(out.steps) != out.passes or not out.steps:
+            raise ParameterError(f"{where}: {out.passes} passes but {len(out.steps)} step rows")
+        return out
+
+
 @dataclass
 class Store:
     """A store read back: its folder and manifest (``store.json``). Shards read once are kept
@@ -157,7 +270,7 @@ class Store:
     that many designs synthesised from one store read the disk once."""
 
     folder: Path
-    manifest: dict
+    manifest: Manifest
     cache_bytes: int = 0
     _cache: dict = field(default_factory=dict, repr=False)
     _cached: int = 0
@@ -177,15 +290,16 @@ class Store:
             raise ParameterError(
                 f"the store at {folder} is not finished: run `pacam lightfield` again to resume"
             )
+        manifest = Manifest.from_json(manifest, str(path))
         return cls(Path(folder), manifest, cache_bytes=available_bytes() // 4)
 
     @property
     def digest(self) -> str:
-        return self.manifest["digest"]
+        return self.manifest.digest
 
     def shards(self, pass_index: int):
         """(records, meta) of each of a pass's shards, in step order, one at a time."""
-        for step in range(len(self.manifest["steps"][pass_index])):
+        for step in range(len(self.manifest.steps[pass_index])):
             name = shard_name(pass_index, step)
             if name in self._cache:
                 yield self._cache[name]
@@ -197,13 +311,15 @@ class Store:
                 self._cached += size
             yield shard
 
-    def truth(self) -> tuple[dict, dict | None]:
-        """The ground-truth layers and the ``object_id`` legend (empty without truth)."""
+    def truth(self) -> tuple[dict, dict | None, float | None]:
+        """The ground-truth layers, the ``object_id`` legend and the ``sharp`` layer's Monte
+        Carlo sigma (white = 1; None for a store written before it was kept); empty without
+        truth."""
         path = self.folder / "truth.npz"
         if not path.is_file():
-            return {}, None
+            return {}, None, None
         records, meta = load_shard(path)
-        return records, meta.get("objects")
+        return records, meta.get("objects"), meta.get("sharp_mc_sigma")
 
 
 def write_manifest(folder: Path, manifest: dict) -> None:

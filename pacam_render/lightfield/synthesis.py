@@ -16,9 +16,14 @@ import time
 from dataclasses import replace
 
 import numpy as np
+from tqdm import tqdm
 
 from ..errors import ParameterError
+from ..exposure.assemble import Passes, assemble_capture
 from ..exposure.estimate import PassGroup, PassStats
+from ..exposure.plan import CapturePlan, plan_capture
+from ..model.illumination import cos4_at_film
+from ..scenes import load_scene
 from . import geometry as geo
 from .codes import check_served, design_aperture, transmission
 from .store import Store
@@ -28,7 +33,7 @@ APPROXIMATION = "exact: the store's rays reweighted (same estimator as a direct 
 
 def check_fits(store: Store, spec) -> None:
     """Refuse a capture the store cannot give, naming the field that differs."""
-    s = store.manifest["spec"]["capture"]
+    s = store.manifest.capture
     for key in ("scene", "width", "height", "grey"):
         if s[key] != getattr(spec, key):
             raise ParameterError(
@@ -53,10 +58,12 @@ def synthesize(store: Store, spec, progress: bool = True, description=None):
     ----------
     store : Store
         A finished light-field store.
-    spec : CaptureSpec
-        The capture: its scene, size, window and channels must be the store's; its design,
-        mode and optics are free, within :func:`check_fits` and
-        :func:`~.codes.check_served`. ``seed``, ``spp`` and ``passes`` are the store's.
+    spec : CapturePlan or CaptureSpec
+        The capture, resolved (:func:`~pacam_render.exposure.plan.plan_capture`, as ``pacam
+        render --from`` does before it opens its output), or a spec resolved here: its scene,
+        size, window and channels must be the store's; its design, mode and optics are free,
+        within :func:`check_fits` and :func:`~.codes.check_served`. ``seed``, ``spp`` and
+        ``passes`` are the store's.
     progress : bool, optional
         A progress bar over the store's shards.
     description : SceneDescription, optional
@@ -68,7 +75,8 @@ def synthesize(store: Store, spec, progress: bool = True, description=None):
     Capture
         The image (radiance x light factor, as a render's), its per-pixel Monte Carlo sigma,
         the store's truth layers, and a record with ``lightfield`` (the store, its digest and
-        the samples used).
+        the samples used), assembled as a direct render's
+        (:func:`~pacam_render.exposure.assemble.assemble_capture`).
 
     Raises
     ------
@@ -77,28 +85,55 @@ def synthesize(store: Store, spec, progress: bool = True, description=None):
         refocus beyond the store's margin, diffraction on, a switching LCoS).
     """
     t_start = time.perf_counter()
-    desc = _scene(store, spec, description)
+    desc = _scene(store, _spec_of(spec), description)
     plan, params, design_plan = _resolve(store, spec)
     images, used = pass_images(store, plan, params, design_plan, progress)
-    stats = PassStats([PassGroup(sum(s[2] for s in store.manifest["steps"][0]))])
+    stats = PassStats([PassGroup(store.manifest.samples_per_pass)])
     for img in images:
         stats.add(0, img)
     seconds = time.perf_counter() - t_start
-    return _capture(store, plan, params, design_plan, stats, used, seconds, desc)
+    n_steps = len(store.manifest.steps[0])
+    layers, objects, sharp_sigma = store.truth()
+    lightfield = {
+        "store": str(store.folder), "digest": store.digest, "samples_used": used,
+        "approximation": APPROXIMATION, "store_seconds": store.manifest.seconds,
+    }  # fmt: skip
+    passes = Passes(
+        stats, design_plan, seconds, seconds, SAMPLER, n_steps,
+        time_steps_per_pass=n_steps if desc.is_static is False else 0,
+        time_sampling=TIME_SAMPLING, sharp_mc_sigma=sharp_sigma, extra={"lightfield": lightfield},
+    )  # fmt: skip
+    return assemble_capture(plan, desc, passes, layers, objects)
+
+
+SAMPLER = "light-field store"
+"""``render_error.sampler`` of a synthesised capture."""
+TIME_SAMPLING = (
+    "the store's: one random time per step and pass, or uniform times for a still scene; "
+    "unbiased, their noise is in mc_sigma"
+)
+"""``render_error.time_sampling`` of a synthesised capture."""
+
+
+def _spec_of(spec):
+    """The spec of a plan, or the spec itself."""
+    return spec.spec if isinstance(spec, CapturePlan) else spec
 
 
 def _resolve(store: Store, spec):
     """The capture's plan (the store's seed, samples and passes), its sensor parameters and
     aperture plan, each checked against what the store can serve (its scene is checked by
-    the caller, :func:`_scene`, once)."""
-    from ..exposure.plan import plan_capture
-
-    check_fits(store, spec)
-    s = store.manifest["spec"]["capture"]
-    spec = replace(spec, seed=s["seed"], spp=s["spp"], passes=s["passes"], sampler="independent",
-                   max_step_px=s["max_step_px"])  # fmt: skip
-    plan = plan_capture(spec)
-    decision = "off: a synthesised capture is geometric" if spec.diffraction == "off" else (
+    the caller, :func:`_scene`, once). A plan is not resolved again: the store's sampling
+    replaces its own, which changes no camera."""
+    check_fits(store, _spec_of(spec))
+    s = store.manifest.capture
+    sampling = dict(seed=s["seed"], spp=s["spp"], passes=s["passes"], sampler="independent",
+                    max_step_px=s["max_step_px"])  # fmt: skip
+    if isinstance(spec, CapturePlan):
+        plan = replace(spec, spec=replace(spec.spec, **sampling), diffraction=None)
+    else:
+        plan = plan_capture(replace(spec, **sampling))
+    decision = "off: a synthesised capture is geometric" if plan.spec.diffraction == "off" else (
         "left out: a capture synthesised from a light-field store is geometric; its effect is "
         "measured below"
     )  # fmt: skip
@@ -141,21 +176,21 @@ def paired_difference(store: Store, a, b, description=None) -> tuple[np.ndarray,
 
 def _shear(store: Store, plan) -> float:
     """k (px/mm) of the design's focus against the store's, checked against its margin."""
-    info = store.manifest["camera"]
-    if abs(plan.cam.fov_deg - info["fov_deg"]) > 1e-9 or plan.cam.R_max_mm > info[
-        "lens_radius_mm"
-    ] * (1 + 1e-9):
+    info = store.manifest.camera
+    if abs(plan.cam.fov_deg - info.fov_deg) > 1e-9 or plan.cam.R_max_mm > info.lens_radius_mm * (
+        1 + 1e-9
+    ):
         raise ParameterError(
             f"the design's lens (fov {plan.cam.fov_deg:g} deg, R_max {plan.cam.R_max_mm:g} mm) "
-            f"is not the store's ({info['fov_deg']:g} deg, {info['lens_radius_mm']:g} mm)"
+            f"is not the store's ({info.fov_deg:g} deg, {info.lens_radius_mm:g} mm)"
         )
     focus = plan.sensor_params()["focus_distance"]
-    k = geo.shear_px_per_mm(info["f_px"], info["focus_mm"], focus)
+    k = geo.shear_px_per_mm(info.f_px, info.focus_mm, focus)
     need = geo.margin_px(k, plan.cam.R_max_mm)
-    if need > info["margin_px"]:
+    if need > info.margin_px:
         raise ParameterError(
             f"the design focuses at {focus:g} mm, {need} px of refocus from the store's "
-            f"{info['focus_mm']:g} mm, beyond its margin of {info['margin_px']} px: render the "
+            f"{info.focus_mm:g} mm, beyond its margin of {info.margin_px} px: render the "
             f"store with margin_px >= {need}"
         )
     return k
@@ -173,25 +208,23 @@ def weighted_samples(store: Store, plan, params, design_plan, progress: bool = F
         transmission: its step's share of the exposure / (spp p pi R_max^2), times cos^4 where
         the design has it.
     """
-    from tqdm import tqdm
-
-    info = store.manifest["camera"]
+    info = store.manifest.camera
     k = _shear(store, plan)
-    x0, y0, w, h = info["window"]
-    steps = store.manifest["steps"]
+    x0, y0, w, h = info.window
+    steps = store.manifest.steps
     cos4 = params.get("relative_illumination") == "cos4"
-    offset = design_plan.t_mid - store.manifest["mid_ms"]  # the paper's t = 0 is shared
-    lens_area = np.pi * info["lens_radius_mm"] ** 2
+    offset = design_plan.t_mid - store.manifest.mid_ms  # the paper's t = 0 is shared
+    lens_area = np.pi * info.lens_radius_mm**2
     bar = tqdm(total=sum(len(r) for r in steps), desc="synthesis", disable=not progress)
-    for p in range(store.manifest["passes"]):
+    for p in range(store.manifest.passes):
         for rec, meta in store.shards(p):
             t = rec["t"] + offset if "t" in rec else meta["time"] + offset  # a step: one time
             x = geo.shifted(rec["x"], rec["u"], k) - np.float32(x0)
             y = geo.shifted(rec["y"], rec["v"], k) - np.float32(y0)
-            share = (meta["t1"] - meta["t0"]) / info["exposure_ms"] / meta["spp"]
+            share = (meta["t1"] - meta["t0"]) / info.exposure_ms / meta["spp"]
             weight = np.float32(share / lens_area) / rec["p"]
             if cos4:
-                weight = weight * _cos4(x + x0, y + y0, info)
+                weight = weight * cos4_at_film(x + x0, y + y0, info.sensor_px, info.f_px)
             yield p, rec, t, _pixels(x, y, w, h), weight
             bar.update()
     bar.close()
@@ -203,8 +236,8 @@ def pass_images(store: Store, plan, params, design_plan, progress: bool = False)
     masks = params.get("masks")
     masks = None if masks is None else np.asarray(masks, np.float32)
     contrast = params.get("lcos_contrast")
-    _, _, w, h = store.manifest["camera"]["window"]
-    c, passes = store.manifest["channels"], store.manifest["passes"]
+    _, _, w, h = store.manifest.camera.window
+    c, passes = store.manifest.channels, store.manifest.passes
     sums = np.zeros((passes, c, h * w + 1))  # the last bin takes what falls outside the window
     used = 0
     for p, rec, t, pix, weight in weighted_samples(store, plan, params, design_plan, progress):
@@ -227,63 +260,12 @@ def _pixels(x: np.ndarray, y: np.ndarray, w: int, h: int) -> np.ndarray:
     return np.where(inside, iy * w + ix, h * w)
 
 
-def _cos4(x, y, info: dict) -> np.ndarray:
-    """cos^4 of the chief ray at film points (px of the sensor), as the plugin's ``cos4``."""
-    W, H = info["sensor_px"]
-    r2 = ((x - 0.5 * W) ** 2 + (y - 0.5 * H) ** 2) / info["f_px"] ** 2
-    return (1.0 / (1.0 + r2) ** 2).astype(np.float32)
-
-
 def _scene(store: Store, spec, description):
     """The store's scene description, checked against the digest it was rendered with."""
-    from ..scenes import load_scene
-
     desc = description if description is not None else load_scene(spec.scene)
-    if desc.digest() != store.manifest.get("scene_digest"):
+    if desc.digest() != store.manifest.scene_digest:
         raise ParameterError(
             f"the scene {spec.scene!r} is not the one the store at {store.folder} was rendered "
             "from (its digest differs: edited since, or another description)"
         )
     return desc
-
-
-def _capture(store: Store, plan, params, design_plan, stats, used: int, seconds: float, desc):
-    """The synthesised capture and its record, as a direct render's."""
-    from ..capture.result import Capture
-    from ..exposure.capture_camera import illumination_map, illumination_record
-    from ..exposure.capture_optics import finish_optics
-    from ..exposure.capture_record import build_record, record_design_fit
-    from ..exposure.estimate import error_summary
-    from ..model.illumination import relative_illumination_map
-
-    spec, cam = plan.spec, plan.cam
-    layers, objects = store.truth()
-    steps = {"n_steps": len(store.manifest["steps"][0]), "effective_spp": stats.spp}
-    record = build_record(plan, params, design_plan, seconds, steps)
-    record.objects = objects
-    record.design_fit = record_design_fit(layers, objects, cam, spec.mode)
-    err = error_summary(stats, objects, layers.get("object_id"))
-    lf = record.light_factor
-    err.update(time_steps_per_pass=steps["n_steps"] if desc.is_static is False else 0)
-    err.update(mc_sigma_white_units=err["mc_sigma"] / lf if lf > 0 else None,
-               sampler="light-field store", seconds=round(seconds, 3), time_step_bias=0.0,
-               time_sampling="the store's: one random time per step and pass, or uniform "
-               "times for a still scene; unbiased, their noise is in mc_sigma")  # fmt: skip
-    record.render_error = err
-    record.extra["lightfield"] = {
-        "store": str(store.folder), "digest": store.digest, "samples_used": used,
-        "approximation": APPROXIMATION, "store_seconds": store.manifest.get("seconds"),
-    }  # fmt: skip
-    ri_map = illumination_map(spec, cam, plan.pitch_mm)
-    record.relative_illumination = illumination_record(spec, cam, ri_map)
-    if ri_map is not None:
-        layers = {**layers, "relative_illumination": ri_map}
-    w, h = spec.image_size
-    cos4 = relative_illumination_map("cos4", w, h, cam.fov_deg, spec.crop)
-    ctx = {"record": record, "target": None, "lcos_contrast": params.get("lcos_contrast"),
-           "lcos_switching_ms": None, "diffraction_on": False,
-           "diffraction_decision": plan.diffraction[1], "pitch_mm": plan.pitch_mm,
-           "ri_record": record.relative_illumination, "cos4_map": cos4}  # fmt: skip
-    optics = finish_optics(spec, plan.design, cam, desc, stats.mean(), {}, stats.variance(), ctx)
-    record.optics_error = optics.block
-    return Capture(optics.image, optics.patterns, record, dict(layers), np.sqrt(optics.variance))

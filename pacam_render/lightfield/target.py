@@ -21,6 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import ParameterError
+from .synthesis import synthesize
 
 PILOT_SPP = 16
 """The pilot store's samples per pixel and pass."""
@@ -48,7 +49,6 @@ def target_spp(render, spec, target, progress: bool = False, description=None, q
     (int, list of dict)
         The spp per pass, and per design its pilot sigma, target and spp needed.
     """
-    from .synthesis import synthesize
 
     folder = Path(tempfile.mkdtemp(prefix="pacam_pilot_store."))
     try:

@@ -22,6 +22,7 @@ from ..errors import ParameterError, check_positive
 from . import optics, paper
 from . import schedule as sch
 from .masks import MaskStack
+from .schedule_fit import schedule_figures
 
 MIN_OPENING_LCOS_PX = 1.0
 """Smallest displayable opening radius, LCoS pixels."""
@@ -367,7 +368,6 @@ class CameraDesign:
         pattern's centre and open fraction, and for a designed schedule a_i and the invariant
         range fitted to its image trajectory, which replace Eq. 18's (the parabola's at this
         opening, kept as ``a_i_eq18_px_per_ms2``)."""
-        from .schedule_fit import schedule_figures
 
         fig = schedule_figures(self)
         out = {

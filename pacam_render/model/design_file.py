@@ -55,10 +55,13 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import FileKeyError, ParameterError
+from ..io.arrays import read_json
+from ..io.outputs import atomic_save, check_writable, write_text
 from ..io.toml_file import read_toml
 from ..limits import note
 from .camera import CameraDesign, preset
 from .masks import read_mask_stack
+from .schedule_file import apply_schedule, read_schedule
 
 FORMAT = 1
 """The design file's format version (``format = 1``)."""
@@ -340,7 +343,6 @@ def write_design(path, cam: CameraDesign, force: bool = False) -> list[Path]:
     list of Path
         The files written.
     """
-    from ..io.outputs import atomic_save, check_writable, write_text
 
     path = check_writable(Path(path), force, "design file")
     written = []
@@ -385,7 +387,6 @@ def resolve_design(source, **overrides) -> CameraDesign:
 def _design_from_json(path: Path) -> CameraDesign:
     """The design in a capture's, a PSF's or a legacy schedule's JSON."""
     jpath = path.with_suffix(".json") if path.suffix.lower() == ".exr" else path
-    from ..io.arrays import read_json
 
     d = read_json(jpath, "design source")
     if not isinstance(d, dict):
@@ -394,8 +395,6 @@ def _design_from_json(path: Path) -> CameraDesign:
         if isinstance(d.get(key), dict):
             return CameraDesign.from_inputs(d[key])
     if "centres_mm" in d:
-        from .schedule_file import apply_schedule, read_schedule
-
         sched = read_schedule(jpath)
         base = preset("prototype", object_depth_mm=sched.get("object_depth_mm", 500.0))
         return apply_schedule(base, sched, str(jpath))

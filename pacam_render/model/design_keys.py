@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from .camera import MAX_EXPOSURE_MS, MIN_EXPOSURE_MS, MIN_FOCUS_MM, MIN_OPENING_LCOS_PX
+from .camera import MAX_EXPOSURE_MS, MIN_EXPOSURE_MS, MIN_FOCUS_MM, MIN_OPENING_LCOS_PX, prototype
 from .schedule import MAX_PATTERNS
 
 
@@ -90,7 +90,6 @@ KEYS = (
 def key_rows() -> list[dict]:
     """The reference table's rows: ``[table] key``, unit, default, valid range, flag, meaning;
     a default is the prototype's value of the key's field."""
-    from .camera import prototype
 
     proto = prototype()
     rows = []

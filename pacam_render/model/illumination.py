@@ -98,14 +98,16 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import FileKeyError, ParameterError, check_positive
+from ..limits import note
+from .optics import focal_length_px
 
 RELATIVE_ILLUMINATION_MODES = ("off", "cos4")
 """The built-in settings; any other value is a curve file's path."""
 DEFAULT_RELATIVE_ILLUMINATION = "off"
 """Radiance, exactly Mitsuba's ``thinlens``: the sensor plugin's default (a drop-in for
 ``thinlens`` in any scene file). A capture's defaults are the spec's
-(:data:`~pacam_render.exposure.capture_spec.GEOMETRIC_OPTICS` and, for a camera's captures,
-:data:`~pacam_render.exposure.capture_spec.CAMERA_OPTICS`)."""
+(:data:`~pacam_render.exposure.spec.GEOMETRIC_OPTICS` and, for a camera's captures,
+:data:`~pacam_render.exposure.spec.CAMERA_OPTICS`)."""
 ABSCISSAE = {"height_px": "px", "height_mm": "mm", "field_deg": "deg"}
 """A curve's abscissa names and their units."""
 CURVE_SUFFIXES = (".csv", ".json")
@@ -389,7 +391,6 @@ NOTE_RISE = 1.1
 def _check_rise(y: np.ndarray, where: str) -> np.ndarray:
     """``y`` (the curve over its axis value), refused above :data:`MAX_RISE`, noted above
     :data:`NOTE_RISE`."""
-    from ..limits import note
 
     top = float(y.max())
     if top > MAX_RISE:
@@ -426,7 +427,7 @@ def film_tangents(
     sub : int
         Points per pixel along each axis (midpoints of a sub x sub grid).
     """
-    f_px = 0.5 * width / math.tan(math.radians(fov_deg) / 2.0)
+    f_px = focal_length_px(fov_deg, width)
     x0, y0, w, h = crop if crop is not None else (0, 0, width, height)
     off = (np.arange(sub) + 0.5) / sub
     u = (x0 + np.arange(w)[:, None] + off[None, :] - 0.5 * width) / f_px  # (w, sub)
@@ -438,11 +439,20 @@ def film_tangents(
 
 def film_tan_max(width: int, height: int, fov_deg: float, crop=None) -> float:
     """tan theta_c at the rendered window's farthest corner (pixel edges, not centres)."""
-    f_px = 0.5 * width / math.tan(math.radians(fov_deg) / 2.0)
+    f_px = focal_length_px(fov_deg, width)
     x0, y0, w, h = crop if crop is not None else (0, 0, width, height)
     du = max(abs(x0 - 0.5 * width), abs(x0 + w - 0.5 * width))
     dv = max(abs(y0 - 0.5 * height), abs(y0 + h - 0.5 * height))
     return math.hypot(du, dv) / f_px
+
+
+def cos4_at_film(x_px, y_px, film_px: tuple[int, int], f_px: float) -> np.ndarray:
+    """cos^4 of the chief ray at film points ``(x_px, y_px)`` (px from the film's corner, float32
+    arrays) of a ``film_px`` (W, H) film with focal length ``f_px``: the plugin's per-ray
+    ``cos4`` factor (:mod:`pacam_render.render.kernels.relative_illumination`), float32."""
+    W, H = film_px
+    r2 = ((x_px - 0.5 * W) ** 2 + (y_px - 0.5 * H) ** 2) / f_px**2
+    return (1.0 / (1.0 + r2) ** 2).astype(np.float32)
 
 
 def relative_illumination_map(
@@ -493,7 +503,7 @@ def relative_illumination_map(
     ri = parse_relative_illumination(setting)
     if ri.off:
         return None
-    f_px = 0.5 * width / math.tan(math.radians(fov_deg) / 2.0)
+    f_px = focal_length_px(fov_deg, width)
     ri.check_covers(film_tan_max(width, height, fov_deg, crop), f_px, pixel_pitch_mm)
     t = film_tangents(width, height, fov_deg, crop, sub)
     return ri.factor(t, f_px, pixel_pitch_mm).mean(axis=-1)

@@ -33,7 +33,9 @@ from collections.abc import Sequence
 import numpy as np
 
 from ..errors import ParameterError, check_positive
+from ..io.arrays import read_npy
 from ..model.optics import LCOS_PITCH_MM
+from .schedule import MAX_PATTERNS
 
 DISPLAY_SHAPE = (1024, 1280)
 """Rows, columns of the prototype's LCoS display (SXGA, 1280x1024)."""
@@ -176,8 +178,6 @@ def _load_file(path: str, name: str = "mask_file") -> np.ndarray:
     if not os.path.isfile(path):
         raise ParameterError(f"{name}: no such file {path!r}")
     if path.lower().endswith(".npy"):
-        from ..io.arrays import read_npy
-
         return read_npy(path, name)
     if path.lower().endswith(".npz"):  # a design file's compressed stack (key ``masks``)
         try:
@@ -463,7 +463,6 @@ MAX_STACK_BYTES = 256 * 2**20
 
 def _check_declared(shape: tuple, dtype, digest, where: str) -> None:
     """A stored stack's declared shape and digest, checked before anything is inflated."""
-    from .schedule import MAX_PATTERNS
 
     if len(shape) != 3 or min(shape) < 1:
         raise ParameterError(f"{where}: shape must be (patterns, rows, columns), got {shape}")

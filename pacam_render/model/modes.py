@@ -2,7 +2,7 @@
 
 A mode fixes how a camera built from one coded design takes its picture: the aperture schedule
 the sensor shows, where the lens focuses, how wide it opens, how long it exposes, and which
-analytic PSF describes the result. Captures (:mod:`pacam_render.exposure.capture`), rendered
+analytic PSF describes the result. Captures (:mod:`pacam_render.exposure.direct`), rendered
 PSFs (:mod:`pacam_render.psf_render.render`), the analytic PSFs
 (:func:`pacam_render.psf.analytic.design_psf`), deconvolution, ``pacam reproduce`` and the
 demo all read this table, so the ray-traced capture and its analytic kernel cannot drift apart.

@@ -16,7 +16,7 @@ import math
 import numpy as np
 
 from . import paper
-from .camera import CameraDesign
+from .camera import CameraDesign, prototype
 from .schedule_fit import schedule_figures
 
 FITTED = "fitted to the schedule's image trajectory"
@@ -153,7 +153,6 @@ def schedule_notes(d: CameraDesign, fig: dict | None = None) -> list[str]:
 def _focus_note(d: CameraDesign) -> str:
     """Where the focus comes from: the paper does not publish the prototype's; another design
     has its own (its file's, or the solver's)."""
-    from .camera import prototype
 
     side = "behind" if d.beta_px_per_mm < 0 else "in front of"
     where = f"r = |beta| R = {d.r_px:.3g} px at Z = {d.object_depth_mm:g} mm ({side} the object)"

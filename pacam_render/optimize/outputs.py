@@ -11,6 +11,7 @@ from ..io.preview import write_png
 from ..model.camera import CameraDesign
 from ..model.modes import local_centres_mm
 from ..model.schedule_fit import schedule_figures
+from ..psf.analytic import design_psf
 from ..render.masks import disc_mask
 from .objective import SOFTMAX_DB, Objective
 
@@ -167,7 +168,6 @@ def _plot_psnr(fig, obj: Objective, theta, parabola: dict) -> None:
 
 def _plot_psfs(fig, obj: Objective, theta, parabola: dict) -> None:
     """Each schedule's PSF at three speeds (px, one colour scale per row) and its OTF by speed."""
-    from ..psf.analytic import design_psf
 
     fig.set_size_inches(12, 5)
     cam = designed_camera(obj, theta)

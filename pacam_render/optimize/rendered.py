@@ -20,8 +20,13 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from ..capture.result import Capture
 from ..errors import ParameterError
+from ..exposure.render_time import say
+from ..limits import duration
+from ..model.camera import CameraDesign
 from ..restore.capture_score import deconvolve_capture, flat_sigma, radiance
+from ..restore.metrics import shift_search_px
 from ..restore.object_score import moving_object_se, moving_shapes
 from ..sensor.apply import apply_sensor, sensor_sigma
 from ..sensor.model import SensorModel
@@ -48,7 +53,6 @@ class CaptureScorer:
     """
 
     def __init__(self, template, sensor: str, light_level, seeds, method=DEFAULT_METHOD):
-        from ..restore.metrics import shift_search_px
 
         rec = template.record
         if "sharp" not in template.extra_layers:
@@ -62,7 +66,7 @@ class CaptureScorer:
                 "objects (take a window with one)"
             )
         self.shift = shift_search_px(rec.spec["width"])
-        self.render_sigma = flat_sigma(template, rec.render_error["mc_sigma_white_units"])
+        self.render_sigma = flat_sigma(template, rec.render_error.mc_sigma_white_units)
 
     def psnr_db(self, cap) -> float:
         """PSNR of ``cap``'s moving objects (dB, white = 1) after the sensor and the
@@ -108,7 +112,6 @@ class StoreObjective:
 
     def capture(self, index):
         """The candidate's capture: the template with its image and camera."""
-        from ..capture.result import Capture
 
         image = self.basis.compose(index)
         image = image[..., 0] if self.template.image.ndim == 2 else image
@@ -124,7 +127,6 @@ class StoreObjective:
 
 def _camera(record):
     """The record's mode camera, whose centres a candidate replaces."""
-    from ..model.camera import CameraDesign
 
     cam = CameraDesign.from_inputs(record.camera)
     if record.mode != "coded":
@@ -179,9 +181,6 @@ def coordinate_search(objectives, start, sweeps: int, seed: int, progress: bool 
     rng = np.random.default_rng(seed)
     total = sweeps * n * (J - 1) * len(objectives)
     if progress:  # the first evaluation, timed, sizes the rest
-        from ..exposure.cost import say
-        from ..limits import duration
-
         each = (time.perf_counter() - t0) / len(objectives)
         say(f"estimate: rendered search at most {duration(total * each)} ({total} evaluations "
             f"of {duration(each)}, the first timed; it stops after a sweep that moves "

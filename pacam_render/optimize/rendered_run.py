@@ -18,7 +18,17 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import ParameterError, check_integer
+from ..exposure.direct import render_capture
+from ..exposure.plan import plan_capture
+from ..exposure.spec import CaptureSpec
+from ..lightfield import Store
+from ..lightfield.centre_basis import centre_basis
+from ..lightfield.synthesis import synthesize
+from ..model.design_file import write_design
+from ..restore.deconvolve import METHODS, require_method
+from ..sensor.model import SensorModel
 from .rendered import DEFAULT_METHOD, CaptureScorer, StoreObjective, coordinate_search
+from .rendered_outputs import write_outputs
 from .search import DEFAULT_LIGHT_LEVEL
 
 POSITIONS = 17
@@ -51,9 +61,8 @@ class RenderedProblem:
 
 def base_spec(store):
     """The coded capture a store was rendered for (its scene, window, camera and samples)."""
-    from ..exposure.capture_spec import CaptureSpec
 
-    s = dict(store.manifest["spec"]["capture"])
+    s = dict(store.manifest.capture)
     s["crop"] = tuple(s["crop"]) if s["crop"] else None
     return CaptureSpec(**{**s, "mode": "coded"})
 
@@ -66,9 +75,6 @@ CAMERA_KEYS = ("preset", "design", "cover_px_per_ms", "f_number", "r_px", "sched
 
 def open_stores(p: RenderedProblem):
     """The stores, checked to share one camera, with the settings in range, before any work."""
-    from ..lightfield import Store
-    from ..restore.deconvolve import METHODS, require_method
-    from ..sensor.model import SensorModel
 
     if not p.stores:
         raise ParameterError("stores: give at least one light-field store")
@@ -79,9 +85,9 @@ def open_stores(p: RenderedProblem):
     require_method(p.method)
     SensorModel.from_preset(p.sensor)
     stores = [Store.open(s) for s in p.stores]
-    first = stores[0].manifest["spec"]["capture"]
+    first = stores[0].manifest.capture
     for folder, st in zip(p.stores[1:], stores[1:]):
-        other = st.manifest["spec"]["capture"]
+        other = st.manifest.capture
         for key in CAMERA_KEYS:
             if other[key] != first[key]:
                 raise ParameterError(
@@ -107,10 +113,6 @@ def run_rendered_optimize(p: RenderedProblem, out: Path, force: bool, progress: 
     dict
         The search.json object.
     """
-    from ..exposure.plan import plan_capture
-    from ..lightfield.centre_basis import centre_basis
-    from ..lightfield.synthesis import synthesize
-    from ..model.design_file import write_design
 
     stores = open_stores(p)
     specs = [base_spec(s) for s in stores]
@@ -132,7 +134,6 @@ def run_rendered_optimize(p: RenderedProblem, out: Path, force: bool, progress: 
     doc = _document(p, stores, positions, trace, objectives, start, setup_s)
     if p.check_seeds:
         doc["fresh"] = fresh_check(p, specs, out / "design.toml", progress)
-    from .rendered_outputs import write_outputs
 
     write_outputs(out, doc, force)
     return doc
@@ -149,8 +150,8 @@ def found_design(plan, centres_x_mm):
 def _document(p, stores, positions, trace, objectives, start, setup_s: float) -> dict:
     start_per = [o.psnr_db(start) for o in objectives]
     return {
-        "stores": [{"folder": str(f), "digest": s.digest, "scene": s.manifest["scene"],
-                    "window": s.manifest["camera"]["window"]}
+        "stores": [{"folder": str(f), "digest": s.digest, "scene": s.manifest.scene,
+                    "window": list(s.manifest.camera.window)}
                    for f, s in zip(p.stores, stores)],  # fmt: skip
         "sensor": p.sensor, "light_level": p.light_level, "method": p.method,
         "noise_draws": p.noise_draws, "seed": p.seed, "positions_mm": positions.tolist(),
@@ -175,8 +176,6 @@ def fresh_check(p: RenderedProblem, specs, design_path: Path, progress: bool) ->
         interval; and the worst case over the stores per seed.
     """
     from scipy import stats
-
-    from ..exposure.capture import render_capture
 
     rows = []
     per_seed = {k: np.zeros((len(specs), p.check_seeds)) for k in ("base", "found")}

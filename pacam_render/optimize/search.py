@@ -16,8 +16,11 @@ import numpy as np
 from scipy import optimize
 
 from ..errors import ParameterError, check_positive
+from ..exposure.render_time import say
+from ..limits import duration
 from ..model.camera import MIN_FOCUS_MM, MIN_OPENING_LCOS_PX, CameraDesign, preset
 from ..model.design import solve
+from ..model.design_file import resolve_design
 from ..model.schedule_file import check_pattern_count
 from ..restore.noise import NoiseModel
 from ..sensor.model import SensorModel
@@ -50,7 +53,6 @@ def base_design(p: Problem, depth_mm: float) -> CameraDesign:
     preset's."""
     if p.design is None:
         return preset(p.preset, object_depth_mm=depth_mm)
-    from ..model.design_file import resolve_design
 
     d = resolve_design(p.design, object_depth_mm=depth_mm)
     return d.with_(pattern_centres_mm=None, pattern_masks=None)
@@ -203,8 +205,6 @@ iterations on ``pacam optimize --max-velocity 1.4`` (43 in 37 with ``--quick``).
 def _announce(obj: Objective, theta: np.ndarray, iterations: int) -> None:
     """Say the search's longest time on stderr: ``iterations`` of :data:`EVALS_PER_ITERATION`
     evaluations, one evaluation timed now."""
-    from ..exposure.cost import say
-    from ..limits import duration
 
     t0 = time.perf_counter()
     obj.loss(theta)

@@ -33,10 +33,12 @@ from ..model.modes import (
     MODES,
     MODES_WITH_PSF,
     capture_camera,
+    held_offsets_px,
     mode_exposure_ms,
     t0_offset_px,
 )
 from .bitmap import bitmap_kernel, bitmap_lost_fraction
+from .diffraction import DEFAULT_MAX_LOST, diffracted_kernel
 from .grid import (  # the limit and the warning are also read here by earlier callers
     MAX_LOST_FRACTION,  # noqa: F401
     R_DELTA_PX,
@@ -45,7 +47,7 @@ from .grid import (  # the limit and the warning are also read here by earlier c
     kernel_shape,
     normalise,
 )
-from .pillbox import quadrant_area
+from .pillbox import disc_coverage, quadrant_area
 from .planar import planar_kernel
 from .trajectory import Segment, bin_statistics, extent, total_weight
 
@@ -171,7 +173,6 @@ def pillbox_psf(r_px: float, size=None, centre=(0.0, 0.0)) -> np.ndarray:
         raise ParameterError(f"r_px must be a finite radius >= 0 px, got {r_px!r}")
     cx = check_finite("centre x (px)", centre[0])
     cy = check_finite("centre y (px)", centre[1])
-    from .pillbox import disc_coverage
 
     n = auto_size(-abs(cx) - abs(cy), abs(cx) + abs(cy), r)
     shape = kernel_shape(size if size is not None else n, 0, 0, r)
@@ -267,7 +268,6 @@ def designed_segments(cam, s: float, x0_px: float = 0.0) -> list[Segment]:
     x0_px : float
         Where the pattern shown at t = 0 images the point, px.
     """
-    from ..model.modes import held_offsets_px
 
     s = check_finite("s (px/ms)", s)
     off = held_offsets_px(cam)
@@ -443,8 +443,6 @@ def design_psf(
     ((25, 25), 1.0)
     """
     if diffraction_nm is not None:  # the pixel's box counted once, as the rays count it
-        from .diffraction import DEFAULT_MAX_LOST, diffracted_kernel
-
         shape = np.shape(design_psf(design, mode, s, size, origin, v_px_per_ms))
 
         def build(cam, f, fine):

@@ -21,6 +21,11 @@ import math
 import numpy as np
 
 from ..errors import ParameterError
+from ..model.modes import capture_camera
+from .analytic import design_trajectory
+from .defocused_disc import PSI_MAX, radial_density
+from .diffraction import diffracted_kernel, full_shape
+from .trajectory import bin_statistics, extent
 
 STEP_PX = 0.05
 """Spacing of the pixel-integrated PSF's table and of the trajectory's bins, px (E's finest
@@ -35,7 +40,6 @@ def edge_phase(cam, r_px: float, wavelength_nm: float, pixel_pitch_mm: float):
 
 def mode_edge_phase(design, mode: str, wavelength_nm: float, pixel_pitch_mm: float):
     """:func:`edge_phase` of a ``mode`` capture's camera at its object depth."""
-    from ..model.modes import capture_camera
 
     cam = capture_camera(design, mode)
     return edge_phase(cam, cam.r_px, wavelength_nm, pixel_pitch_mm)
@@ -44,7 +48,6 @@ def mode_edge_phase(design, mode: str, wavelength_nm: float, pixel_pitch_mm: flo
 def pixel_integrated(psi: float, lam_n_px: float, half_px: float) -> tuple[np.ndarray, np.ndarray]:
     """G(dx, dy) = the light of E centred at 0 in the pixel centred at (dx, dy), on a grid of
     :data:`STEP_PX` over [-half_px, half_px]^2; and the grid's axis (px)."""
-    from .defocused_disc import radial_density
 
     m = int(round(1.0 / STEP_PX))  # samples per pixel
     n = 2 * int(math.ceil((half_px + 1.0) / STEP_PX)) + 1
@@ -90,9 +93,6 @@ def exact_defocus_kernel(design, mode: str, s: float, origin: str, wavelength_nm
     """
     from scipy.ndimage import map_coordinates
 
-    from .analytic import design_trajectory
-    from .trajectory import bin_statistics, extent
-
     if design.pattern_masks is not None:
         raise ParameterError("the exact defocused kernel needs disc openings, not bitmaps")
     pitch = float(pixel_pitch_mm or design.pixel_pitch_mm)
@@ -116,7 +116,6 @@ def exact_defocus_kernel(design, mode: str, s: float, origin: str, wavelength_nm
 
 
 def _capture_camera(design, mode: str):
-    from ..model.modes import capture_camera
 
     return capture_camera(design, mode)
 
@@ -126,7 +125,7 @@ def ray_kernel(build, design, mode: str, s: float, origin: str, wavelength_nm: f
     """The kernel with the opening's diffraction as the rays make it (issue 45, item 2).
 
     ``psf`` ``exact``: the exact defocused PSF (:func:`exact_defocus_kernel`), as disc
-    openings' rays draw it (:mod:`pacam_render.render.defocus_draw`), where the opening's
+    openings' rays draw it (:mod:`pacam_render.render.kernels.defocus_draw`), where the opening's
     defocus is within the rays' table (:data:`~pacam_render.render.ray_defocus.PSI_MAX`);
     beyond it, or with ``psf`` ``fraunhofer`` (a leaky LCoS's or a pixel grid's rays, an older
     capture, a bitmap), the geometric kernel convolved with the Airy pattern, the pixel's box
@@ -134,8 +133,6 @@ def ray_kernel(build, design, mode: str, s: float, origin: str, wavelength_nm: f
     With ``max_lost``, the exact kernel takes the shape that leaves out that share of the Airy
     pattern's light (:func:`~.diffraction.full_shape`).
     """
-    from .defocused_disc import PSI_MAX
-    from .diffraction import diffracted_kernel, full_shape
 
     pitch = float(pixel_pitch_mm or design.pixel_pitch_mm)
     exact = (psf == "exact" and design.pattern_masks is None

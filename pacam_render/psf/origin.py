@@ -16,6 +16,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import ParameterError
+from ..model.modes import t0_offset_px
 
 ORIGINS = ("t0", "pinhole")
 _OLD_T0_TEXT = "centre pixel = where the point images at mid-exposure (t = 0)"
@@ -31,7 +32,6 @@ def origin_record(design, mode: str, origin: str) -> dict:
         ``origin`` (one of :data:`ORIGINS`) and ``t0_offset_px``: where the t = 0 image lies
         from the pinhole image, px along x (+ right), at the kernel's own camera and mode.
     """
-    from ..model.modes import t0_offset_px
 
     _check(origin)
     return {"origin": origin, "t0_offset_px": t0_offset_px(design, mode)}

@@ -19,6 +19,12 @@ import numpy as np
 from ..errors import ParameterError
 from ..model.camera import CameraDesign
 from ..model.modes import mode as mode_of
+from ..psf.diffraction import diffracted_kernel
+from ..psf.exact_defocus import exact_defocus_kernel, mode_edge_phase
+from ..render.ray_defocus import PSI_MAX
+from ..render.ray_diffraction import sensor_properties
+from ..render.variant import is_mono
+from ..wave.patterns import channel_wavelengths_nm, shows_bitmaps
 
 LUMINANCE_RGB = (0.212671, 0.715160, 0.072169)
 """The weights of linear sRGB's R, G and B in luminance: what Mitsuba's ``luminance`` film
@@ -28,7 +34,6 @@ stores of an RGB variant's radiance."""
 def channels(variant: str) -> int:
     """Colour channels of a Mitsuba variant: 1 for a mono one (:func:`~..render.variant.
     is_mono`), else 3."""
-    from ..render.variant import is_mono
 
     return 1 if is_mono(variant) else 3
 
@@ -37,8 +42,6 @@ def sensor_params(design: CameraDesign, mode: str, n_channels: int, pitch_mm=Non
     """The ``programmable_aperture`` parameters that put diffraction in the rays of a PSF
     render on pixels of ``pitch_mm`` (default the design's own); refused for a pinhole mode or
     a bitmap schedule."""
-    from ..render.ray_diffraction import sensor_properties
-    from ..wave.patterns import channel_wavelengths_nm, shows_bitmaps
 
     if mode_of(mode).schedule is None:
         raise ParameterError(f"diffraction: mode {mode!r} is a pinhole, it has no opening")
@@ -65,10 +68,6 @@ def diffracted_model(
     as :func:`~pacam_render.psf.diffraction.diffracted_kernel` takes it) convolved with its
     Airy pattern on pixels of ``pitch_mm`` (default the design's own), the box counted once,
     cropped to ``shape`` and renormalised; then mixed by luminance."""
-    from ..psf.diffraction import diffracted_kernel
-    from ..psf.exact_defocus import exact_defocus_kernel, mode_edge_phase
-    from ..render.ray_defocus import PSI_MAX
-    from ..wave.patterns import channel_wavelengths_nm
 
     weights = LUMINANCE_RGB if n_channels == 3 else (1.0,)
     waves = channel_wavelengths_nm(n_channels)

@@ -19,6 +19,9 @@ from ..model.modes import (
     sensor_params,
     t0_offset_px,
 )
+from ..psf.analytic import kernel_from_trajectory
+from ..psf.bitmap import bitmap_kernel
+from ..psf.trajectory import Segment
 
 RENDER_MODES = MODES_WITH_PSF
 
@@ -103,8 +106,6 @@ def model_window_kernels(design: CameraDesign, mode: str, velocity: float, shape
     """The model's pixel-integrated kernel of each window (each normalised; None if shut),
     registered like ``design_psf(..., origin="t0")``: the same estimator (pixel centroids)
     applied to these gives the model's own value, free of Monte Carlo noise."""
-    from ..psf.analytic import kernel_from_trajectory
-    from ..psf.trajectory import Segment
 
     setup = mode_setup(design, mode)
     s = check_finite("velocity (px/ms)", velocity)
@@ -132,7 +133,6 @@ def model_window_kernels(design: CameraDesign, mode: str, velocity: float, shape
 def _bitmap_window_kernels(design: CameraDesign, s: float, shape) -> list:
     """Each window's exact kernel of a bitmap schedule (its pattern alone, the others dark),
     registered on the pattern shown at t = 0 like ``design_psf(..., origin="t0")``."""
-    from ..psf.bitmap import bitmap_kernel
 
     m = design.pattern_masks
     x0 = -t0_offset_px(design, "coded")

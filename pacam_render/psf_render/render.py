@@ -82,12 +82,14 @@ from contextlib import contextmanager
 import numpy as np
 
 from ..errors import ParameterError, check_positive
-from ..exposure.cost import Work, count_step, metered
+from ..exposure.render_time import Work, count_step, metered
 from ..io.signals import deferred_signals
 from ..model.camera import CameraDesign
 from ..render.registry import PSF_PLUGIN_NAME, ensure_registered, sensor_dict
+from ..render.variant import choose_variant
 from ..restore.metrics import kernel_centroid
 from ..scenes import image_to_scene_velocity, psf_scene
+from .diffraction import channels, sensor_params
 from .film import Film
 from .mode_setup import ModeSetup, model_window_centroids
 from .result import RenderedPSF
@@ -155,8 +157,6 @@ class PSFRenderer:
     def _scene(self, design, setup: ModeSetup, film: Film, integrator: str, diffraction=False,
                pitch_mm=None):  # fmt: skip
         import mitsuba as mi
-
-        from .diffraction import channels, sensor_params
 
         # a scene is made for one variant (mono or RGB): a switch between calls loads anew
         key = (mi.variant(), film.key(integrator, setup.exposure_ms), diffraction)
@@ -356,8 +356,8 @@ def render_plan(req, spec: PSFSpec):
 
 def psf_work(design: CameraDesign, spec: PSFSpec, model: np.ndarray | None = None) -> Work:
     """What :meth:`PSFRenderer.render` of ``spec`` does, for the planner's cost model
-    (:mod:`~pacam_render.exposure.cost`): one call, its particles (millions) and render calls;
-    nothing is rendered."""
+    (:mod:`~pacam_render.exposure.render_time`): one call, its particles (millions) and render
+    calls; nothing is rendered."""
     req = plan_render(design, spec, model)
     plan = render_plan(req, spec)[2]
     particles = sum(n for *_, n in plan) * req.film.sample_pixels(spec.integrator)
@@ -370,8 +370,6 @@ def psf_history_key() -> str:
     :func:`~pacam_render.render.variant.choose_variant` would pick. The active variant is
     never changed here (a scene belongs to the variant it was loaded in)."""
     import mitsuba as mi
-
-    from ..render.variant import choose_variant
 
     return f"psf {mi.variant() or choose_variant()}"
 

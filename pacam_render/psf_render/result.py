@@ -9,6 +9,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import check_positive
+from ..psf.analytic import pillbox_psf
 from ..restore.metrics import fit_acceleration, kernel_centroid, rel_l1
 
 
@@ -110,7 +111,6 @@ class RenderedPSF:
 def source_blur_l1(r_px: float, source_radius_px: float, rings: int = 4) -> float:
     """L1 change of a pixel-integrated pillbox of radius r_px when convolved with a uniform
     source disc (quadrature over the source: equal-area rings): the source-size effect."""
-    from ..psf.analytic import pillbox_psf
 
     r = check_positive("r_px", r_px, "px")
     rs = float(source_radius_px)

@@ -11,6 +11,8 @@ import numpy as np
 from ..errors import ParameterError, check_finite, check_positive
 from ..limits import DEFAULT_MAX_SAMPLES, check_count
 from ..model.camera import MIN_FOCUS_MM, CameraDesign
+from ..psf.analytic import design_psf
+from .diffraction import channels, diffracted_model, sensor_params
 from .film import FILM_MODES, Film, film_for
 from .mode_setup import ModeSetup, mode_setup
 
@@ -139,7 +141,6 @@ def plan_render(
     range) and compute the analytic kernel, the film and the placement; renders nothing.
     ``model``: the analytic kernel if already computed (``design_psf(design, spec.mode,
     spec.velocity, spec.size, origin=spec.origin)``), to save its computation."""
-    from ..psf.analytic import design_psf
 
     spec = PSFSpec() if spec is None else spec
     velocity = check_finite("velocity (px/ms)", spec.velocity)
@@ -154,8 +155,6 @@ def plan_render(
         check_positive("pixel_pitch_mm", spec.pixel_pitch_mm, "mm")
     if spec.diffraction:  # the geometric kernel, diffracted as the rays will be
         import mitsuba as mi
-
-        from .diffraction import channels, diffracted_model, sensor_params
 
         n = channels(mi.variant() or "")
         sensor_params(design, spec.mode, n, spec.pixel_pitch_mm)  # refuses pinholes, bitmaps

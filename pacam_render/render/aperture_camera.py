@@ -178,7 +178,7 @@ type takes one base): the schedule look-up, a ray's time to its pattern and that
 weight, centre and camera offset (:mod:`.schedule_lookup`); the aperture sampling, a point of the
 disc or bitmap opening (:mod:`.aperture_sampling`); the relative illumination
 (:mod:`.relative_illumination`); the LCoS's flaws and the opening's diffraction
-(:mod:`.aperture_optics`); and the Dr.Jit types and helpers they share (:mod:`.kernel_types`).
+(:mod:`.aperture_optics`); and the Dr.Jit types and helpers they share (:mod:`.types`).
 
 Mitsuba's sensor contract
 -------------------------
@@ -198,17 +198,18 @@ first pattern. Uniform emitters, reflected light and the ``path`` integrator are
 
 from __future__ import annotations
 
-import math
-
 import drjit as dr
 import mitsuba as mi
 import numpy as np
 
 from ..errors import ParameterError, check_finite, check_positive
-from .aperture_optics import LCoSOptics
-from .aperture_sampling import ApertureSampling
-from .defocus_draw import ExactDefocus
-from .kernel_types import (
+from ..model.optics import focal_length_px
+from .kernels.aperture_optics import LCoSOptics
+from .kernels.aperture_sampling import ApertureSampling
+from .kernels.defocus_draw import ExactDefocus
+from .kernels.relative_illumination import RelativeIllumination
+from .kernels.schedule_lookup import ScheduleLookup
+from .kernels.types import (
     JIT,
     VARIANT,  # noqa: F401 - the registry reads it here
     Float,
@@ -224,8 +225,6 @@ from .kernel_types import (
     traversable,
 )
 from .plan import PROP_KEYS, AperturePlan, build_plan, config_from_props, handed
-from .relative_illumination import RelativeIllumination
-from .schedule_lookup import ScheduleLookup
 
 PROJECTION_KEYS = ("x_fov", "near_clip", "far_clip")
 """Traversed parameters of the projection (as Mitsuba's projective cameras expose them)."""
@@ -346,7 +345,7 @@ class ProgrammableApertureCamera(mi.Sensor):
         film = self.film()
         size, crop = film.size(), film.crop_size()
         self._resolution = mi.ScalarVector2f(crop)
-        self._focal_px = 0.5 * size.x / math.tan(math.radians(self._x_fov) / 2.0)
+        self._focal_px = focal_length_px(float(self._x_fov), int(size.x))
         proj = mi.perspective_projection(
             size, crop, film.crop_offset(), self._x_fov, self._near_clip, self._far_clip
         )

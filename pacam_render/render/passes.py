@@ -17,6 +17,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .samplers import SAMPLERS, check_sampler, sampler_name
+
 MAX_PASS_SPP = 1 << 12
 """The largest pass: a power of two that divides Dr.Jit's LLVM block (2^14 lanes)."""
 MAX_WAVEFRONT = 1 << 31
@@ -47,7 +49,6 @@ def split_spp(spp: int, pixels: int, sampler: str = "independent") -> list[int]:
         If one sample per pixel already exceeds :data:`MAX_WAVEFRONT`, or ``spp`` is not a
         multiple of the sampler's smallest size.
     """
-    from .samplers import SAMPLERS, check_sampler
 
     if pixels > MAX_WAVEFRONT:
         raise ValueError(f"{pixels} pixels exceed one wavefront ({MAX_WAVEFRONT} samples)")
@@ -98,8 +99,6 @@ def render_passes(
         back from an EXR; None when ``stop`` abandoned it.
     """
     import mitsuba as mi
-
-    from .samplers import sampler_name
 
     sensor = scene.sensors()[0] if sensor is None else sensor
     film = sensor.film()

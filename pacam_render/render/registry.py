@@ -14,7 +14,6 @@ capture's whole camera: that sensor (or a pinhole for the reference) with its fi
 from __future__ import annotations
 
 import importlib
-import math
 import sys
 
 import numpy as np
@@ -22,6 +21,8 @@ import numpy as np
 from ..errors import ParameterError, check_positive
 from ..model import paper
 from ..model.camera import CameraDesign
+from ..model.illumination import film_tan_max, parse_relative_illumination
+from ..model.optics import focal_length_px
 from .plan import PROP_KEYS, build_plan, hand_over
 from .samplers import quantum, sampler_dict
 from .variant import activate_variant
@@ -39,12 +40,12 @@ _registered: str | None = None  # the variant the plugins were last registered f
 
 _DEPENDENCIES = {
     "aperture_camera": (
-        "kernel_types",
-        "schedule_lookup",
-        "aperture_sampling",
-        "relative_illumination",
-        "aperture_optics",
-        "defocus_draw",
+        "kernels.types",
+        "kernels.schedule_lookup",
+        "kernels.aperture_sampling",
+        "kernels.relative_illumination",
+        "kernels.aperture_optics",
+        "kernels.defocus_draw",
     )
 }
 """Variant-bound modules a plugin module imports: re-imported first, in this order."""
@@ -226,7 +227,7 @@ def sensor_dict(**params) -> dict:
         fov = float(params["fov"])
         if not 0.0 < fov < 180.0:
             raise ParameterError(f"fov must be in (0, 180) deg, got {fov!r}")
-        focal_px = 0.5 * width / math.tan(math.radians(fov) / 2.0)
+        focal_px = focal_length_px(fov, width)
     tables = None
     if focal_px is not None or cfg.get("image_acceleration") is None:
         tables = build_plan(cfg, t0, t1, focal_px=focal_px, focus_mm=focus).tables
@@ -256,7 +257,6 @@ def _property(key: str, v):
 def _check_illumination(params: dict, focal_px: float | None) -> None:
     """``relative_illumination`` (and ``pixel_pitch``) as the plugin will parse them, and a
     curve against the film's farthest corner when the horizontal fov is known."""
-    from ..model.illumination import film_tan_max, parse_relative_illumination
 
     ri = parse_relative_illumination(params["relative_illumination"])
     pitch = params.get("pixel_pitch")
@@ -280,13 +280,13 @@ def sensor_entry(spec, design: CameraDesign, params: dict, exposure_ms: float) -
     Parameters
     ----------
     spec : CaptureSpec
-        The capture (:class:`~pacam_render.exposure.capture_spec.CaptureSpec`): uses ``mode``,
+        The capture (:class:`~pacam_render.exposure.spec.CaptureSpec`): uses ``mode``,
         ``width`` and ``height`` (px), ``crop`` and ``sampler``.
     design : CameraDesign
         The mode's camera (its field of view, deg).
     params : dict
         The sensor's schedule parameters
-        (:func:`~pacam_render.exposure.capture_camera.mode_camera`).
+        (:func:`~pacam_render.exposure.camera.mode_camera`).
     exposure_ms : float
         The exposure 2T, ms: the shutter is open over [0, exposure_ms], and the paper's time is
         t = shutter time - T.

@@ -88,8 +88,7 @@ def render_sigma(record: CaptureRecord | None, layer: str) -> float:
     for another layer, which already states its noise, or without a record of it)."""
     if record is None or record.sensor is None or layer != "noisy":
         return 0.0
-    err = record.render_error or {}
-    mc = err.get("mc_sigma_white_units")
+    mc = None if record.render_error is None else record.render_error.mc_sigma_white_units
     return 0.0 if mc is None else float(mc) * record.light_factor
 
 

@@ -12,8 +12,10 @@ import numpy as np
 
 from ..capture.record import CaptureRecord
 from ..errors import ParameterError
+from ..sensor.apply import units_per_input
+from ..sensor.model import SensorModel
 from .deconvolve import SIGMA_METHODS
-from .noise import estimate_noise_sigma
+from .noise import NoiseModel, estimate_noise_sigma
 
 NOISE_SIGMA_MAX = 1e3
 """The largest ``noise_sigma``, in multiples of the layer's peak (or of white, 1, if the peak
@@ -143,9 +145,6 @@ def layer_noise(rec: CaptureRecord):
     sensor model and photons per unit; what a weighted deconvolution assumes. Divide the layer
     by ``rec.light_factor`` and use ``.scaled(1 / rec.light_factor)`` for white = 1 units.
     """
-    from ..sensor.apply import units_per_input
-    from ..sensor.model import SensorModel
-    from .noise import NoiseModel
 
     s = rec.sensor
     if s is None:

@@ -6,6 +6,12 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..capture.kernels import analytic_psf
+from ..model.illumination import flat_field
+from .deconvolve import SIGMA_METHODS, deconvolve, nonnegative_for
+from .flat_field import RI_LAYER, flat_field_sigma
+from .object_score import edge_px
+
 STILL_KERNEL_MODES = ("normal", "short")
 """Modes restored with a delta kernel: denoised, not deblurred (see :func:`kernel`)."""
 
@@ -14,15 +20,12 @@ def radiance(cap, layer: np.ndarray) -> np.ndarray:
     """A capture layer in white = 1 units, flat-fielded by the capture's relative-illumination
     map when it has one (irradiance -> radiance, as a camera pipeline does and as the sharp
     layer and the kernels are)."""
-    from ..model.illumination import flat_field
-    from .flat_field import RI_LAYER
 
     return flat_field(layer / cap.record.light_factor, cap.extra_layers.get(RI_LAYER))
 
 
 def flat_sigma(cap, sigma: float) -> float:
     """A noise sigma of the capture, after :func:`radiance` (RMS over the window)."""
-    from .flat_field import RI_LAYER, flat_field_sigma
 
     m = cap.extra_layers.get(RI_LAYER)
     return sigma if m is None else flat_field_sigma(sigma, m)
@@ -31,7 +34,6 @@ def flat_sigma(cap, sigma: float) -> float:
 def edge_px_of(cap) -> int:
     """How far a moving object's blur reaches past its outline, px
     (:func:`.object_score.edge_px`)."""
-    from .object_score import edge_px
 
     return edge_px(cap.extra_layers["velocity"], cap.record.exposure_ms, cap.record.optics["r_px"])
 
@@ -40,7 +42,6 @@ def deconvolve_capture(cap, noisy, sigma: float, method: str) -> np.ndarray:
     """Restore with the mode's kernel (:func:`kernel`) and ``method``'s prior: ``sigma`` goes
     to the methods that take one; ``rl`` gets the noisy layer clipped at 0 (its data must be
     non-negative; a pacam deconvolve of the same layer does the same, with a note)."""
-    from .deconvolve import SIGMA_METHODS, deconvolve, nonnegative_for
 
     kw = {"noise_sigma": sigma} if method in SIGMA_METHODS else {}
     return deconvolve(nonnegative_for(method, noisy)[0], kernel(cap), method, **kw)
@@ -55,7 +56,6 @@ def kernel(cap) -> np.ndarray:
     unknown speed, a delta, so that the method only denoises them with the same prior, and
     every mode is restored alike.
     """
-    from ..capture.kernels import analytic_psf
 
     mode = cap.record.mode
     if mode in STILL_KERNEL_MODES:

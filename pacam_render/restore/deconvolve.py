@@ -28,7 +28,7 @@ import scipy.fft as sfft
 from scipy.optimize import minimize_scalar
 
 from ..errors import ParameterError
-from .cost import DEFAULT_ITERATIONS, check_deconvolve
+from .deconvolve_cost import DEFAULT_ITERATIONS, check_deconvolve
 from .fourier import WORKERS, check_image, check_psf, pad_width, psf_to_otf, taper_pad
 from .metrics import psnr
 from .noise import SIGMA_FLOOR, check_sigma, estimate_noise_sigma
@@ -521,8 +521,8 @@ def deconvolve(image, psf, method: str = "hl", **kwargs):
     ------
     ParameterError
         If ``method`` is not one of :data:`METHODS`; before any work, if its memory is not
-        available (:func:`~.cost.check_deconvolve`, naming the methods that fit); or as the
-        method raises it.
+        available (:func:`~pacam_render.restore.deconvolve_cost.check_deconvolve`, naming the
+        methods that fit); or as the method raises it.
 
     Notes
     -----

@@ -13,6 +13,7 @@ import numpy as np
 import scipy.fft as sfft
 
 from ..errors import ParameterError, check_positive
+from ..psf.analytic import pillbox_psf
 
 MAX_SHIFT_PX = 12
 """Aligned PSNR searches whole-pixel horizontal shifts within +-MAX_SHIFT_PX: a motion-invariant
@@ -306,8 +307,6 @@ def fit_disc_radius(kernel: np.ndarray, r_guess: float) -> float:
     1e-6 r_guess.
     """
     from scipy.optimize import minimize_scalar
-
-    from ..psf.analytic import pillbox_psf
 
     k = np.asarray(kernel, dtype=float)
     k = k / k.sum()

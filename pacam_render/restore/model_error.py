@@ -20,6 +20,11 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..capture.kernels import analytic_psf
+from ..model.illumination import flat_field
+from .capture_score import STILL_KERNEL_MODES
+from .flat_field import RI_LAYER
+from .metrics import shift_search_px
 from .object_score import best_shift_se
 
 
@@ -104,19 +109,14 @@ def capture_model_sigma(layers: dict, record) -> float:
     camera, it is the model error to tell the deconvolver for other captures of that camera
     (``pacam deconvolve --model-sigma-from``), without knowing their sharp images.
     """
-    from ..capture.kernels import analytic_psf
-    from ..model.illumination import flat_field
-    from .capture_score import STILL_KERNEL_MODES
-    from .flat_field import RI_LAYER
-    from .metrics import shift_search_px
 
     k = np.ones((1, 1)) if record.mode in STILL_KERNEL_MODES else analytic_psf(record)
     y = flat_field(np.asarray(layers["capture"], float) / record.light_factor, layers.get(RI_LAYER))
     ids = np.asarray(layers["object_id"]).astype(int)
     speed = np.abs(np.asarray(layers["velocity"])[..., 0])
     moving = {n for key, n in record.objects.items() if np.any(speed[ids == int(key)] > 0)}
-    err = record.render_error or {}
-    mc = err.get("mc_sigma_white_units") or 0.0
-    sharp = err.get("sharp_mc_sigma") or 0.0
+    err = record.render_error
+    mc = (err.mc_sigma_white_units if err else None) or 0.0
+    sharp = (err.sharp_mc_sigma if err else None) or 0.0
     shift = shift_search_px(record.spec["width"])
     return model_sigma(y, layers["sharp"], k, ids, record.objects, moving, shift, mc**2, sharp**2)

@@ -12,7 +12,7 @@ import json
 
 import numpy as np
 
-from ..restore.metrics import aligned_psnr, ssim
+from ..restore.metrics import aligned_psnr, shift_search_px, ssim
 
 MIN_OBJECT_PX = 16
 """An object with fewer visible pixels is not scored on its own (too few to mean anything)."""
@@ -181,7 +181,6 @@ def score_capture(est, layers: dict, record) -> dict:
     dict
         As :func:`score`.
     """
-    from ..restore.metrics import shift_search_px
 
     width = record.spec.get("width") or record.camera.get("width_px")
     objects = record.objects or {}

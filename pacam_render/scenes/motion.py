@@ -28,6 +28,7 @@ import numpy as np
 
 from ..errors import ParameterError, check_finite, check_positive, did_you_mean
 from ..model.camera import CameraDesign
+from ..render.backend import select_variant
 
 
 def _mi():
@@ -35,8 +36,6 @@ def _mi():
     import mitsuba as mi
 
     if mi.variant() is None:
-        from ..render.backend import select_variant
-
         select_variant()
     return mi
 

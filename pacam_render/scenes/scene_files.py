@@ -15,6 +15,7 @@ import stat
 from pathlib import Path
 
 from ..errors import ParameterError
+from ..limits import note
 
 MAX_SCENE_XML_BYTES = 64 * 2**20
 """The largest scene XML read (64 MiB; the built-in scenes' are under 20 KiB)."""
@@ -55,7 +56,6 @@ def check_scene_files(path: Path, text: str, params: dict) -> None:
     a folder) or is over :data:`MAX_ASSET_BYTES`, and an ``<include>`` that is not ``.xml``;
     note one that lies outside the scene's folder (written so, not through a ``$name``
     parameter). ``params`` fill its ``$name`` references."""
-    from ..limits import note
 
     for written, include in named_files(text):
         name = re.sub(r"\$(\w+)", lambda m: str(params.get(m.group(1), m.group(0))), written)

@@ -12,6 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..capture.optics_error import add_ratios
 from ..capture.record import SensorRecord
 from ..errors import ParameterError, check_positive
 from ..limits import PacamWarning
@@ -156,10 +157,8 @@ def add_sensor_layers(
     )
     rec.noise_sigma = sigma * rec.light_factor  # in the capture's own units
     if rec.render_error is not None and rec.noise_sigma > 0:
-        rec.render_error["ratio_to_sensor"] = rec.render_error["mc_sigma"] / rec.noise_sigma
+        rec.render_error.ratio_to_sensor = rec.render_error.mc_sigma / rec.noise_sigma
     if rec.optics_error is not None:  # the budget against this sensor, not a stand-in
-        from ..capture.optics_error import add_ratios
-
         where = preset + (f" at {light_level:g} photons/px/ms" if light_level else "")
         add_ratios(rec.optics_error, rec.noise_sigma, where)
 

@@ -26,7 +26,7 @@ _PATTERN = re.compile(r"sub(\d+)$")
 
 
 def load_capture(path: str | os.PathLike) -> Capture:
-    """A capture read back as :func:`~pacam_render.exposure.capture.render_capture` returned
+    """A capture read back as :func:`~pacam_render.exposure.direct.render_capture` returned
     it: the image and every layer in the file's own units, the per-pattern images and the
     per-pixel Monte Carlo sigma when the file has them, and its record."""
     layers, record = read_capture_layers(path)

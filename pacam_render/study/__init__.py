@@ -16,6 +16,9 @@ from functools import partial
 from pathlib import Path
 
 from ..errors import ParameterError, check_positive
+from ..exposure.render_time import estimate_capture, say
+from ..io.lock import output_lock
+from ..io.outputs import writable_dir
 from ..limits import duration
 from .engine import (
     check_workers,
@@ -25,7 +28,8 @@ from .engine import (
     threads_per_worker,
 )
 from .lightfield_task import run_study_task as run_task  # rendered, or on a store
-from .point import Task, pilot_task, point_row
+from .point import Task, capture_inputs, pilot_task, point_row, render_target
+from .report import write_report
 from .results import Results
 from .spec import StudySpec, builtin_studies, load_study
 
@@ -108,9 +112,6 @@ def run_study(
     KeyboardInterrupt
         On Ctrl-C; every finished point is already in ``results.csv``.
     """
-    from ..io.lock import output_lock
-    from ..io.outputs import writable_dir
-    from .report import write_report
 
     workers = check_workers(workers)
     if budget_hours is not None:
@@ -216,10 +217,8 @@ def _estimate(tasks: list, run, workers: int, progress: bool) -> float:
 
 
 def _say_pilots(tasks: list, workers: int) -> None:
-    """Say the pilot passes' predicted time (:mod:`~pacam_render.exposure.cost`) before they
+    """Say the pilot passes' predicted time (:mod:`~pacam_render.exposure.render_time`) before they
     run; a task whose inputs fail is left to its render to report."""
-    from ..exposure.cost import estimate_capture, say
-    from .point import capture_inputs, render_target
 
     total, rates = 0.0, None
     for i, task in enumerate(tasks):

@@ -13,6 +13,9 @@ import warnings
 from dataclasses import replace
 from pathlib import Path
 
+from ..exposure.integrate import CaptureInterrupted
+from ..lightfield import StoreSpec, render_lightfield, synthesize
+from ..limits import PacamWarning
 from .point import Task, capture_info, capture_inputs, error_rows, run_task, score_points
 
 
@@ -32,8 +35,6 @@ def by_design(points) -> dict[tuple, list]:
 
 def run_lightfield_task(task: Task) -> list[dict]:
     """One store for ``task``'s group, then every design's capture from it (module docstring)."""
-    from ..exposure.integrate import CaptureInterrupted
-    from ..limits import PacamWarning
 
     t0 = time.perf_counter()
     folder = _store_folder(task)
@@ -54,7 +55,6 @@ def run_lightfield_task(task: Task) -> list[dict]:
 
 
 def _design_rows(store, desc, base: dict, task: Task, points, store_s: float) -> list[dict]:
-    from ..lightfield import synthesize
 
     t1 = time.perf_counter()
     try:
@@ -68,7 +68,6 @@ def _design_rows(store, desc, base: dict, task: Task, points, store_s: float) ->
 
 def _store(task: Task, folder: Path):
     """The group's store (resumed from ``folder``), its scene and the group's speed and depth."""
-    from ..lightfield import StoreSpec, render_lightfield
 
     inputs = [
         capture_inputs(task.render, ps[0]) for ps in by_design(task.group or task.points).values()

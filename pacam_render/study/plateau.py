@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..restore.deconvolve import deconvolve
 from ..restore.model_error import convolve
 
 OLD_FLOOR = 0.02
@@ -53,7 +54,6 @@ def decompose(
         The noiseless capture as ``noisy`` is scaled (flat-fielded with it); default
         ``cap.image / light_factor``.
     """
-    from ..restore.deconvolve import deconvolve
 
     if k.size == 1 or method == "none":
         return {}

@@ -15,7 +15,23 @@ from pathlib import Path
 
 import numpy as np
 
+from ..exposure.camera import full_design
+from ..exposure.direct import CaptureInterrupted, render_capture
+from ..exposure.spec import GEOMETRIC_OPTICS, CaptureSpec
+from ..io.exr import write_exr
+from ..io.outputs import write_json
+from ..limits import PacamWarning
+from ..restore.capture_deblur import deblur_input
 from ..restore.capture_score import edge_px_of, flat_sigma, kernel, radiance
+from ..restore.deconvolve import deconvolve, nonnegative_for
+from ..restore.metrics import shift_search_px
+from ..restore.model_error import model_sigma
+from ..restore.object_score import score
+from ..scenes import load_scene
+from ..scenes.edit import at_depth, moving_depth_mm, scene_speed_px_per_ms, with_speed
+from ..sensor.apply import SensorTarget, add_sensor_layers
+from ..sensor.model import SensorModel
+from .plateau import decompose
 from .spec import Point, parse_design, target_sensors
 
 COLUMNS = (
@@ -86,8 +102,6 @@ def run_task(task: Task) -> list[dict]:
     list of dict
         One row per point, keyed by :data:`COLUMNS`; ``status`` is ``ok`` or ``error: ...``.
     """
-    from ..exposure.capture import CaptureInterrupted
-    from ..limits import PacamWarning
 
     t0 = time.perf_counter()
     with warnings.catch_warnings():
@@ -127,10 +141,6 @@ def _status(exc: Exception) -> str:
 
 def capture_inputs(render: dict, p: Point):
     """The CaptureSpec and scene description of a point (its speed and depth applied)."""
-    from ..exposure.capture_camera import full_design
-    from ..exposure.capture_spec import GEOMETRIC_OPTICS, CaptureSpec
-    from ..scenes import load_scene
-    from ..scenes.edit import at_depth, moving_depth_mm, scene_speed_px_per_ms, with_speed
 
     spec = CaptureSpec(
         scene=p.scene,
@@ -162,7 +172,6 @@ def capture_inputs(render: dict, p: Point):
 
 
 def _render(task: Task):
-    from ..exposure.capture import render_capture
 
     spec, desc, info = capture_inputs(task.render, task.points[0])
     target = render_target(task.render, task.group or task.points)
@@ -181,9 +190,9 @@ def capture_info(cap, desc, info: dict) -> dict:
     info.update(exposure_ms=rec.exposure_ms, light_factor=rec.light_factor)
     err = rec.render_error
     info.update(
-        render_noise_sigma=flat_sigma(cap, err["mc_sigma_white_units"]),
-        sharp_noise_sigma=err.get("sharp_mc_sigma"),
-        render_spp=err["spp"],
+        render_noise_sigma=flat_sigma(cap, err.mc_sigma_white_units),
+        sharp_noise_sigma=err.sharp_mc_sigma,
+        render_spp=err.spp,
     )
     info["model_sigma"] = _model_sigma(cap, desc)
     info.update(optics_columns(rec.optics_error, rec.light_factor))
@@ -212,9 +221,6 @@ def pilot_task(task: Task) -> dict:
     rest of the render's passes), ``pilot_spp`` and ``planned_spp`` (what the target needs)."""
     import warnings
 
-    from ..exposure.capture import render_capture
-    from ..limits import PacamWarning
-
     spec, desc, _ = capture_inputs(task.render, task.points[0])
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", PacamWarning)
@@ -229,10 +235,10 @@ def pilot_task(task: Task) -> dict:
         )
     err = cap.record.render_error
     return {
-        "seconds": err["seconds"],
-        "predicted_seconds": err.get("predicted_seconds", 0.0),
-        "pilot_spp": err["spp"],
-        "planned_spp": err["planned_spp"],
+        "seconds": err.seconds,
+        "predicted_seconds": err.predicted_seconds or 0.0,
+        "pilot_spp": err.spp,
+        "planned_spp": err.planned_spp,
     }
 
 
@@ -245,7 +251,6 @@ def render_target(render: dict, points):
     their sensors' noises (:class:`~pacam_render.sensor.apply.SensorTarget`), or None."""
     if render.get("noise_ratio") is None:
         return None
-    from ..sensor.apply import SensorTarget
 
     return SensorTarget(float(render["noise_ratio"]), target_sensors(points))
 
@@ -253,11 +258,9 @@ def render_target(render: dict, points):
 def _model_sigma(cap, desc) -> float:
     """The capture's departure from its deconvolver's model, white = 1
     (:mod:`~pacam_render.restore.model_error`)."""
-    from ..restore.metrics import shift_search_px
-    from ..restore.model_error import model_sigma
 
     layers = cap.extra_layers
-    sharp_var = (cap.record.render_error.get("sharp_mc_sigma") or 0.0) ** 2
+    sharp_var = (cap.record.render_error.sharp_mc_sigma or 0.0) ** 2
     return model_sigma(
         radiance(cap, cap.image),
         layers["sharp"],
@@ -274,11 +277,6 @@ def _model_sigma(cap, desc) -> float:
 def _evaluate(cap, desc, p: Point, task: Task, info: dict) -> dict:
     """Sensor, deconvolution and scores of one point on the rendered capture, restored as
     ``pacam deconvolve`` restores it (:func:`_restore`)."""
-    from ..restore.metrics import shift_search_px
-    from ..restore.object_score import score
-    from ..sensor.apply import add_sensor_layers
-    from ..sensor.model import SensorModel
-    from .plateau import decompose
 
     add_sensor_layers(cap, SensorModel.from_preset(p.sensor), p.sensor, p.light_level, p.seed)
     told = told_model_sigma(task.model_error, info["model_sigma"])
@@ -339,8 +337,6 @@ def _restore(cap, method: str, model_sigma: float | None) -> np.ndarray:
     """The sensor layer ``noisy`` restored as ``pacam deconvolve`` does (the deconvolver told
     the sensor's and the render's noise, and ``model_sigma`` when given:
     :func:`~pacam_render.restore.capture_deblur.deblur_input`), white = 1."""
-    from ..restore.capture_deblur import deblur_input
-    from ..restore.deconvolve import deconvolve, nonnegative_for
 
     layers = {**cap.extra_layers, "capture": cap.image}
     d = deblur_input(layers, "noisy", cap.record, method, model_sigma=model_sigma)
@@ -350,8 +346,6 @@ def _restore(cap, method: str, model_sigma: float | None) -> np.ndarray:
 
 
 def _keep(cap, est, p: Point, folder: Path) -> None:
-    from ..io.exr import write_exr
-    from ..io.outputs import write_json
 
     folder.mkdir(parents=True, exist_ok=True)
     layers = {"estimate": est, "noisy": cap.extra_layers["noisy"], "capture": cap.image}

@@ -22,6 +22,7 @@ import numpy as np
 
 from ..errors import ParameterError
 from ..io.outputs import save_figure, write_text
+from ..model.camera import preset
 from .crossover_map import map_applies, map_section, write_map
 from .paired import paired_section
 from .results import RESULTS, read_csv
@@ -240,7 +241,6 @@ def told_text(model_error) -> str:
 def _binning(render: dict) -> str:
     """How the study's sensor relates to its preset's: '' at full resolution, else the
     preset's size and the binning factor (each study pixel is that many preset pixels)."""
-    from ..model.camera import preset
 
     try:
         full = preset(render["preset"])

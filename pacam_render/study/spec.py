@@ -29,8 +29,22 @@ from importlib import resources
 from pathlib import Path
 
 from ..errors import FileKeyError, ParameterError
+from ..exposure.camera import capture_design
+from ..exposure.optics.diffraction import check_diffraction
+from ..exposure.spec import CaptureSpec
 from ..io.toml_file import parse_toml, read_text
 from ..limits import note
+from ..model.design_file import read_design
+from ..model.illumination import parse_relative_illumination
+from ..model.modes import MODES
+from ..model.schedule_file import read_schedule
+from ..render.variant import grey_request
+from ..restore.capture_deblur import MODEL_ERRORS
+from ..restore.deconvolve import METHODS, require_method
+from ..scenes.builtin import BUILTIN_SCENES
+from ..scenes.description import file_digest
+from ..sensor.model import SensorModel
+from ..sensor.presets import mono_preset
 from ..sensor.radiometry import DEFAULT_LIGHT_LEVEL
 
 AXES = {
@@ -74,19 +88,19 @@ feeds (0.2: the render adds at most 4 % to any point's noise variance); ``false`
 ``noise_ratio`` (with both, ``spp`` is the target's first passes)."""
 GREY_RENDER = "grey"
 """The ``[render]`` key (true or false, default false) that renders every capture in one
-channel with Mitsuba's mono variant (:attr:`~pacam_render.exposure.capture_spec.CaptureSpec.grey`;
+channel with Mitsuba's mono variant (:attr:`~pacam_render.exposure.spec.CaptureSpec.grey`;
 ``pacam study --grey`` sets it). A grey study's built-in colour sensor presets become their
 monochrome twins (:data:`~pacam_render.sensor.presets.MONO_PRESETS`: ``grasshopper-icx285`` ->
 ``grasshopper-icx285-mono``, the same camera without its Bayer filter); a preset file with a
 ``bayer`` key is refused. It enters the study's keys only when true."""
 RELATIVE_ILLUMINATION_RENDER = "relative_illumination"
 """The ``[render]`` key ``relative_illumination``: ``off`` (default), ``cos4`` or a curve file,
-as :attr:`~pacam_render.exposure.capture_spec.CaptureSpec.relative_illumination`. A point then
+as :attr:`~pacam_render.exposure.spec.CaptureSpec.relative_illumination`. A point then
 flat-fields the sensor's image (and the noise it tells the deconvolver) before it restores and
 scores it, as a camera pipeline does. It enters the study's keys only when not ``off``."""
 DIFFRACTION_RENDER = "diffraction"
 """The ``[render]`` key ``diffraction``: ``off`` (default), ``on`` or ``auto``, as
-:attr:`~pacam_render.exposure.capture_spec.CaptureSpec.diffraction`. It enters the study's keys
+:attr:`~pacam_render.exposure.spec.CaptureSpec.diffraction`. It enters the study's keys
 only when not ``off``; results.csv says per row whether the capture has it."""
 LIGHTFIELD_RENDER = "lightfield"
 """The ``[render]`` key ``lightfield`` (true or false, default false): render one light-field
@@ -220,7 +234,6 @@ def input_digests(points) -> dict[str, str]:
     """{path: digest} of every file the points name: scene XMLs (with their motion JSON and
     every file they read), ``schedule=PATH`` designs, sensor preset files, and design files
     (the digest of the camera each makes, its bitmaps included)."""
-    from ..scenes.description import file_digest
 
     out = {}
     for p in points:
@@ -237,8 +250,6 @@ def input_digests(points) -> dict[str, str]:
             out[name] = hashlib.sha256(path.read_bytes() + digest.encode() + extra).hexdigest()[:16]
         design = design_file_path(p.design)
         if design is not None and design not in out:  # the camera it makes, bitmaps included
-            from ..model.design_file import read_design
-
             out[design] = read_design(design).digest()
     return out
 
@@ -354,7 +365,6 @@ def check_model_error(value) -> str | float:
     """``[study] model_error``: ``none``, ``oracle`` or a model sigma in [0, 10] (white = 1,
     calibrated on another capture of the camera, e.g. by ``pacam deconvolve
     --model-sigma-from``)."""
-    from ..restore.capture_deblur import MODEL_ERRORS
 
     if isinstance(value, str) and value in MODEL_ERRORS:
         return value
@@ -406,7 +416,6 @@ def _keys(table: dict, where: str, valid: set) -> None:
 
 
 def _check_render(r: dict) -> dict:
-    from ..exposure.capture_spec import CaptureSpec
 
     if r["crop"] in (False, None):
         r["crop"] = None
@@ -434,8 +443,6 @@ def _check_render(r: dict) -> dict:
     except ParameterError as exc:
         raise ParameterError(f"[render] {exc}") from None
     if DIFFRACTION_RENDER in r:
-        from ..exposure.capture_diffraction import check_diffraction
-
         try:
             check_diffraction(r[DIFFRACTION_RENDER])
         except ParameterError as exc:
@@ -443,8 +450,6 @@ def _check_render(r: dict) -> dict:
         if r[DIFFRACTION_RENDER] == "off":  # absent and off: the same study and keys
             del r[DIFFRACTION_RENDER]
     if RELATIVE_ILLUMINATION_RENDER in r:
-        from ..model.illumination import parse_relative_illumination
-
         try:
             ri = parse_relative_illumination(r[RELATIVE_ILLUMINATION_RENDER])
         except ParameterError as exc:
@@ -458,8 +463,6 @@ def _check_render(r: dict) -> dict:
         if not r["grey"]:  # absent and false are the same study (and the same keys)
             del r["grey"]
     if r.get("grey"):
-        from ..render.variant import grey_request
-
         grey_request(True)  # refused with an RGB PACAM_VARIANT, before any work
     return {**r, "crop": list(r["crop"]) if r["crop"] else None}
 
@@ -467,8 +470,6 @@ def _check_render(r: dict) -> dict:
 def _grey_sensor(name):
     """A grey study's sensor: a built-in colour preset becomes its monochrome twin; a preset
     file with a Bayer filter is refused (GREY_RENDER)."""
-    from ..sensor.model import SensorModel
-    from ..sensor.presets import mono_preset
 
     if not isinstance(name, str):
         return name  # _check_point names the bad value
@@ -581,13 +582,9 @@ def parse_design(text: str) -> dict:
         return out
     path = design_file_path(text)
     if path is not None:
-        from ..model.design_file import read_design
-
         read_design(path)  # checked with the spec, before any render
         return {**out, "design": path}
     if str(text).startswith("schedule="):
-        from ..model.schedule_file import read_schedule
-
         path = str(text)[len("schedule=") :]
         read_schedule(path)  # checked with the spec, before any render
         return {**out, "schedule": path}
@@ -607,9 +604,6 @@ def parse_design(text: str) -> dict:
 
 
 def _check_point(v: dict) -> dict:
-    from ..model.modes import MODES
-    from ..restore.deconvolve import METHODS, require_method
-    from ..scenes.builtin import BUILTIN_SCENES
 
     where = f"point {json.dumps(v, default=str)}"
     if v["scene"] not in BUILTIN_SCENES and not Path(v["scene"]).is_file():
@@ -638,7 +632,6 @@ def _check_point(v: dict) -> dict:
         v[key] = float(x)
     if isinstance(v["seed"], bool) or not isinstance(v["seed"], int) or not 0 <= v["seed"] < 2**31:
         raise ParameterError(f"{where}: seed must be an integer in [0, 2^31), got {v['seed']!r}")
-    from ..sensor.model import SensorModel
 
     SensorModel.from_preset(v["sensor"])  # raises, naming the presets
     return v
@@ -646,8 +639,6 @@ def _check_point(v: dict) -> dict:
 
 def _check_designs(points: list[Point], render: dict) -> None:
     """Every design can be built (the solver names the limit it hits), before any render."""
-    from ..exposure.capture_camera import capture_design
-    from ..exposure.capture_spec import CaptureSpec
 
     for text in sorted({p.design for p in points}):
         try:

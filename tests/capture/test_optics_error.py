@@ -14,8 +14,8 @@ from scipy.special import j1
 
 from pacam_render.capture import optics_error as oe
 from pacam_render.errors import ParameterError
-from pacam_render.exposure.capture_diffraction import check_diffraction, decide, effect_rms
-from pacam_render.exposure.capture_spec import CaptureSpec
+from pacam_render.exposure.optics.diffraction import check_diffraction, decide, effect_rms
+from pacam_render.exposure.spec import CaptureSpec
 from pacam_render.model.camera import prototype
 from pacam_render.model.modes import capture_camera
 from pacam_render.render.ray_diffraction import (

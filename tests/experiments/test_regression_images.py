@@ -39,7 +39,7 @@ def test_auto_leaves_diffraction_out_of_the_binned_cases_so_off_is_the_same(name
     The two F9.85 cases are the ones where diffraction is largest."""
     from dataclasses import replace
 
-    from pacam_render.exposure.capture import render_capture
+    from pacam_render.exposure.direct import render_capture
 
     spec = replace(R.CASES[name], seed=R.FRESH_SEED)
     auto = render_capture(replace(spec, diffraction="auto"), progress=False, truth=False)

@@ -8,9 +8,9 @@ import pytest
 
 from pacam_render.cli import main
 from pacam_render.errors import ParameterError
-from pacam_render.exposure.capture import CaptureInterrupted, render_capture
-from pacam_render.exposure.capture_camera import capture_design
-from pacam_render.exposure.capture_spec import CaptureSpec
+from pacam_render.exposure.camera import capture_design
+from pacam_render.exposure.direct import CaptureInterrupted, render_capture
+from pacam_render.exposure.spec import CaptureSpec
 from pacam_render.exposure.steps import plan_steps
 from pacam_render.model.modes import MODES
 from pacam_render.scenes import psf_scene

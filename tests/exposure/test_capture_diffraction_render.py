@@ -17,9 +17,9 @@ import pytest
 
 from pacam_render.cli import main
 from pacam_render.errors import ParameterError
-from pacam_render.exposure.capture import render_capture
-from pacam_render.exposure.capture_camera import capture_design, mode_camera
-from pacam_render.exposure.capture_spec import CaptureSpec
+from pacam_render.exposure.camera import capture_design, mode_camera
+from pacam_render.exposure.direct import render_capture
+from pacam_render.exposure.spec import CaptureSpec
 from pacam_render.wave.edge_mtf import edge_mtf, fit_edge
 from pacam_render.wave.reference import airy_kernel_quadrature, circular_mtf
 from pacam_render.wave.scale import scale_for

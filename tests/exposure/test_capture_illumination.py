@@ -19,9 +19,10 @@ import pytest
 from pacam_render.capture.files import read_capture
 from pacam_render.cli import main
 from pacam_render.errors import ParameterError
-from pacam_render.exposure.capture import render_capture, write_capture
-from pacam_render.exposure.capture_camera import film_pixel_pitch_mm, illumination_params
-from pacam_render.exposure.capture_spec import CaptureSpec
+from pacam_render.exposure.camera import illumination_params
+from pacam_render.exposure.direct import render_capture, write_capture
+from pacam_render.exposure.plan import plan_capture
+from pacam_render.exposure.spec import CaptureSpec
 from pacam_render.model.illumination import relative_illumination_map
 from pacam_render.restore.flat_field import FlatFieldNoise, flat_field_sigma
 from pacam_render.restore.noise import NoiseModel
@@ -55,18 +56,20 @@ def test_spec_checks_the_setting_and_hashes_a_curve(tmp_path):
 
 
 def test_sensor_parameters(tmp_path):
-    assert illumination_params(CaptureSpec.geometric(**TINY)) == {}
-    assert illumination_params(CaptureSpec(**TINY, relative_illumination="cos4")) == {
+    pitch = 0.00645 * 1280 / 48
+    assert illumination_params(CaptureSpec.geometric(**TINY), pitch) == {}
+    assert illumination_params(CaptureSpec(**TINY, relative_illumination="cos4"), pitch) == {
         "relative_illumination": "cos4"
     }
     ref = CaptureSpec(**{**TINY, "mode": "reference"}, relative_illumination="cos4")
-    assert illumination_params(ref) == {}  # the pinhole truth stays radiance
+    assert illumination_params(ref, pitch) == {}  # the pinhole truth stays radiance
     curve = tmp_path / "c.json"
     curve.write_text(json.dumps({"height_mm": [0, 5], "relative_illumination": [1, 0.5]}))
     spec = CaptureSpec(**TINY, relative_illumination=str(curve))
     # 48 px across the 1280 px, 6.45 um sensor: pixels of 172 um
-    assert film_pixel_pitch_mm(spec) == pytest.approx(0.00645 * 1280 / 48)
-    assert illumination_params(spec)["pixel_pitch"] == film_pixel_pitch_mm(spec)
+    plan = plan_capture(spec)
+    assert plan.pitch_mm == pytest.approx(pitch)
+    assert plan.optics_params["pixel_pitch"] == plan.pitch_mm
 
 
 @pytest.fixture(scope="module")

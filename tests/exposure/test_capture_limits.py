@@ -17,9 +17,10 @@ import pytest
 
 from pacam_render.cli import main
 from pacam_render.errors import ParameterError
-from pacam_render.exposure.capture import CaptureInterrupted, render_capture
-from pacam_render.exposure.capture_spec import CaptureSpec
+from pacam_render.exposure.direct import CaptureInterrupted, render_capture
 from pacam_render.exposure.estimate import AbsoluteTarget
+from pacam_render.exposure.spec import CaptureSpec
+from tests.patching import patch_everywhere
 
 SMALL = {"scene": "train", "mode": "coded", "width": 48, "height": 32}
 """The train on a 48 x 32 sensor: 16 time steps per pass, at least 4 spp each (ldsampler)."""
@@ -32,7 +33,7 @@ def _no_render(monkeypatch):
     def refuse(*args, **kwargs):
         raise AssertionError("rendered before refusing")
 
-    monkeypatch.setattr(passes, "render_passes", refuse)
+    patch_everywhere(monkeypatch, passes, "render_passes", refuse)
 
 
 # --- 13. the limit counts what is rendered ------------------------------------------------------
@@ -105,7 +106,7 @@ def test_a_target_out_of_reach_is_refused_after_the_pilot_and_resumes_with_a_lar
     assert state["seconds"] <= time.perf_counter() - t0
     cap = render_capture(spec, partial_dir=part, progress=False, truth=False, target=goal)
     err = cap.record.render_error
-    assert cap.record.resumed_from_step == 64 and err["target_met"]
+    assert cap.record.resumed_from_step == 64 and err.target_met
 
 
 @pytest.mark.render
@@ -139,16 +140,16 @@ def test_a_resumed_captures_seconds_count_every_session(tmp_path, monkeypatch):
 
     spec = CaptureSpec.geometric(scene="train", mode="coded", width=40, height=30, spp=16, seed=2)
     part = tmp_path / "c" / ".partial"
-    monkeypatch.setattr(passes, "render_passes", slow)
+    patch_everywhere(monkeypatch, passes, "render_passes", slow)
     with pytest.raises(CaptureInterrupted):
         render_capture(spec, partial_dir=part, progress=False, truth=False, stop_after_steps=4)
-    monkeypatch.setattr(passes, "render_passes", real)
+    patch_everywhere(monkeypatch, passes, "render_passes", real)
     carried = json.loads((part / "state.json").read_text())["state"]["seconds"]
     assert carried >= 2.0
     t0 = time.perf_counter()
     cap = render_capture(spec, partial_dir=part, progress=False, truth=False)
     second = time.perf_counter() - t0
     assert cap.record.resumed_from_step == 4
-    seconds = cap.record.render_error["seconds"]
+    seconds = cap.record.render_error.seconds
     assert carried < seconds <= carried + second + 0.01
     assert carried < cap.record.render_seconds <= carried + second + 0.01

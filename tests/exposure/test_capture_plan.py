@@ -5,10 +5,10 @@ import numpy as np
 import pytest
 
 import pacam_render.model.design_file as design_file
-from pacam_render.exposure.capture import render_capture
-from pacam_render.exposure.capture_camera import capture_design, film_pixel_pitch_mm, mode_camera
-from pacam_render.exposure.capture_spec import CaptureSpec
+from pacam_render.exposure.camera import capture_design, mode_camera
+from pacam_render.exposure.direct import render_capture
 from pacam_render.exposure.plan import plan_capture
+from pacam_render.exposure.spec import CaptureSpec
 from pacam_render.model import camera
 from pacam_render.model.camera import prototype
 from pacam_render.model.design_file import write_design
@@ -68,7 +68,7 @@ def test_the_plan_agrees_with_the_spec_resolved_the_long_way():
     design = capture_design(spec)
     cam, params = mode_camera(design, "normal")
     assert plan.design == design and plan.cam == cam and plan.mode_params == params
-    assert plan.pitch_mm == film_pixel_pitch_mm(spec) == pytest.approx(0.00645 * 1280 / 64)
+    assert plan.pitch_mm == pytest.approx(0.00645 * 1280 / 64)  # 64 px across 1280 of 6.45 um
     assert plan.key() == spec.key()
     sensor = plan.with_diffraction(False, "off").sensor_params()
     assert sensor["lcos_contrast"] == 200.0 and sensor["relative_illumination"] == "cos4"
@@ -99,7 +99,7 @@ def test_the_optics_defaults_have_one_owner():
     which ``pacam render``, ``validate-scene`` and the demo take."""
     from pacam_render.cli import build_parser
     from pacam_render.experiments.validate_scene import SceneCheck
-    from pacam_render.exposure.capture_spec import CAMERA_OPTICS, GEOMETRIC_OPTICS
+    from pacam_render.exposure.spec import CAMERA_OPTICS, GEOMETRIC_OPTICS
 
     spec = CaptureSpec.geometric()
     assert {k: getattr(spec, k) for k in GEOMETRIC_OPTICS} == GEOMETRIC_OPTICS

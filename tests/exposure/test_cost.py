@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 
 from pacam_render.cli import main
-from pacam_render.exposure import cost
-from pacam_render.exposure.capture import render_capture
-from pacam_render.exposure.capture_spec import CaptureSpec
+from pacam_render.exposure import render_time as cost
+from pacam_render.exposure.direct import render_capture
+from pacam_render.exposure.spec import CaptureSpec
 
 TINY = {"scene": "train", "width": 48, "height": 36, "spp": 16, "seed": 2}
 

@@ -17,8 +17,8 @@ import numpy as np
 import pytest
 
 from pacam_render.cli import main
-from pacam_render.exposure.capture import CaptureInterrupted, render_capture
-from pacam_render.exposure.capture_spec import CaptureSpec
+from pacam_render.exposure.direct import CaptureInterrupted, render_capture
+from pacam_render.exposure.spec import CaptureSpec
 from pacam_render.io.exr import read_exr
 from pacam_render.render.variant import llvm_status
 

@@ -14,9 +14,9 @@ import numpy as np
 import pytest
 
 from pacam_render.errors import ParameterError
-from pacam_render.exposure.capture import render_capture
-from pacam_render.exposure.capture_camera import capture_design
-from pacam_render.exposure.capture_spec import CaptureSpec
+from pacam_render.exposure.camera import capture_design
+from pacam_render.exposure.direct import render_capture
+from pacam_render.exposure.spec import CaptureSpec
 from pacam_render.model.design_file import write_design
 from tests.exposure.test_render_error import _glowing_wall
 

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from pacam_render.errors import ParameterError
-from pacam_render.exposure.capture_spec import CaptureSpec
+from pacam_render.exposure.spec import CaptureSpec
 
 pytestmark = pytest.mark.render
 

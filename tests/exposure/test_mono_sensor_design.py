@@ -10,8 +10,8 @@ import pytest
 
 from pacam_render.cli import main
 from pacam_render.errors import ParameterError
-from pacam_render.exposure.capture_spec import CaptureSpec
 from pacam_render.exposure.plan import plan_capture
+from pacam_render.exposure.spec import CaptureSpec
 from pacam_render.model.camera import prototype
 from pacam_render.model.design_file import write_design
 

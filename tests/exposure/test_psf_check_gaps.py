@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 
 from pacam_render.capture.record import CaptureRecord
-from pacam_render.exposure.capture_psf import PSFMismatchError, check_psf_design
+from pacam_render.exposure.deblur_psf import PSFMismatchError, check_psf_design
 from pacam_render.limits import PacamWarning
 from pacam_render.model.camera import prototype
 

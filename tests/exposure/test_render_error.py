@@ -15,9 +15,8 @@ import pytest
 
 from pacam_render.cli import main
 from pacam_render.exposure import integrate as integ
-from pacam_render.exposure.capture import render_capture
-from pacam_render.exposure.capture_camera import capture_design
-from pacam_render.exposure.capture_spec import CaptureSpec
+from pacam_render.exposure.camera import capture_design
+from pacam_render.exposure.direct import render_capture
 from pacam_render.exposure.estimate import (
     AbsoluteTarget,
     PassGroup,
@@ -27,6 +26,7 @@ from pacam_render.exposure.estimate import (
     rms,
 )
 from pacam_render.exposure.progress import advance, pass_cost, pilot_schedule
+from pacam_render.exposure.spec import CaptureSpec
 from pacam_render.io.exr import read_exr
 from pacam_render.limits import PacamWarning
 from pacam_render.render.passes import split_spp
@@ -204,12 +204,12 @@ def test_recorded_sigma_agrees_with_two_seed_measurement(sampler):
         for s in (0, 1)
     ]
     measured = _two_seed_sigma(caps[0].image, caps[1].image)
-    recorded = [c.record.render_error["mc_sigma"] for c in caps]
+    recorded = [c.record.render_error.mc_sigma for c in caps]
     assert np.mean(recorded) == pytest.approx(measured, rel=0.15)
     err = caps[0].record.render_error
-    assert err["passes"] == 2 and err["spp"] == caps[0].record.effective_spp
-    assert err["time_step_bias"] == 0.0 and err["time_steps_per_pass"] == caps[0].record.n_steps
-    assert err["sampler"] == sampler and err["seconds"] > 0
+    assert err.passes == 2 and err.spp == caps[0].record.effective_spp
+    assert err.time_step_bias == 0.0 and err.time_steps_per_pass == caps[0].record.n_steps
+    assert err.sampler == sampler and err.seconds > 0
 
 
 @pytest.mark.render
@@ -258,8 +258,8 @@ def test_flat_emitter_reads_its_radiance_times_the_light_factor(mode, moving):
     cap = render_capture(spec, progress=False, description=_glowing_wall(moving), truth=False)
     lf = cap.record.light_factor
     np.testing.assert_allclose(cap.image, 0.8 * lf, rtol=2e-6)
-    assert cap.record.render_error["mc_sigma"] <= 1e-6 * lf
-    assert (cap.record.render_error["time_steps_per_pass"] > 0) == (moving and mode != "reference")
+    assert cap.record.render_error.mc_sigma <= 1e-6 * lf
+    assert (cap.record.render_error.time_steps_per_pass > 0) == (moving and mode != "reference")
 
 
 @pytest.mark.render
@@ -269,7 +269,7 @@ def test_a_black_frame_has_no_error_and_meets_any_target():
     cap = render_capture(spec, progress=False, description=black, target=AbsoluteTarget(1e-9))
     assert not cap.image.any() and np.isfinite(cap.mc_sigma).all() and not cap.mc_sigma.any()
     err = cap.record.render_error
-    assert err["mc_sigma"] == 0.0 and err["target_met"] and err["passes"] == 2
+    assert err.mc_sigma == 0.0 and err.target_met and err.passes == 2
 
 
 # --- the time steps ------------------------------------------------------------------------------
@@ -339,12 +339,12 @@ def test_merged_windows_keep_patterns_and_cover_the_exposure():
 def test_target_is_met_and_stated():
     spec = CaptureSpec.geometric(scene="train", mode="coded", **TRAIN_WINDOW)
     loose = render_capture(spec, progress=False, truth=False)
-    goal = loose.record.render_error["mc_sigma"] / 2
+    goal = loose.record.render_error.mc_sigma / 2
     cap = render_capture(spec, progress=False, target=AbsoluteTarget(goal))
     err = cap.record.render_error
-    assert err["target_met"] and err["mc_sigma"] <= goal and err["target_sigma"] == goal
-    assert err["passes"] >= 4 and len(err["pass_spp"]) == err["passes"]
-    assert err["sharp_mc_sigma"] <= goal / cap.record.light_factor * 1.0001
+    assert err.target_met and err.mc_sigma <= goal and err.target_sigma == goal
+    assert err.passes >= 4 and len(err.pass_spp) == err.passes
+    assert err.sharp_mc_sigma <= goal / cap.record.light_factor * 1.0001
 
 
 @pytest.mark.render
@@ -361,8 +361,8 @@ def test_a_target_beyond_max_samples_stops_with_a_note(monkeypatch):
             spec, progress=False, truth=False, target=AbsoluteTarget(1e-9), max_samples=limit
         )
     err = cap.record.render_error
-    assert not err["target_met"] and err["mc_sigma"] > 1e-9
-    assert err["spp"] * 48 * 32 <= limit
+    assert not err.target_met and err.mc_sigma > 1e-9
+    assert err.spp * 48 * 32 <= limit
     assert any("not met" in n for n in cap.record.notes)
 
 
@@ -426,7 +426,7 @@ def test_a_targeted_capture_resumes_to_the_same_bits(tmp_path):
     spec = CaptureSpec.geometric(scene="train", mode="coded", seed=3, **TRAIN_WINDOW)
     goal = AbsoluteTarget(2.5e-4)
     whole = render_capture(spec, progress=False, truth=False, target=goal)
-    assert whole.record.render_error["passes"] > 2  # it went past the pilot
+    assert whole.record.render_error.passes > 2  # it went past the pilot
     part = tmp_path / "c" / ".partial"
     for stop in (20, 80):  # 32 steps per pass: inside the pilot, then inside a main pass
         with pytest.raises(integ.CaptureInterrupted):
@@ -458,7 +458,7 @@ def test_a_pilot_resumed_past_its_pilot_renders_nothing(tmp_path):
     )
     after = json.loads((part / "state.json").read_text())["state"]
     assert after["steps_done"] == before["steps_done"] == 80
-    assert pilot.record.render_error["predicted_seconds"] > 0
+    assert pilot.record.render_error.predicted_seconds > 0
 
 
 @pytest.mark.render

@@ -9,9 +9,9 @@ import sys
 import numpy as np
 import pytest
 
-from pacam_render.exposure.capture import render_capture
-from pacam_render.exposure.capture_camera import capture_design
-from pacam_render.exposure.capture_spec import CaptureSpec
+from pacam_render.exposure.camera import capture_design
+from pacam_render.exposure.direct import render_capture
+from pacam_render.exposure.spec import CaptureSpec
 from pacam_render.exposure.truth import TRUTH_LAYERS
 from pacam_render.io.exr import read_exr, write_exr
 from pacam_render.scenes.description import SceneDescription

@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 
 from pacam_render.errors import ParameterError
-from pacam_render.exposure.capture import render_capture
-from pacam_render.exposure.capture_spec import CaptureSpec
+from pacam_render.exposure.direct import render_capture
 from pacam_render.exposure.plan import plan_capture
+from pacam_render.exposure.spec import CaptureSpec
 from pacam_render.lightfield import StoreInterrupted, StoreSpec, render_lightfield, synthesize
 from pacam_render.lightfield import geometry as geo
 from pacam_render.lightfield.codes import design_aperture, transmission
@@ -21,6 +21,7 @@ from pacam_render.lightfield.synthesis import paired_difference
 from pacam_render.model.camera import preset
 from pacam_render.model.design_file import write_design
 from pacam_render.model.masks import MaskStack
+from pacam_render.model.optics import focal_length_px
 from pacam_render.scenes import load_scene
 
 FULL = {"scene": "train", "width": 1280, "height": 960}
@@ -62,7 +63,7 @@ def test_the_refocus_map_is_the_plugins_ray_for_ray():
     x0, y0, w, h = spec.crop
     x, y, ap = x0 + rng.random(500) * w, y0 + rng.random(500) * h, rng.random((2, 500))
     a = np.array(mi.warp.square_to_uniform_disk_concentric(mi.Point2f(*ap))) * cam.R_max_mm
-    k = geo.shear_px_per_mm(geo.focal_px(1280, cam.fov_deg), d1, d2)
+    k = geo.shear_px_per_mm(focal_length_px(cam.fov_deg, 1280), d1, d2)
     x2, y2 = x - k * a[0], y - k * a[1]
 
     def rays(s, xx, yy):
@@ -305,7 +306,7 @@ def test_a_noise_target_plans_the_stores_samples_for_each_of_its_designs(tmp_pat
     spec = CaptureSpec.geometric(mode="coded", spp=16, passes=2, seed=5, **WINDOW)
     target = AbsoluteTarget(0.0015)
     store = render_lightfield(StoreSpec(spec), tmp_path / "s", progress=False, target=target)
-    plan = store.manifest["noise_target"]
+    plan = store.manifest.raw["noise_target"]
     assert plan["spp"] % 4 == 0 and plan["spp"] >= max(r["spp_needed"] for r in plan["designs"])
     assert plan["spp"] > 16  # the target asks for more than the pilot had
     for mode in ("coded", "normal"):
@@ -321,3 +322,37 @@ def test_the_noise_target_flags_are_checked(tmp_path, capsys):
     assert "--noise-ratio needs --sensor" in capsys.readouterr().err
     assert main([*base, "--noise-target", "0.01", "--spp", "16"]) == 2
     assert "--spp and --noise-target both set the samples" in capsys.readouterr().err
+
+
+@pytest.mark.render
+def test_a_render_and_a_synthesis_share_one_assembly(store):
+    """A direct render and a synthesis from a store both end in the one assembly
+    (exposure.assemble.assemble_capture, issue 55), so their records carry the same keys: the
+    same render_error and optics_error blocks, and the same record fields but the store's name
+    (``lightfield``) and what only a moving render knows (its resume point and fastest speed)."""
+    import sys
+
+    from pacam_render.exposure import assemble
+
+    lf, _ = store
+    spec = CaptureSpec.geometric(**WINDOW, spp=16, passes=4, seed=1)
+    callers = []
+
+    def watch(frame, event, arg):
+        if event == "call" and frame.f_code is assemble.assemble_capture.__code__:
+            callers.append(frame.f_back.f_code.co_name)
+
+    sys.setprofile(watch)
+    try:
+        direct = render_capture(spec, progress=False)
+        syn = synthesize(lf, plan_capture(spec), progress=False)
+    finally:
+        sys.setprofile(None)
+    assert callers == ["_render_plan", "synthesize"]
+    d, s = direct.record.to_json(), syn.record.to_json()
+    only_render = {"resumed_from_step", "fastest_image_speed_px_per_ms"}
+    assert set(d) ^ set(s) <= only_render | {"lightfield"} and "lightfield" in s
+    assert set(d["render_error"]) == set(s["render_error"])
+    assert set(d["optics_error"]) == set(s["optics_error"])
+    assert set(d["optics_error"]["effects"]) == set(s["optics_error"]["effects"])
+    assert s["render_error"]["sharp_mc_sigma"] > 0  # the store's truth keeps its sigma

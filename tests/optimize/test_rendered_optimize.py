@@ -12,8 +12,8 @@ import pytest
 
 from pacam_render.cli import main
 from pacam_render.errors import ParameterError
-from pacam_render.exposure.capture_spec import CaptureSpec
 from pacam_render.exposure.plan import plan_capture
+from pacam_render.exposure.spec import CaptureSpec
 from pacam_render.lightfield import StoreSpec, render_lightfield, synthesize
 from pacam_render.lightfield.centre_basis import centre_basis
 from pacam_render.model.design_file import read_design, write_design

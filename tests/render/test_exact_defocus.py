@@ -132,8 +132,8 @@ def _defocused_edge(r_px: float, spp: int, **kw):
     """A 5-degree edge (a dark half-plane beside it, at its depth) rendered through the
     prototype's F9.85 opening in normal mode, placed behind the focus where its blur is r px;
     (capture, lambda N px at 549 nm)."""
-    from pacam_render.exposure.capture_camera import capture_design, mode_camera
-    from pacam_render.exposure.capture_spec import CaptureSpec
+    from pacam_render.exposure.camera import capture_design, mode_camera
+    from pacam_render.exposure.spec import CaptureSpec
     from pacam_render.wave.scale import scale_for
     from tests.edge_scenes import edge_scene, render_edge
 
@@ -182,7 +182,7 @@ def test_a_path_traced_defocused_edge_has_the_exact_defocused_mtf():
 def test_the_occlusion_band_is_the_pixels_near_a_depth_jump():
     """A depth step (and a surface beside no surface) marks a band of the kernel's reach on
     each side; one depth, or a 0.5 % slope, marks nothing."""
-    from pacam_render.exposure.wave_residual import depth_jumps
+    from pacam_render.exposure.optics.wave_residual import depth_jumps
 
     flat = np.full((20, 30), 500.0)
     assert not depth_jumps(flat, 3).any()

@@ -20,8 +20,8 @@ import pytest
 from pacam_render.cli import main
 from pacam_render.errors import ParameterError
 from pacam_render.io.exr import write_exr
-from pacam_render.restore import cost
 from pacam_render.restore import deconvolve as D
+from pacam_render.restore import deconvolve_cost as cost
 from pacam_render.restore.fourier import pad_width, taper_pad
 
 BENCH = os.path.join(

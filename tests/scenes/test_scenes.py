@@ -348,8 +348,8 @@ def test_a_scene_in_metres_gets_a_note_naming_millimetres(tmp_path, capsys):
 
 @pytest.mark.render
 def test_units_check_spares_scenes_in_mm(tmp_path, cache, mi):
-    from pacam_render.exposure.capture_camera import capture_design
-    from pacam_render.exposure.capture_spec import CaptureSpec
+    from pacam_render.exposure.camera import capture_design
+    from pacam_render.exposure.spec import CaptureSpec
     from pacam_render.scenes.units import units_note
 
     design = capture_design(CaptureSpec.geometric(width=W, height=H))

@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 
 from pacam_render.errors import ParameterError
-from pacam_render.exposure.capture import render_capture, write_capture
-from pacam_render.exposure.capture_spec import CaptureSpec
+from pacam_render.exposure.direct import render_capture, write_capture
+from pacam_render.exposure.spec import CaptureSpec
 from pacam_render.limits import PacamWarning
 from pacam_render.sensor.apply import add_sensor_layers
 from pacam_render.sensor.model import SensorModel
@@ -41,8 +41,8 @@ def test_the_captures_seed_gives_render_sensor_bit_for_bit(rendered):
         np.testing.assert_array_equal(cap.extra_layers[k], direct.extra_layers[k])
     assert cap.record.sensor == direct.record.sensor
     assert cap.record.noise_sigma == direct.record.noise_sigma
-    ratio = cap.record.render_error["ratio_to_sensor"]
-    assert ratio == pytest.approx(direct.record.render_error["ratio_to_sensor"])
+    ratio = cap.record.render_error.ratio_to_sensor
+    assert ratio == pytest.approx(direct.record.render_error.ratio_to_sensor)
 
 
 def test_another_seed_gives_the_same_noise_in_distribution(rendered):

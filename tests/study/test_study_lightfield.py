@@ -8,6 +8,7 @@ import pytest
 
 from pacam_render.errors import ParameterError
 from pacam_render.study import load_study, run_study
+from tests.patching import patch_everywhere
 
 STUDY = """
 [study]
@@ -45,7 +46,7 @@ def test_one_store_serves_every_design_and_mode(tmp_path, monkeypatch):
         stores.append(args[0])
         return real(*args, **kwargs)
 
-    monkeypatch.setattr(lf, "render_lightfield", counted)
+    patch_everywhere(monkeypatch, lf, "render_lightfield", counted)
     spec = _load(tmp_path, STUDY)
     assert len(spec.groups()) == 2  # one per seed: every design and mode shares it
     run_study(spec, tmp_path / "out", workers=0, progress=False)

@@ -4,7 +4,7 @@ Two changes between the runs, separated on the same renders by the new run's
 ``psnr_moving_oracle_db`` column (the capture restored as before, told its own model error):
 
 - issue 45: the rays draw the exact defocused PSF (the coupling of
-  ``render/defocus_draw.py``) instead of the geometric disc convolved with the Airy pattern:
+  ``render/kernels/defocus_draw.py``) instead of the geometric disc convolved with the Airy pattern:
   ``oracle (now)`` against ``before``;
 - issue 46: by default the deconvolver is told what a real camera knows, the sensor's noise
   (per pixel) and the render's, not the capture's model error measured against its own

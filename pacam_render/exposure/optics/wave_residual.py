@@ -6,13 +6,15 @@ moving ones as if held) with the capture camera's static kernels at s = 0 at eac
 wavelength, times the capture's light factor (capture units); without the truth layers it is
 not measured.
 
-- **Rays with the Airy draw** (a leaky LCoS or a pixel grid: :mod:`.capture_optics`) diffract
+- **Rays with the Airy draw** (a leaky LCoS or a pixel grid:
+:mod:`pacam_render.exposure.optics.budget`) diffract
   as the geometric disc convolved with the Airy pattern
   (:mod:`pacam_render.render.ray_diffraction`), while the exact paraxial PSF of the defocused
   opening (:mod:`pacam_render.psf.exact_defocus`) differs where W020 is of the order of a wave
   (L1 0.25 at the prototype's r = 2 px): :func:`residual_rms` is the RMS over the window of
   (K_exact - K_rays) * sharp.
-- **Rays with the exact PSF** (disc openings otherwise, :mod:`pacam_render.render.defocus_draw`)
+- **Rays with the exact PSF** (disc openings otherwise,
+:mod:`pacam_render.render.kernels.defocus_draw`)
   are exact over surfaces at one depth; at an occluding edge no ray method is exact (the
   occluder cuts the beam of the points behind it, and their PSF is then a part-blocked
   pupil's, while a ray draws the whole opening's). :func:`occlusion_rms` sizes what is left
@@ -25,6 +27,13 @@ from __future__ import annotations
 
 import numpy as np
 
+from ...model.modes import mode as mode_of
+from ...psf.analytic import design_psf
+from ...psf.diffraction import diffracted_kernel
+from ...psf.exact_defocus import exact_defocus_kernel, mode_edge_phase
+from ...render.ray_defocus import PSI_MAX
+from ...wave.patterns import channel_wavelengths_nm, shows_bitmaps
+
 PAD_PX = 16
 """Added to each side of the geometric kernel for the Airy pattern's and the exact PSF's
 rings (98 % of the in-focus Airy pattern's light at F9.85)."""
@@ -36,12 +45,6 @@ def residual_kernels(
     """Per channel, K_exact - K_rays (``against`` rays: the geometric disc with the Airy
     pattern) or K_exact - K_geometric (``geometric``), each summing to 0; None where the exact
     kernel does not apply (bitmaps, a pinhole, or beyond the exact table's defocus)."""
-    from ..model.modes import mode as mode_of
-    from ..psf.analytic import design_psf
-    from ..psf.diffraction import diffracted_kernel
-    from ..psf.exact_defocus import exact_defocus_kernel, mode_edge_phase
-    from ..render.ray_defocus import PSI_MAX
-    from ..wave.patterns import channel_wavelengths_nm, shows_bitmaps
 
     if mode_of(mode).schedule is None or shows_bitmaps(cam, mode):
         return None

@@ -7,7 +7,7 @@ is sampled in proportion to its transmittance through its run tables
 (:class:`~.masks.MaskTables`): a guide table, a short binary search, then a uniform point in
 the run. Methods of :class:`~.aperture_camera.ProgrammableApertureCamera`, bound into its class
 body as :mod:`.aperture_optics`'s are (a nanobind type takes one base); one variant's code,
-re-imported with :mod:`.kernel_types` by :mod:`.registry`.
+re-imported with :mod:`.types` by :mod:`.registry`.
 """
 
 from __future__ import annotations
@@ -18,7 +18,8 @@ import drjit as dr
 import mitsuba as mi
 import numpy as np
 
-from .kernel_types import (
+from ..plan import AperturePlan
+from .types import (
     JIT,
     VARIANT,
     Float,
@@ -29,7 +30,6 @@ from .kernel_types import (
     opaque_array,
     opaque_scalar,
 )
-from .plan import AperturePlan
 
 __all__ = ["ApertureSampling", "VARIANT"]
 

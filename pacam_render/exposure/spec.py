@@ -15,11 +15,13 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import ParameterError, check_finite, check_positive
+from ..model.design_file import resolve_design
 from ..model.illumination import CURVE_SUFFIXES, parse_relative_illumination
 from ..model.modes import mode
+from ..render.ray_diffraction import grid_orders
 from ..render.samplers import DEFAULT_SAMPLER, check_sampler
-from .capture_diffraction import check_diffraction
 from .estimate import check_passes
+from .optics.diffraction import check_diffraction
 
 GEOMETRIC_OPTICS = {"relative_illumination": "off", "diffraction": "off"}
 """Geometric radiance through an ideal opening: what the closed-form checks and the studies'
@@ -50,7 +52,7 @@ class CaptureSpec:
     ``grey`` renders one channel (luminance) with Mitsuba's mono variant
     (:func:`~pacam_render.render.variant.choose_variant`): every image layer is then (H, W)
     instead of (H, W, 3). A capture rendered under ``PACAM_VARIANT=llvm_ad_mono`` is grey too
-    (:func:`~pacam_render.exposure.capture.render_capture` records it so).
+    (:func:`~pacam_render.exposure.direct.render_capture` records it so).
     """
 
     scene: str = "train"
@@ -82,8 +84,8 @@ class CaptureSpec:
     ``relative_illumination`` layer, and readers flat-field with it."""
     diffraction: str = CAMERA_OPTICS["diffraction"]
     """The openings' diffraction: ``auto`` (default, :data:`CAMERA_OPTICS`: on unless its
-    effect is below the noise target; :mod:`~.capture_diffraction`), ``on`` or ``off``
-    (:meth:`geometric`). Disc
+    effect is below the noise target; :mod:`~pacam_render.exposure.optics.diffraction`), ``on`` or
+    ``off`` (:meth:`geometric`). Disc
     openings diffract in the rays, a bitmap schedule's patterns after the render; it is in the
     key, since the passes differ."""
 
@@ -125,8 +127,6 @@ class CaptureSpec:
         mode(self.mode)  # raises, listing the valid modes
         check_diffraction(self.diffraction)
         if self.lcos_fill_factor is not None:
-            from ..render.ray_diffraction import grid_orders
-
             grid_orders(self.lcos_fill_factor)  # (0, 1], named
             if self.diffraction != "on":
                 raise ParameterError(
@@ -205,8 +205,6 @@ class CaptureSpec:
         if self.schedule is not None and Path(self.schedule).is_file():
             h.update(Path(self.schedule).read_bytes())
         if self.design is not None and design_digest is None:
-            from ..model.design_file import resolve_design
-
             design_digest = resolve_design(self.design).digest()
         if self.design is not None:
             h.update(design_digest.encode())

@@ -38,6 +38,13 @@ from pathlib import Path
 import numpy as np
 
 from ..limits import DEFAULT_MAX_STEPS, duration
+from ..render.samplers import quantum
+from ..scenes import load_scene
+from ..scenes.assets import cache_root
+from .estimate import PILOT_PASSES
+from .optics.diffraction import PREVIEW_SPP
+from .plan import CapturePlan, plan_capture
+from .steps import Exposure, exposure_windows
 
 MIN_HISTORY = 4
 """Earlier renders of a history key needed before their fit replaces :data:`REFERENCE_RATES`."""
@@ -116,7 +123,6 @@ def history_path() -> Path:
     env = os.environ.get("PACAM_RENDER_TIMES", "").strip()
     if env:
         return Path(env).expanduser()
-    from ..scenes.assets import cache_root
 
     return cache_root() / "render_times.jsonl"
 
@@ -220,11 +226,9 @@ def pass_work(exp, spp: int, passes: int) -> Work:
 
 def capture_parts(exp, spec, lens: bool, targeted: bool, truth: bool, preview: bool, first) -> dict:
     """The parts of a capture (name to :class:`Work`): diffraction ``auto``'s ``preview``
-    (:func:`~.capture.preview_scene`: a call of its own, two static passes), the capture's
-    passes (its pilot when ``targeted``), and the ``sharp`` truth layer's static passes (in the
-    capture's call); the first call is its process's first when ``first``."""
-    from .capture_diffraction import PREVIEW_SPP
-    from .estimate import PILOT_PASSES
+    (:func:`~pacam_render.exposure.direct.preview_scene`: a call of its own, two static passes),
+    the capture's passes (its pilot when ``targeted``), and the ``sharp`` truth layer's static
+    passes (in the capture's call); the first call is its process's first when ``first``."""
 
     parts = {}
     if preview:
@@ -264,10 +268,6 @@ def estimate_capture(
         Whether its first render call is its process's first (default: whether none has been
         made yet).
     """
-    from ..render.samplers import quantum
-    from ..scenes import load_scene
-    from .plan import CapturePlan, plan_capture
-    from .steps import Exposure, exposure_windows
 
     plan = plan if isinstance(plan, CapturePlan) else plan_capture(plan)
     spec = plan.spec

@@ -32,10 +32,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import ParameterError
-from ..wave.fraunhofer import DEFAULT_MAX_LOST
-from ..wave.image import diffract_image
-from ..wave.patterns import (
+from ...errors import ParameterError
+from ...wave.fraunhofer import DEFAULT_MAX_LOST
+from ...wave.image import diffract_image
+from ...wave.patterns import (
     channel_wavelengths_nm,
     mode_diffraction_kernel,
     pattern_kernels,
@@ -46,7 +46,7 @@ DIFFRACTION_CHOICES = ("auto", "on", "off")
 """The ``diffraction`` settings of a capture."""
 PREVIEW_SPP = 32
 """Samples per pixel of ``auto``'s geometric preview: two passes of 16 (``independent``) of the
-scene frozen at t = 0 (:func:`~.capture.preview_scene`), one render each."""
+scene frozen at t = 0 (:func:`~pacam_render.exposure.direct.preview_scene`), one render each."""
 
 
 def check_diffraction(value) -> str:

@@ -13,11 +13,11 @@ import drjit as dr
 import mitsuba as mi
 import numpy as np
 
-from .plan import pad_table
+from ..plan import pad_table
 
 if mi.variant() is None:  # mi.Sensor and the array types below belong to one variant
     raise ImportError(
-        "pacam_render.render.kernel_types needs an active Mitsuba variant: call "
+        "pacam_render.render.kernels.types needs an active Mitsuba variant: call "
         "pacam_render.render.register() (or backend.select_variant()) first"
     )
 

@@ -2,7 +2,7 @@
 
 :func:`finish_optics` runs once the render has met its error: it adds the openings'
 diffraction when the capture's ``diffraction`` setting asks for it (``auto`` decides from the
-effect's measured size, :mod:`.capture_diffraction`), and writes the record's
+effect's measured size, :mod:`pacam_render.exposure.optics.diffraction`), and writes the record's
 ``optics_error`` (:mod:`pacam_render.capture.optics_error`) with the sizes of what is left out.
 """
 
@@ -13,12 +13,25 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..capture import optics_error as oe
-from ..errors import ParameterError
-from ..model.modes import mode as mode_of
-from ..wave.patterns import shows_bitmaps
-from .capture_diffraction import diffract
-from .estimate import rms
+from ...capture import optics_error as oe
+from ...errors import ParameterError
+from ...model.illumination import relative_illumination_map
+from ...model.modes import mode as mode_of
+from ...render.ray_diffraction import (
+    MAX_LOST,
+    RayDiffractionSpec,
+    inverse_table,
+    radial_table,
+    sensor_properties,
+)
+from ...sensor.apply import sensor_sigma
+from ...sensor.model import SensorModel
+from ...sensor.presets import mono_preset
+from ...sensor.radiometry import DEFAULT_LIGHT_LEVEL
+from ...wave.patterns import channel_wavelengths_nm, shows_bitmaps
+from ..estimate import rms
+from .diffraction import diffract
+from .wave_residual import occlusion_rms, residual_rms
 
 
 @dataclass
@@ -36,10 +49,6 @@ def reference_noise(spec, design, record, image, target) -> tuple[float | None, 
     """The sensor's temporal noise at the capture's mean level, its units, and which sensor:
     a noise target's (its lowest), else the design's preset or the ICX285 at the default light
     level (``pacam render --sensor`` replaces it with the capture's own)."""
-    from ..sensor.apply import sensor_sigma
-    from ..sensor.model import SensorModel
-    from ..sensor.presets import mono_preset
-    from ..sensor.radiometry import DEFAULT_LIGHT_LEVEL
 
     if target is not None and hasattr(target, "sensor_sigmas"):
         return min(target.sensor_sigmas(image, record)), "the noise target's sensor"
@@ -55,19 +64,20 @@ def reference_noise(spec, design, record, image, target) -> tuple[float | None, 
     return sensor_sigma(record, model, light, level) * lf, where
 
 
-def _diffraction(spec, cam, image, patterns, variance, ctx):
+def _diffraction(plan, image, patterns, variance):
     """(the post-processed capture or None, whether diffraction is in the capture, the
     block's ``diffraction``): in the rays (disc openings), after the render (a bitmap
     schedule's patterns), or left out and its effect measured by the post-process."""
+    spec, cam = plan.spec, plan.cam
     head = {"setting": spec.diffraction}
-    if mode_of(spec.mode).schedule is None:
+    if not plan.lens:
         return None, False, {**head, "decision": "not applicable: a pinhole"}
-    on, decision = ctx["diffraction_on"], ctx["diffraction_decision"]
+    on, decision = plan.diffraction
     head["decision"] = decision
     if on and not shows_bitmaps(cam, spec.mode):
-        return None, True, {**head, **rays_record(spec, cam, ctx["pitch_mm"])}
+        return None, True, {**head, **rays_record(spec, cam, plan.pitch_mm)}
     try:
-        d = diffract(image, patterns, variance, cam, spec.mode, ctx["pitch_mm"])
+        d = diffract(image, patterns, variance, cam, spec.mode, plan.pitch_mm)
     except ParameterError as exc:
         if on:
             raise
@@ -78,7 +88,7 @@ def _diffraction(spec, cam, image, patterns, variance, ctx):
 
 def exact_in_rays(spec) -> bool:
     """Whether a disc capture's rays take the exact defocused PSF
-    (:mod:`pacam_render.render.defocus_draw`): not with a leaky LCoS or a pixel grid, whose
+    (:mod:`pacam_render.render.kernels.defocus_draw`): not with a leaky LCoS or a pixel grid, whose
     rays keep the geometric lens point and the Airy draw."""
     contrast = spec.lcos_contrast
     return spec.lcos_fill_factor is None and (contrast is None or math.isinf(contrast))
@@ -86,8 +96,7 @@ def exact_in_rays(spec) -> bool:
 
 def rays_record(spec, cam, pitch_mm: float) -> dict:
     """How the rays diffract (:mod:`pacam_render.render.ray_diffraction`,
-    :mod:`pacam_render.render.defocus_draw`)."""
-    from ..render.ray_diffraction import MAX_LOST, RayDiffractionSpec, inverse_table, radial_table
+    :mod:`pacam_render.render.kernels.defocus_draw`)."""
 
     params = diffraction_params(spec, cam, True, pitch_mm)
     rays = RayDiffractionSpec(params["diffraction_wavelengths"], params["pupil_distance"], pitch_mm)
@@ -122,10 +131,10 @@ _EXACT_RAYS = (
 )
 _HOW_SIZED = {
     _AIRY_RAYS: "measured: (exact paraxial - rays' kernel) * sharp, RMS over the window "
-    "(exposure/wave_residual.py)",
+    "(exposure/optics/wave_residual.py)",
     _EXACT_RAYS: "scale: the whole wave effect, (exact - geometric kernel) * sharp, within the "
     "kernel's reach of a depth jump, RMS over the window (what an occluder's edge can change; "
-    "not a strict bound; exposure/wave_residual.py)",
+    "not a strict bound; exposure/optics/wave_residual.py)",
 }
 
 
@@ -150,61 +159,80 @@ def _diffraction_entry(
     )
 
 
-def finish_optics(spec, design, cam, desc, image, patterns, variance, ctx) -> Optics:
-    """Diffraction as decided, and the ``optics_error`` block (module docstring).
+@dataclass(frozen=True)
+class OpticsContext:
+    """What :func:`finish_optics` needs of a capture beside its plan and image.
 
-    ``ctx`` holds ``record``, ``target`` (the noise target or None), ``pitch_mm`` (the
-    capture's pixel pitch), ``diffraction_on`` and ``diffraction_decision`` (resolved by
-    :func:`resolve_diffraction`), ``ri_record`` and ``cos4_map`` (the window's cos^4 map,
-    None for the pinhole).
+    Attributes
+    ----------
+    record : CaptureRecord
+        The capture's record so far (its light factor, exposure and relative illumination).
+    target : NoiseTarget or None
+        The capture's noise target: its sensor is the budget's reference noise.
+    sharp, depth : numpy.ndarray or None
+        The ``sharp`` and ``depth`` truth layers, which size what the rays' diffraction
+        leaves out (:mod:`.wave_residual`); None without truth.
     """
-    rec = ctx["record"]
-    d, included, info = _diffraction(spec, cam, image, patterns, variance, ctx)
+
+    record: object
+    target: object = None
+    sharp: np.ndarray | None = None
+    depth: np.ndarray | None = None
+
+
+def finish_optics(plan, desc, image, patterns, variance, ctx: OpticsContext) -> Optics:
+    """Diffraction as ``plan.diffraction`` decided it, and the ``optics_error`` block (module
+    docstring), for the capture ``plan`` (a :class:`~pacam_render.exposure.plan.CapturePlan`)
+    of the scene ``desc``."""
+    spec, cam, rec = plan.spec, plan.cam, ctx.record
+    d, included, info = _diffraction(plan, image, patterns, variance)
     if d is not None:
         image, patterns, variance = d.image, d.patterns or patterns, d.variance
         info["mc_sigma_after"] = rms(variance)
-    residual, approx = _rays_residual(spec, cam, included, ctx)
+    residual, approx = _rays_residual(plan, included, ctx)
+    w, h = spec.image_size
+    cos4 = relative_illumination_map("cos4", w, h, cam.fov_deg, spec.crop) if plan.lens else None
+    lcos = plan.optics_params
     effects = {
         "diffraction": _diffraction_entry(info, included, residual, approx),
         "relative_illumination": oe.relative_illumination_entry(
-            image, ctx["cos4_map"], ctx["ri_record"]
+            image, cos4, rec.relative_illumination
         ),
         "lcos_leakage": oe.leakage_entry(
-            image, full_over_coded(rec), ctx.get("lcos_contrast"), spec.lcos_contrast
+            image, full_over_coded(rec), lcos.get("lcos_contrast"), spec.lcos_contrast
         ),
         "lcos_grid": oe.grid_entry(image, spec.lcos_fill_factor if included else None),
         "lcos_switching": oe.switching_entry(
             image,
             cam.n_patterns,
             cam.exposure_ms,
-            ctx.get("lcos_switching_ms"),
+            lcos.get("lcos_switching"),
             spec.lcos_switching_ms,
-        ),
+        ),  # fmt: skip
         "bounces": oe.bounces_entry(image, spec.scene, getattr(desc, "integrator", None)),
     }
     block = {"diffraction": info, "effects": effects}
-    noise, where = reference_noise(spec, design, rec, image, ctx["target"])
-    oe.add_ratios(block, noise, where, own=ctx["target"] is not None)
+    noise, where = reference_noise(spec, plan.design, rec, image, ctx.target)
+    oe.add_ratios(block, noise, where, own=ctx.target is not None)
     return Optics(image, patterns, variance, block)
 
 
-def _rays_residual(spec, cam, included: bool, ctx) -> tuple[float | None, str]:
+def _rays_residual(plan, included: bool, ctx: OpticsContext) -> tuple[float | None, str]:
     """What the rays' diffraction leaves out (RMS, :mod:`.wave_residual`) and the method's
     approximation in words."""
-    from .wave_residual import occlusion_rms, residual_rms
-
+    spec, cam = plan.spec, plan.cam
     if not included or shows_bitmaps(cam, spec.mode):
         return None, _AIRY_RAYS
-    args = (cam, spec.mode, ctx["pitch_mm"], ctx["record"].light_factor)
+    args = (cam, spec.mode, plan.pitch_mm, ctx.record.light_factor)
     if exact_in_rays(spec):
-        return occlusion_rms(ctx.get("sharp"), ctx.get("depth"), *args), _EXACT_RAYS
-    return residual_rms(ctx.get("sharp"), *args), _AIRY_RAYS
+        return occlusion_rms(ctx.sharp, ctx.depth, *args), _EXACT_RAYS
+    return residual_rms(ctx.sharp, *args), _AIRY_RAYS
 
 
-def diffraction_params(spec, cam, on: bool, pitch_mm: float | None = None) -> dict:
+def diffraction_params(spec, cam, on: bool, pitch_mm: float) -> dict:
     """The sensor's parameters that put diffraction in the rays: none when off, for the
     pinhole, or for a bitmap schedule's patterns (diffracted after the render); ``pitch_mm``
-    is the capture's pixel pitch (the plan's; None: from the spec)."""
+    is the capture's pixel pitch (:attr:`~pacam_render.exposure.plan.CapturePlan.pitch_mm`)."""
     if on and spec.lcos_fill_factor is not None and shows_bitmaps(cam, spec.mode):
         raise ParameterError(
             "lcos_fill_factor: the grid's orders are rendered through disc openings; a bitmap "
@@ -212,14 +240,10 @@ def diffraction_params(spec, cam, on: bool, pitch_mm: float | None = None) -> di
         )
     if not on or mode_of(spec.mode).schedule is None or shows_bitmaps(cam, spec.mode):
         return {}
-    from ..render.ray_diffraction import sensor_properties
-    from ..wave.patterns import channel_wavelengths_nm
-    from .capture_camera import film_pixel_pitch_mm
 
     waves = channel_wavelengths_nm(1 if spec.grey else 3)
     grid = {} if spec.lcos_fill_factor is None else {"lcos_fill_factor": spec.lcos_fill_factor}
-    pitch = film_pixel_pitch_mm(spec) if pitch_mm is None else pitch_mm
-    return {**sensor_properties(cam, waves, pitch), **grid}
+    return {**sensor_properties(cam, waves, pitch_mm), **grid}
 
 
 def full_over_coded(rec) -> float:

@@ -39,7 +39,8 @@ import math
 import drjit as dr
 import mitsuba as mi
 
-from .kernel_types import (
+from ..ray_defocus import PSI_MAX, PSI_STEP, QUANTILES, V_STEP, defocus_table
+from .types import (
     VARIANT,
     Float,
     Int,
@@ -52,7 +53,6 @@ from .kernel_types import (
     opaque_array,
     opaque_scalar,
 )
-from .ray_defocus import PSI_MAX, PSI_STEP, QUANTILES, V_STEP, defocus_table
 
 __all__ = ["ExactDefocus", "VARIANT"]
 

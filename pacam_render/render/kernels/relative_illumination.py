@@ -7,7 +7,7 @@ this module uploads the table and evaluates it, cos^4 or the curve, on the chief
 is described in :mod:`.aperture_camera` ("Radiometry"). Methods of
 :class:`~.aperture_camera.ProgrammableApertureCamera`, bound into its class body as
 :mod:`.aperture_optics`'s are (a nanobind type takes one base); one variant's code, re-imported
-with :mod:`.kernel_types` by :mod:`.registry`.
+with :mod:`.types` by :mod:`.registry`.
 """
 
 from __future__ import annotations
@@ -15,14 +15,14 @@ from __future__ import annotations
 import drjit as dr
 import numpy as np
 
-from ..errors import check_positive
-from ..model.illumination import (
+from ...errors import check_positive
+from ...model.illumination import (
     DEFAULT_RELATIVE_ILLUMINATION,
     TABLE_SIZE,
     film_tan_max,
     parse_relative_illumination,
 )
-from .kernel_types import VARIANT, Float, Int, UInt, gather, opaque_array, opaque_scalar
+from .types import VARIANT, Float, Int, UInt, gather, opaque_array, opaque_scalar
 
 __all__ = ["RelativeIllumination", "VARIANT"]
 

@@ -11,11 +11,14 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ..capture.kernels import analytic_psf, robust_psf
+from ..capture.kernels import analytic_psf, capture_diffraction, robust_psf
 from ..capture.record import CaptureRecord
 from ..errors import ParameterError
+from ..io.arrays import read_json, read_npy
 from ..io.exr import read_exr
 from ..limits import PacamWarning
+from ..model.camera import CameraDesign
+from ..psf.origin import recorded_origin
 
 PSF_SOURCES = ("analytic", "robust", "rendered")
 """The kernels named rather than given by path: from the record, or ``psf_rendered.exr``."""
@@ -52,7 +55,6 @@ def psf_mismatch(meta: dict, record: CaptureRecord) -> tuple[str, ...]:
     differing figure (``"r 2 px (PSF) against 3.126 px (capture)"``), then the design digest
     if only it differs; empty when they are the same camera. Velocity and crop are not
     compared: a kernel for another speed, or a window, is still this camera's."""
-    from ..model.camera import CameraDesign
 
     cam = CameraDesign.from_inputs(record.camera)
     mine = {**cam.summary(), "mode": record.mode}
@@ -67,8 +69,6 @@ def psf_mismatch(meta: dict, record: CaptureRecord) -> tuple[str, ...]:
             continue
         out.append(f"{words} {fmt.format(a)} (PSF) against {fmt.format(b)} (capture)")
     if "diffraction" in meta:  # psf.json from before diffraction compares nothing here
-        from ..capture.kernels import capture_diffraction
-
         words = {True: "diffraction included", False: "no diffraction"}
         pd, cd = meta["diffraction"], capture_diffraction(record)
         a, b = pd is not None, cd is not None
@@ -225,7 +225,6 @@ def psf_sidecar(path: Path) -> dict | None:
     sidecar = path.parent / "psf.json"
     if path.suffix == ".npy" or not sidecar.is_file():
         return None
-    from ..io.arrays import read_json
 
     meta = read_json(sidecar, "kernel record")
     return meta if isinstance(meta, dict) else None
@@ -235,7 +234,6 @@ def psf_origin(path: Path, meta: dict | None) -> tuple[str, float]:
     """The kernel's origin and t = 0 offset (px) from its psf.json. A kernel without one is
     taken as centred like the capture (the pinhole image); an older t0 file, which lacks the
     offset, is used as it is, with a note."""
-    from ..psf.origin import recorded_origin
 
     origin, offset = recorded_origin(meta or {})
     if origin == "t0" and offset is None:
@@ -278,6 +276,5 @@ def check_psf_scale(
 
 def load_npy_psf(path: Path) -> np.ndarray:
     """A kernel from a ``.npy`` file: numbers only (never unpickle a file from elsewhere)."""
-    from ..io.arrays import read_npy
 
     return read_npy(path, "`psf` file")

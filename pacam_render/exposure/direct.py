@@ -23,12 +23,12 @@ import warnings
 from dataclasses import replace
 from pathlib import Path
 
-import numpy as np
-
 from ..capture.record import layer_unit
 from ..capture.result import Capture
 from ..errors import ParameterError
+from ..io.exr import write_exr
 from ..io.outputs import write_json
+from ..io.preview import srgb8, write_png
 from ..io.signals import deferred_signals
 from ..limits import (
     DEFAULT_MAX_SAMPLES,
@@ -39,16 +39,21 @@ from ..limits import (
     note,
 )
 from ..model import paper
+from ..render.passes import MAX_WAVEFRONT
 from ..render.registry import sensor_entry
-from .capture_camera import illumination_map, illumination_record
-from .capture_diffraction import PREVIEW_SPP
-from .capture_record import build_record, record_design_fit, render_error_summary, versions
-from .capture_spec import CaptureSpec
-from .checkpoint import partial_lock
-from .integrate import CaptureInterrupted, Run
+from ..render.samplers import quantum
+from ..scenes import load_scene
+from ..scenes.units import check_units
+from .assemble import Passes, assemble_capture, build_record, versions
+from .checkpoint import Checkpoint, partial_lock, resume_parts
+from .estimate import PILOT_PASSES, rms
+from .integrate import CaptureInterrupted, Run, integrate
+from .optics.diffraction import PREVIEW_SPP, decide, diffract
 from .plan import CapturePlan, plan_capture
+from .render_time import estimate_capture, in_overall, metered, say
+from .spec import CaptureSpec
 from .steps import plan_exposure
-from .truth import TRUTH_LAYERS, render_truth
+from .truth import render_truth
 
 
 def render_capture(
@@ -108,8 +113,8 @@ def render_capture(
     pilot_only : bool, optional
         With a ``target``: stop after the pilot passes, keep them in ``partial_dir`` for the
         capture to resume from, and return the pilot's image and error; its
-        ``render_error["planned_spp"]`` predicts the samples the target needs, and
-        ``render_error["predicted_seconds"]`` the time the rest takes (one step of a main pass
+        ``render_error.planned_spp`` predicts the samples the target needs, and
+        ``render_error.predicted_seconds`` the time the rest takes (one step of a main pass
         timed). No ground truth.
     keep_partial : bool, optional
         Keep the finished passes in ``partial_dir`` when the capture is done, for the caller
@@ -168,9 +173,9 @@ def render_capture(
 
 
 def _announce(plan: CapturePlan, description, run: Run, truth: bool, target) -> None:
-    """Say the capture's predicted time before any render (:mod:`.cost`), on stderr; inside a
-    command's overall bar, which said its own, nothing."""
-    from .cost import estimate_capture, in_overall, say
+    """Say the capture's predicted time before any render
+    (:mod:`pacam_render.exposure.render_time`), on stderr; inside a command's overall bar, which
+    said its own, nothing."""
 
     if in_overall():
         return
@@ -191,19 +196,16 @@ def _diffraction_choice(plan: CapturePlan, description, run: Run, target) -> tup
     """``spec.diffraction`` resolved: (in the capture, the decision in words). ``auto`` renders
     a short geometric preview (:func:`preview_scene`: 2 passes, independent samples, no
     truth) and measures
-    diffraction's effect on it with the post-process (:func:`~.capture_diffraction.diffract`,
-    its Monte Carlo share removed): included unless below the noise target, or without one
-    below the Monte Carlo sigma that ``spec.spp`` will reach (the preview's, scaled by
-    sqrt(spp ratio))."""
-    from .capture_diffraction import decide, diffract
-    from .estimate import rms
+    diffraction's effect on it with the post-process
+    (:func:`~pacam_render.exposure.optics.diffraction.diffract`, its Monte Carlo share removed):
+    included unless below the noise target, or without one below the Monte Carlo sigma that
+    ``spec.spp`` will reach (the preview's, scaled by sqrt(spp ratio))."""
 
     spec = plan.spec
     if not plan.lens:
         return False, "not applicable: a pinhole"
     if spec.diffraction != "auto":
         return decide(spec.diffraction, 0.0, 0.0, "")  # as asked
-    from ..scenes import load_scene
 
     t0 = time.perf_counter()
     quick = plan.with_spec(diffraction="off", spp=PREVIEW_SPP, passes=2, per_pattern=False,
@@ -211,8 +213,6 @@ def _diffraction_choice(plan: CapturePlan, description, run: Run, target) -> tup
     frozen = preview_scene(description if description is not None else load_scene(spec.scene))
     quiet = replace(run, progress=False, partial_dir=None, pilot_only=False, stop_after_steps=None)
     if run.progress:  # a preview is announced: it runs before the capture's own bar
-        from .cost import say
-
         say(f"diffraction auto: rendering a short geometric preview first ({PREVIEW_SPP} spp, the "
             "scene at t = 0, no truth layers) to measure diffraction's effect")  # fmt: skip
     with warnings.catch_warnings():  # the preview's own notes are not the capture's
@@ -265,9 +265,6 @@ def check_budget(
         Naming ``--max-samples``, or ``--width`` and ``--height`` for memory (about 210 bytes
         per pixel, plus 24 per pixel and pattern with ``per_pattern`` and 96 with ``truth``).
     """
-    from ..render.passes import MAX_WAVEFRONT
-    from ..render.samplers import quantum
-    from .estimate import PILOT_PASSES
 
     w, h = spec.image_size
     pixels = w * h
@@ -300,8 +297,8 @@ def check_budget(
 
 def _render(plan: CapturePlan, description, run: Run, truth: bool, target, keep: bool) -> Capture:
     """The capture of a plan whose diffraction is decided (:func:`_diffraction_choice`); its
-    work and seconds go in this machine's history of renders (:func:`~.cost.metered`)."""
-    from .cost import metered
+    work and seconds go in this machine's history of renders
+    (:func:`~pacam_render.exposure.render_time.metered`)."""
 
     with metered(plan.variant):
         return _render_plan(plan, description, run, truth, target, keep)
@@ -309,10 +306,6 @@ def _render(plan: CapturePlan, description, run: Run, truth: bool, target, keep:
 
 def _render_plan(plan: CapturePlan, description, run: Run, truth, target, keep: bool) -> Capture:
     """:func:`_render`'s work."""
-    from ..scenes import load_scene
-    from ..scenes.units import check_units
-    from .checkpoint import Checkpoint, resume_parts
-    from .integrate import integrate
 
     spec, design, cam, variant = plan.spec, plan.design, plan.cam, plan.variant
     params = plan.sensor_params()
@@ -335,62 +328,33 @@ def _render_plan(plan: CapturePlan, description, run: Run, truth, target, keep: 
     if exp.moving:  # back to t = 0 for the ground truth
         sensor.configure(time_window=None)
         exp.animator.set_time(0.0)
-    image = prog.stats.mean()
     if run.pilot_only or keep or truth:  # what is done stays on disk until it is not needed
         store.save(prog.state(), prog.arrays())
     truth = truth and not run.pilot_only
     layers, objects, sharp = _truth(scene, desc, spec, design, run, prog, record, store, truth)
     if spec.mode == "reference" and truth:
-        layers["sharp"], sharp = image, prog.stats
-    steps = {
-        "n_steps": exp.steps_per_pass(prog.sched.groups[-1][0]),
-        "n_geometry_updates": exp.animator.n_updates if exp.moving else 0,
-        "effective_spp": prog.stats.spp,
-        "resumed_from_step": prog.resumed_from if exp.moving else None,
-        "fastest_image_speed_px_per_ms": speed if exp.moving else None,
-    }
-    seconds = time.perf_counter() - t_start + prog.seconds_before
-    record = build_record(plan, params, aperture, seconds, steps)
-    record.objects = objects
-    record.design_fit = record_design_fit(layers, objects, cam, spec.mode)
-    ids = layers.get("object_id")
-    record.render_error = render_error_summary(
-        prog, exp, spec, render_s, objects, ids, record, sharp
-    )
+        layers["sharp"], sharp = prog.stats.mean(), prog.stats
     if not run.pilot_only and not keep:
         store.clear()
-    layers = {k: layers[k] for k in TRUTH_LAYERS if k in layers}
-    ri_map = illumination_map(spec, cam, plan.pitch_mm)  # None when off
-    record.relative_illumination = illumination_record(spec, cam, ri_map)
-    if ri_map is not None:
-        layers["relative_illumination"] = ri_map
-    ctx = {"record": record, "target": target, "lcos_contrast": params.get("lcos_contrast"),
-           "sharp": layers.get("sharp"), "depth": layers.get("depth")}  # fmt: skip
-    ctx["lcos_switching_ms"] = params.get("lcos_switching")
-    ctx["diffraction_on"], ctx["diffraction_decision"] = plan.diffraction
-    optics = _optics(plan, desc, image, prog, ctx)
-    record.optics_error = optics.block
-    return Capture(optics.image, optics.patterns, record, layers, np.sqrt(optics.variance))
+    seconds = time.perf_counter() - t_start + prog.seconds_before
+    n_steps = exp.steps_per_pass(prog.sched.groups[-1][0])
+    passes = Passes(
+        prog.stats, aperture, seconds, render_s, spec.sampler, n_steps,
+        time_steps_per_pass=n_steps if exp.moving else 0,
+        time_sampling=TIME_SAMPLING[exp.moving],
+        n_geometry_updates=exp.animator.n_updates if exp.moving else 0,
+        resumed_from_step=prog.resumed_from if exp.moving else None,
+        fastest_image_speed_px_per_ms=speed if exp.moving else None,
+        schedule=prog.sched, predicted_seconds=prog.predicted_s, sharp=sharp,
+    )  # fmt: skip
+    return assemble_capture(plan, desc, passes, layers, objects, target)
 
 
-def _optics(plan: CapturePlan, desc, image, prog, ctx: dict):
-    """Diffraction as ``spec.diffraction`` asks, and the record's ``optics_error``
-    (:func:`~pacam_render.exposure.capture_optics.finish_optics`)."""
-    from ..model.illumination import relative_illumination_map
-
-    spec, design, cam = plan.spec, plan.design, plan.cam
-    w, h = spec.width, spec.height
-    cos4 = relative_illumination_map("cos4", w, h, cam.fov_deg, spec.crop) if plan.lens else None
-    ctx.update(
-        pitch_mm=plan.pitch_mm,
-        ri_record=ctx["record"].relative_illumination,
-        cos4_map=cos4,
-    )
-    patterns = prog.stats.pattern_means() if spec.per_pattern else {}
-    variance = prog.stats.variance()
-    from .capture_optics import finish_optics
-
-    return finish_optics(spec, design, cam, desc, image, patterns, variance, ctx)
+TIME_SAMPLING = {
+    True: "stratified random times, one per step and pass: unbiased, their noise is in mc_sigma",
+    False: "none: every ray samples the whole exposure",
+}
+"""``render_error.time_sampling`` of a direct render, for a moving scene and a still one."""
 
 
 def _note_samples(spec: CaptureSpec, exp, prog, target) -> None:
@@ -404,8 +368,6 @@ def _note_samples(spec: CaptureSpec, exp, prog, target) -> None:
             + ("; each pattern needs one step" if exp.moving else "")
         )
     if target is not None and not sched.met:
-        from .estimate import rms
-
         note(
             f"the noise target was not met: Monte Carlo sigma {rms(prog.stats.variance()):.3g} > "
             f"{sched.target_sigma:.3g} after {prog.stats.spp} spp, the most that max_samples "
@@ -472,8 +434,6 @@ def write_capture(cap: Capture, out, force: bool = False, error_layer: bool = Fa
     (``units``; :func:`~pacam_render.capture.files.read_capture` reads them on one scale).
     Each file is written to a temporary file and renamed.
     """
-    from ..io.exr import write_exr
-    from ..io.preview import srgb8, write_png
 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)

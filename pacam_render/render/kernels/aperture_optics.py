@@ -7,7 +7,7 @@ the opening's Airy pattern and the pixel grid's orders (``diffraction_wavelength
 ``lcos_fill_factor``), each a film-position or pattern draw. Each is absent by default, and
 the kernels are then those without it. The physics and the checks are in the camera's module
 docstring and :mod:`.ray_diffraction`; this module holds the code, for one variant (re-imported
-with :mod:`.kernel_types` by :mod:`.registry`).
+with :mod:`.types` by :mod:`.registry`).
 """
 
 from __future__ import annotations
@@ -18,9 +18,18 @@ import drjit as dr
 import mitsuba as mi
 import numpy as np
 
-from ..errors import ParameterError, check_finite, check_positive
-from ..model.optics import LCOS_PITCH_MM
-from .kernel_types import (
+from ...errors import ParameterError, check_finite, check_positive
+from ...model.optics import LCOS_PITCH_MM
+from ..ray_diffraction import (
+    INVERSE_SIZE,
+    MAX_ORDER,
+    RayDiffractionSpec,
+    grid_orders,
+    inverse_table,
+    order_px,
+    radial_table,
+)
+from .types import (
     VARIANT,
     Float,
     Int,
@@ -30,15 +39,6 @@ from .kernel_types import (
     gather,
     opaque_array,
     opaque_scalar,
-)
-from .ray_diffraction import (
-    INVERSE_SIZE,
-    MAX_ORDER,
-    RayDiffractionSpec,
-    grid_orders,
-    inverse_table,
-    order_px,
-    radial_table,
 )
 
 __all__ = ["LCoSOptics", "VARIANT"]

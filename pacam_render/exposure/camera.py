@@ -8,8 +8,16 @@ from __future__ import annotations
 from ..errors import ParameterError
 from ..limits import note
 from ..model.camera import CameraDesign, preset
+from ..model.design import solve
+from ..model.design_file import resolve_design
+from ..model.illumination import (
+    film_tan_max,
+    relative_illumination_map,
+    thin_lens_relative_illumination,
+)
 from ..model.modes import DESIGNED_REFUSED, MODES, capture_camera, mode, sensor_params
-from .capture_spec import CaptureSpec
+from ..model.schedule_file import apply_schedule, read_schedule
+from .spec import CaptureSpec
 
 
 def capture_design(spec: CaptureSpec) -> CameraDesign:
@@ -52,12 +60,8 @@ def scaled_design(spec: CaptureSpec, base: CameraDesign) -> CameraDesign:
     spec's depth): solved or scheduled as the spec asks, its LCoS rate checked, at the
     capture's size."""
     if spec.cover_px_per_ms is not None:
-        from ..model.design import solve
-
         base = solve(spec.cover_px_per_ms, f_number=spec.f_number, r_px=spec.r_px, base=base)
     if spec.schedule is not None:
-        from ..model.schedule_file import apply_schedule, read_schedule
-
         sched = read_schedule(spec.schedule)
         if spec.object_depth_mm is None and "object_depth_mm" in sched:
             base = base.with_(object_depth_mm=sched["object_depth_mm"])
@@ -71,7 +75,6 @@ def full_design(spec: CaptureSpec, **overrides) -> CameraDesign:
     (:func:`~pacam_render.model.design_file.resolve_design`), else the preset."""
     if spec.design is None:
         return preset(spec.preset, **overrides)
-    from ..model.design_file import resolve_design
 
     return resolve_design(spec.design, **overrides)
 
@@ -110,12 +113,12 @@ def mode_camera(design: CameraDesign, mode: str) -> tuple[CameraDesign, dict]:
     return cam, sensor_params(cam, mode)
 
 
-def illumination_params(spec: CaptureSpec, pitch_mm: float | None = None) -> dict:
+def illumination_params(spec: CaptureSpec, pitch_mm: float) -> dict:
     """The sensor's relative-illumination parameters for a capture.
 
     None when ``off`` (the plugin's default: its kernels, and the record's ``sensor_params``,
     stay as they were) or for the pinhole ``reference``; a curve also gets the film's pixel
-    pitch, ``pitch_mm`` (the plan's; None: :func:`film_pixel_pitch_mm`).
+    pitch, ``pitch_mm`` (:attr:`~pacam_render.exposure.plan.CapturePlan.pitch_mm`).
 
     Returns
     -------
@@ -127,8 +130,7 @@ def illumination_params(spec: CaptureSpec, pitch_mm: float | None = None) -> dic
         return {}
     if ri == "cos4":
         return {"relative_illumination": ri}
-    pitch = film_pixel_pitch_mm(spec) if pitch_mm is None else pitch_mm
-    return {"relative_illumination": ri, "pixel_pitch": pitch}
+    return {"relative_illumination": ri, "pixel_pitch": pitch_mm}
 
 
 LEAKY_SCHEDULES = ("static", "parabolic", "centres")
@@ -171,25 +173,20 @@ def switching_params(spec: CaptureSpec, params: dict, cam: CameraDesign) -> dict
     return {}
 
 
-def film_pixel_pitch_mm(spec: CaptureSpec) -> float:
-    """The pitch of the capture's pixels on the real sensor, mm: the design's pixel pitch times
-    its full width over the capture's (a 320 px capture of the 1280 px sensor bins 4 x 4)."""
-    return binned_pitch_mm(full_design(spec), spec.width)
-
-
 def binned_pitch_mm(full: CameraDesign, width_px: int) -> float:
-    """The pitch of a ``width_px`` wide sensor binned from ``full``'s pixels, mm."""
+    """The pitch of a ``width_px`` wide sensor binned from ``full``'s pixels, mm: the design's
+    pixel pitch times its full width over the capture's (a 320 px capture of the 1280 px sensor
+    bins 4 x 4). The plan computes it once (:attr:`~.plan.CapturePlan.pitch_mm`)."""
     return full.pixel_pitch_mm * full.width_px / width_px
 
 
-def illumination_map(spec: CaptureSpec, cam: CameraDesign, pitch_mm: float | None = None):
+def illumination_map(spec: CaptureSpec, cam: CameraDesign, pitch_mm: float):
     """The capture's relative-illumination map, (h, w) float32 over its window, or None when
     ``off`` or for the ``reference``
     (:func:`~pacam_render.model.illumination.relative_illumination_map`)."""
     params = illumination_params(spec, pitch_mm)
     if not params:
         return None
-    from ..model.illumination import relative_illumination_map
 
     m = relative_illumination_map(
         params["relative_illumination"],
@@ -208,7 +205,6 @@ def illumination_record(spec: CaptureSpec, cam: CameraDesign, ri_map) -> dict | 
     the window's farthest corner at this capture's F-number."""
     if ri_map is None:
         return None
-    from ..model.illumination import film_tan_max, thin_lens_relative_illumination
 
     ri = spec.relative_illumination
     out = {

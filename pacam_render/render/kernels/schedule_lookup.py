@@ -7,7 +7,7 @@ its values change (:meth:`ScheduleLookup._set_schedule` uploads every table opaq
 itself is described in :mod:`.aperture_camera` ("Schedules and time"). Methods of
 :class:`~.aperture_camera.ProgrammableApertureCamera`, bound into its class body as
 :mod:`.aperture_optics`'s are (a nanobind type takes one base); one variant's code, re-imported
-with :mod:`.kernel_types` by :mod:`.registry`.
+with :mod:`.types` by :mod:`.registry`.
 """
 
 from __future__ import annotations
@@ -15,7 +15,8 @@ from __future__ import annotations
 import drjit as dr
 import numpy as np
 
-from .kernel_types import (
+from ..plan import AperturePlan, f32_up, index_bias
+from .types import (
     VARIANT,
     Float,
     Int,
@@ -24,7 +25,6 @@ from .kernel_types import (
     opaque_array,
     opaque_scalar,
 )
-from .plan import AperturePlan, f32_up, index_bias
 
 __all__ = ["ScheduleLookup", "VARIANT", "lookup"]
 
