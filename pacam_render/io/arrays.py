@@ -59,7 +59,7 @@ def read_json(path, what: str):
         return json.loads(path.read_text(encoding="utf-8"))
     except (json.JSONDecodeError, UnicodeDecodeError) as exc:
         raise ParameterError(f"{what} {path} is not valid JSON ({exc})") from None
-    except RecursionError:
-        raise ParameterError(f"{what} {path} is nested too deep to be a record") from None
+    except RecursionError:  # json's decoder recurses once per level: [[[...]]] 10^5 deep
+        raise ParameterError(f"{what} {path} is nested too deep to read") from None
     except OSError as exc:
         raise ParameterError(f"{what} {path} cannot be read ({exc.strerror})") from None

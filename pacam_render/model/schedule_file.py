@@ -14,13 +14,12 @@ Every error names the key and the valid range.
 
 from __future__ import annotations
 
-import json
 import math
-from pathlib import Path
 
 import numpy as np
 
 from ..errors import ParameterError
+from ..io.arrays import read_json
 from . import paper
 from . import schedule as sch
 from .camera import CameraDesign
@@ -88,13 +87,12 @@ def read_schedule(path) -> dict:
     Raises
     ------
     ParameterError
-        Unreadable file or JSON, or a key missing or out of range (the message names it).
+        Unreadable file or JSON, a file too large or nested too deep to parse (read by
+        :func:`~pacam_render.io.arrays.read_json`, bounded as records are), or a key missing or
+        out of range (the message names it).
     """
     where = str(path)
-    try:
-        d = json.loads(Path(path).read_text())
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise ParameterError(f"{where}: cannot read the schedule ({exc})") from None
+    d = read_json(path, "`schedule`")
     if not isinstance(d, dict):
         raise ParameterError(f"{where}: expected a JSON object, got {type(d).__name__}")
     exposure = _number(d, "exposure_ms", where) if "exposure_ms" in d else paper.EXPOSURE_MS

@@ -177,7 +177,7 @@ def test_opening_outside_the_lens_is_named(tmp_path):
 def test_unreadable_schedule(tmp_path):
     bad = tmp_path / "schedule.json"
     bad.write_text("{not json")
-    with pytest.raises(ParameterError, match="cannot read"):
+    with pytest.raises(ParameterError, match="`schedule` .*schedule.json is not valid JSON"):
         read_schedule(bad)
 
 
