@@ -4,11 +4,15 @@ scene texture declaring 60000x60000 px, and a render-time history that is not a 
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 
 from pacam_render.cli import main
 from pacam_render.errors import ParameterError
+from pacam_render.io.image_header import image_size
+from pacam_render.model.masks import MAX_MASK_SIDE_PX, load_masks, read_mask_source
 from pacam_render.model.schedule_file import read_schedule
+from tests.image_bombs import bomb_png
 
 DEPTH = 100_000  # the issue's depth: far past Python's recursion limit (1000)
 
@@ -45,3 +49,91 @@ def test_a_schedule_nested_too_deep_is_one_cli_line(deep_schedule, tmp_path, cap
     assert err.count("\n") == 1 and "Traceback" not in err
     assert f"--schedule {deep_schedule} is nested too deep" in err
     assert not (tmp_path / "out").exists()  # refused before any work
+
+
+class Decoded(BaseException):
+    """Raised by a decoder the code under test must not reach (no ``except Exception`` in the
+    code under test can take it for a bad file)."""
+
+
+@pytest.fixture(scope="module")
+def bomb(tmp_path_factory):
+    """The issue's bomb: a valid PNG declaring 60000 x 60000 px (0.4 MB), written once."""
+    return bomb_png(tmp_path_factory.mktemp("bomb") / "bomb.png")
+
+
+@pytest.fixture
+def no_decoding(monkeypatch):
+    """Every image decoder the package reaches (Mitsuba's ``Bitmap``, Pillow's ``load``)
+    raises :class:`Decoded`: a test with it shows that nothing was decoded."""
+    import mitsuba
+    from PIL import Image, ImageFile
+
+    def decoded(*args, **kwargs):
+        raise Decoded(f"decoded {args[:1]}")
+
+    monkeypatch.setattr(mitsuba, "Bitmap", decoded)
+    monkeypatch.setattr(Image.Image, "load", decoded)
+    monkeypatch.setattr(ImageFile.ImageFile, "load", decoded)
+
+
+def _bitmap_size(path) -> tuple[int, int]:
+    import mitsuba as mi
+
+    from pacam_render.render.backend import select_variant
+
+    select_variant()
+    return tuple(mi.Bitmap(str(path)).size())
+
+
+def test_the_bomb_helper_writes_a_png_that_mitsuba_decodes(tmp_path):
+    small = bomb_png(tmp_path / "small.png", side=37)
+    assert _bitmap_size(small) == (37, 37) == image_size(small)
+    assert load_masks(str(small)).max() == 0.0  # black: its rows are zeros
+
+
+@pytest.mark.parametrize("ext", ["png", "jpg", "exr", "hdr", "pfm", "ppm", "bmp", "tga"])
+def test_image_size_reads_each_format_mitsuba_reads_from_the_header(tmp_path, ext):
+    """Against Mitsuba's own decoder: the size it decodes is the size the header gives."""
+    import mitsuba as mi
+    from PIL import Image
+
+    from pacam_render.render.backend import select_variant
+
+    select_variant()
+    rng = np.random.default_rng(0)
+    a = rng.random((5, 7, 3)).astype(np.float32)  # 7 wide, 5 tall: a swap would show
+    path = tmp_path / f"a.{ext}"
+    if ext in ("bmp", "tga"):  # Mitsuba reads these but does not write them
+        Image.fromarray((a * 255).astype(np.uint8)).save(path)
+    elif ext in ("exr", "hdr", "pfm"):
+        mi.Bitmap(a).write(str(path))
+    else:
+        mi.Bitmap((a * 255).astype(np.uint8)).write(str(path))
+    assert image_size(path) == _bitmap_size(path) == (7, 5)
+
+
+def test_a_bomb_png_mask_is_refused_from_its_header(bomb, no_decoding):
+    assert MAX_MASK_SIDE_PX < 60_000
+    with pytest.raises(
+        ParameterError, match=f"declares 60000 x 60000 px, over the {MAX_MASK_SIDE_PX}"
+    ):
+        load_masks(str(bomb))
+
+
+def test_a_bomb_among_mask_images_is_refused_before_any_of_them_decodes(
+    bomb, tmp_path, no_decoding
+):
+    folder = tmp_path / "lcos"
+    folder.mkdir()
+    bomb_png(folder / "pattern_00.png", side=16)  # read first in name order: a good mask
+    (folder / "pattern_01.png").write_bytes(bomb.read_bytes())
+    with pytest.raises(ParameterError, match="pattern_01.png' declares 60000 x 60000 px"):
+        read_mask_source(folder)
+
+
+def test_a_bomb_png_mask_is_one_cli_line(bomb, capsys, no_decoding):
+    assert main(["design", "--masks", str(bomb)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "Traceback" not in err
+    assert f"--masks: {str(bomb)!r} declares 60000 x 60000 px" in err

@@ -34,11 +34,16 @@ import numpy as np
 
 from ..errors import ParameterError, check_positive
 from ..io.arrays import read_npy
+from ..io.image_header import check_image_size
 from ..model.optics import LCOS_PITCH_MM
 from .schedule import MAX_PATTERNS
 
 DISPLAY_SHAPE = (1024, 1280)
 """Rows, columns of the prototype's LCoS display (SXGA, 1280x1024)."""
+MAX_MASK_SIDE_PX = 8192
+"""The widest or tallest mask image read: twice the widest LCoS displays (about 4096 px, 4K
+and 10-megapixel SLMs), 6.4 times the prototype's. A mask image is measured from its header
+before it is decoded (a 3.5 MB PNG declaring 60000 x 60000 px took 40 s and 3.35 GiB)."""
 
 
 def pixel_centres_mm(shape: tuple[int, int], pitch_mm: float = LCOS_PITCH_MM):
@@ -199,6 +204,13 @@ def _load_file(path: str, name: str = "mask_file") -> np.ndarray:
         ) from None
 
 
+def _check_image_header(path: str, name: str) -> None:
+    """Refuse an image over :data:`MAX_MASK_SIDE_PX` a side from its header alone."""
+    if os.path.isfile(path) and not path.lower().endswith((".npy", ".npz")):
+        whose = "an LCoS mask may have (the widest LCoS displays have about 4096)"
+        check_image_size(path, MAX_MASK_SIDE_PX, name, whose)
+
+
 def load_masks(source, name: str = "masks") -> np.ndarray:
     """A float32 ``(N, H, W)`` transmittance stack from any supported source.
 
@@ -212,6 +224,8 @@ def load_masks(source, name: str = "masks") -> np.ndarray:
         if not paths:
             raise ParameterError(f"{name}: empty file list")
         file_name = "mask_file" if name == "masks" else name  # the plugin's parameter
+        for p in paths:  # every header first: no mask decodes before a bomb among them is seen
+            _check_image_header(p, file_name)
         parts = [_load_file(p, file_name) for p in paths]
     elif isinstance(source, (list, tuple)):
         if len(source) == 0:
