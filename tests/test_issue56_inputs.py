@@ -137,3 +137,70 @@ def test_a_bomb_png_mask_is_one_cli_line(bomb, capsys, no_decoding):
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "Traceback" not in err
     assert f"--masks: {str(bomb)!r} declares 60000 x 60000 px" in err
+
+
+SCENE = """<scene version="3.0.0">
+    {default}
+    <shape type="rectangle" id="card">
+        <bsdf type="diffuse">
+            <texture type="bitmap" name="reflectance">
+                <string name="filename" value="{name}"/>
+            </texture>
+        </bsdf>
+    </shape>
+</scene>
+"""
+
+
+def _scene(folder, texture: str, through_default: bool):
+    """A one-card scene whose texture is ``texture``, named as written or through a
+    ``<default>`` value (``$tex``), which Mitsuba fills the same way."""
+    default = f'<default name="tex" value="{texture}"/>' if through_default else ""
+    path = folder / "card.xml"
+    path.write_text(SCENE.format(default=default, name="$tex" if through_default else texture))
+    return path
+
+
+@pytest.fixture
+def no_scene_load(monkeypatch):
+    """Mitsuba's scene loaders raise :class:`Decoded`: a test with it shows that the scene was
+    refused before Mitsuba read it (the bomb texture segfaulted the process there)."""
+    import mitsuba
+
+    def loaded(*args, **kwargs):
+        raise Decoded(f"loaded {args[:1]}")
+
+    monkeypatch.setattr(mitsuba, "load_file", loaded)
+    monkeypatch.setattr(mitsuba, "load_dict", loaded)
+
+
+@pytest.mark.parametrize("through_default", [False, True], ids=["written", "default"])
+def test_a_bomb_texture_is_refused_before_mitsuba_loads_the_scene(
+    bomb, tmp_path, no_decoding, no_scene_load, through_default
+):
+    from pacam_render.scenes.description import load_scene_file
+    from pacam_render.scenes.scene_files import MAX_TEXTURE_SIDE_PX
+
+    (tmp_path / "bomb.png").symlink_to(bomb)  # a link to a regular file is read through
+    path = _scene(tmp_path, "bomb.png", through_default)
+    over = f"declares 60000 x 60000 px, over the {MAX_TEXTURE_SIDE_PX} px"
+    with pytest.raises(ParameterError, match=f"card.xml' names '.*': '.*bomb.png' {over}"):
+        load_scene_file(path)
+
+
+def test_a_texture_within_the_bound_still_loads(tmp_path):
+    from pacam_render.scenes.description import load_scene_file
+
+    bomb_png(tmp_path / "small.png", side=64)
+    desc = load_scene_file(_scene(tmp_path, "small.png", through_default=True))
+    assert "card" in desc.bboxes_mm
+
+
+def test_a_bomb_texture_is_one_cli_line(bomb, tmp_path, capsys, no_scene_load):
+    (tmp_path / "bomb.png").symlink_to(bomb)
+    path = _scene(tmp_path, "bomb.png", through_default=False)
+    args = ["render", str(path), "--width", "64", "--height", "48", "--spp", "4", "--quiet"]
+    assert main([*args, "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "Traceback" not in err
+    assert "names 'bomb.png'" in err and "declares 60000 x 60000 px" in err
