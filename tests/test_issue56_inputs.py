@@ -204,3 +204,72 @@ def test_a_bomb_texture_is_one_cli_line(bomb, tmp_path, capsys, no_scene_load):
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "Traceback" not in err
     assert "names 'bomb.png'" in err and "declares 60000 x 60000 px" in err
+
+
+def _rows(n: int) -> str:
+    """``n`` history rows of known rates (0.1 s a call, 0.5 a first one, 0.02 a M samples,
+    0.01 a render), as :func:`~pacam_render.exposure.render_time.remember` writes them."""
+    import json
+
+    rows = []
+    for i in range(n):
+        w = {"calls": 1, "first_calls": int(i == 0), "msamples": 3.0 * (i + 1),
+             "renders": 10 * (i % 3 + 1)}  # fmt: skip
+        s = 0.1 + 0.5 * w["first_calls"] + 0.02 * w["msamples"] + 0.01 * w["renders"]
+        rows.append(json.dumps({"key": "llvm_ad_rgb", **w, "seconds": s}))
+    return "\n".join(rows) + "\n"
+
+
+@pytest.mark.parametrize("kind", ["fifo", "device", "link to a device", "folder"])
+def test_a_history_that_is_not_a_regular_file_is_not_read(tmp_path, monkeypatch, kind):
+    """/dev/zero as the history ran out of memory; a pipe waits for a writer for ever. Neither
+    is read or written: the estimate keeps the reference rates and says why."""
+    import os
+
+    from pacam_render.exposure import render_time as cost
+
+    path = {"device": "/dev/zero", "folder": str(tmp_path)}.get(kind, str(tmp_path / "times"))
+    if kind == "fifo":
+        os.mkfifo(path)
+    elif kind == "link to a device":
+        os.symlink("/dev/zero", path)
+    monkeypatch.setenv("PACAM_RENDER_TIMES", path)
+    cost.remember("llvm_ad_rgb", cost.Work(1, 0, 1.0, 1), 1.0)  # returns, writes nothing
+    r = cost.rates("llvm_ad_rgb")
+    assert r.per == cost.REFERENCE_RATES["capture"]
+    est = cost.Estimate({"capture": cost.Work(1, 0, 1.0, 1)}, r).describe()
+    assert f"reference machine; {path} not read: not a regular file" in est
+    assert os.listdir(tmp_path) == (["times"] if path.endswith("times") else [])
+
+
+def test_a_huge_history_is_read_from_its_end_only(tmp_path, monkeypatch):
+    """A sparse 1 GiB history (no disk) ending in real rows: the rates come from those rows,
+    and reading it (and trimming it on the next render) allocates under 4 MiB, not the file's
+    size. (1 GiB, not more: were the read unbounded again, this test fails at 2 GiB.)"""
+    import tracemalloc
+
+    import scipy.optimize  # noqa: F401  (imported by the fit: not the read's memory)
+
+    from pacam_render.exposure import render_time as cost
+
+    path = tmp_path / "times.jsonl"
+    with open(path, "wb") as f:
+        f.truncate(2**30)
+    junk = "[" * 2000 + "\n" + "x" * (cost.MAX_LINE_BYTES + 1) + "\n"  # too deep; too long
+    with open(path, "a") as f:
+        f.write("\n" + junk + _rows(cost.MIN_HISTORY + 2))
+    monkeypatch.setenv("PACAM_RENDER_TIMES", str(path))
+    tracemalloc.start()
+    try:
+        r = cost.rates("llvm_ad_rgb")
+        _, read_peak = tracemalloc.get_traced_memory()
+        tracemalloc.reset_peak()
+        cost.remember("llvm_ad_rgb", cost.Work(1, 0, 1.0, 1), 0.13)  # past 96 kB: trimmed
+        _, trim_peak = tracemalloc.get_traced_memory()
+    finally:
+        tracemalloc.stop()
+    assert np.allclose(r.per, [0.1, 0.5, 0.02, 0.01], rtol=1e-6)
+    assert r.basis == f"{cost.MIN_HISTORY + 2} earlier llvm_ad_rgb renders on this machine"
+    assert read_peak < 4 * 2**20 and trim_peak < 4 * 2**20
+    assert path.stat().st_size < 4096  # the rows and the new one are what was kept
+    assert len(cost._history("llvm_ad_rgb")[0]) == cost.MIN_HISTORY + 3

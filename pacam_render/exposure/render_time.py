@@ -29,6 +29,7 @@ from __future__ import annotations
 import json
 import math
 import os
+import stat
 import time
 from contextlib import contextmanager
 from contextvars import ContextVar
@@ -50,6 +51,12 @@ MIN_HISTORY = 4
 """Earlier renders of a history key needed before their fit replaces :data:`REFERENCE_RATES`."""
 HISTORY_KEPT = 120
 """The most recent renders per key that the fit uses (the file keeps twice as many)."""
+MAX_HISTORY_BYTES = 2**20
+"""The most of the history read, from its end: ten times what it holds when trimmed (2 x
+:data:`HISTORY_KEPT` rows of about 200 bytes, trimmed past 96 kB), so that a history that is
+a huge file costs no more (``PACAM_RENDER_TIMES`` at /dev/zero ran out of memory)."""
+MAX_LINE_BYTES = 4096
+"""A history line longer than this is not a row (a row takes about 180 bytes): skipped."""
 FIELDS = ("calls", "first_calls", "msamples", "renders")
 """The counts of :class:`Work`, in the order of a :class:`Rates`' seconds."""
 REFERENCE_RATES = {"capture": (0.043, 1.03, 0.072, 0.017), "psf": (0.0, 0.001, 0.053, 0.0052)}
@@ -128,8 +135,9 @@ def history_path() -> Path:
 
 
 def remember(key: str, work: Work, seconds: float) -> None:
-    """Append one finished render call to the history; a history that cannot be written is
-    skipped (the estimate then keeps the rates it had: nothing is lost but accuracy)."""
+    """Append one finished render call to the history; a history that cannot be written, or
+    is not a regular file (a device, a pipe, a folder), is skipped (the estimate then keeps
+    the rates it had: nothing is lost but accuracy)."""
     row = {k: getattr(work, k) for k in FIELDS}
     row["msamples"] = round(work.msamples, 6)
     line = json.dumps({"key": key, **row, "seconds": round(seconds, 4),
@@ -137,7 +145,11 @@ def remember(key: str, work: Work, seconds: float) -> None:
     path = history_path()
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
-        with open(path, "a", encoding="utf-8") as fh:  # one short line: an atomic append
+        # non-blocking: a pipe with no reader fails at once instead of waiting for one
+        fd = os.open(path, os.O_WRONLY | os.O_APPEND | os.O_CREAT | os.O_NONBLOCK, 0o666)
+        with open(fd, "a", encoding="utf-8") as fh:  # one short line: an atomic append
+            if not stat.S_ISREG(os.fstat(fd).st_mode):
+                return
             fh.write(line + "\n")
         if path.stat().st_size > 400 * HISTORY_KEPT * 2:
             _trim(path)
@@ -147,28 +159,62 @@ def remember(key: str, work: Work, seconds: float) -> None:
 
 def _trim(path: Path) -> None:
     """Keep the newest 2 x :data:`HISTORY_KEPT` lines (written aside, then renamed)."""
-    lines = path.read_text(encoding="utf-8").splitlines()[-2 * HISTORY_KEPT :]
+    lines = _tail_lines(path)[-2 * HISTORY_KEPT :]
     tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
     tmp.write_text("\n".join(lines) + "\n", encoding="utf-8")
     os.replace(tmp, path)
 
 
-def _history(key: str) -> list[dict]:
+class _NotAHistory(OSError):
+    """The history's path names something other than a regular file."""
+
+
+def _tail_lines(path: Path) -> list[str]:
+    """The history's lines in its last :data:`MAX_HISTORY_BYTES` (all of a trimmed one),
+    without those over :data:`MAX_LINE_BYTES` or cut by the start of the read.
+
+    Raises
+    ------
+    OSError
+        The file cannot be read; :class:`_NotAHistory` when it is not a regular file (a
+        device such as /dev/zero never ends, a pipe waits for a writer).
+    """
+    fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK)  # a pipe opens without waiting
+    st = os.fstat(fd)  # what was opened, links followed: no swap after a check
+    if not stat.S_ISREG(st.st_mode):
+        os.close(fd)
+        raise _NotAHistory(f"{path} is not a regular file")
+    with open(fd, "rb") as fh:
+        start = max(0, st.st_size - MAX_HISTORY_BYTES)
+        fh.seek(start)
+        data = fh.read(MAX_HISTORY_BYTES)
+    lines = data.split(b"\n")[1 if start else 0 :]  # the first line read from mid-file is cut
+    return [ln.decode("utf-8", "replace") for ln in lines if 0 < len(ln) <= MAX_LINE_BYTES]
+
+
+def _history(key: str) -> tuple[list[dict], str]:
+    """The newest :data:`HISTORY_KEPT` rows of ``key``, and why the history was not read
+    (``""`` when it was, or when there is none yet)."""
+    path = history_path()
     try:
-        text = history_path().read_text(encoding="utf-8")
-    except OSError:
-        return []
+        lines = _tail_lines(path)
+    except FileNotFoundError:
+        return [], ""
+    except _NotAHistory:
+        return [], f"; {path} not read: not a regular file"
+    except OSError as exc:
+        return [], f"; {path} not read ({exc.strerror or exc})"
     rows = []
-    for line in text.splitlines():
+    for line in lines:
         try:
             row = json.loads(line)
             counts = [float(row[k]) for k in ("seconds", *FIELDS)]
             ok = row["key"] == key and counts[0] > 0 and all(0 <= v < math.inf for v in counts)
-        except (ValueError, KeyError, TypeError):
+        except (ValueError, KeyError, TypeError, RecursionError):
             continue  # a line cut by a crash, or a hand edit: not evidence
         if ok:
             rows.append(row)
-    return rows[-HISTORY_KEPT:]
+    return rows[-HISTORY_KEPT:], ""
 
 
 def fit_rates(rows: list[dict], reference: tuple = REFERENCE_RATES["capture"]) -> tuple | None:
@@ -204,12 +250,12 @@ def fit_rates(rows: list[dict], reference: tuple = REFERENCE_RATES["capture"]) -
 def rates(key: str) -> Rates:
     """This machine's rates for the history key ``key`` (a variant, or ``psf`` and a variant:
     :func:`fit_rates` on its history), else the reference machine's."""
-    rows = _history(key)
+    rows, unread = _history(key)
     reference = REFERENCE_RATES["psf" if key.startswith("psf") else "capture"]
     fitted = fit_rates(rows, reference)
     if fitted is None:
         have = f"; {len(rows)} earlier render(s) here" if rows else ""
-        return Rates(reference, f"a 2-core reference machine{have}")
+        return Rates(reference, f"a 2-core reference machine{have}{unread}")
     return Rates(fitted, f"{len(rows)} earlier {key} renders on this machine")
 
 
