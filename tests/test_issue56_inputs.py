@@ -273,3 +273,41 @@ def test_a_huge_history_is_read_from_its_end_only(tmp_path, monkeypatch):
     assert read_peak < 4 * 2**20 and trim_peak < 4 * 2**20
     assert path.stat().st_size < 4096  # the rows and the new one are what was kept
     assert len(cost._history("llvm_ad_rgb")[0]) == cost.MIN_HISTORY + 3
+
+
+@pytest.mark.parametrize(
+    "kind, what",
+    [("file", "a file not named .toml, .json or .exr"), ("folder", "a folder"),
+     ("device", "a device, a pipe or a socket"), ("dangling link", "a link to nothing")],
+)  # fmt: skip
+def test_an_existing_path_that_is_not_a_design_is_not_called_a_preset(tmp_path, capsys, kind, what):
+    """``--design /etc/passwd`` or a folder said "unknown preset"."""
+    import os
+
+    from pacam_render.model.design_file import resolve_design
+
+    path = {"folder": str(tmp_path), "device": "/dev/null"}.get(kind, str(tmp_path / "passwd"))
+    if kind == "file":
+        with open(path, "w") as f:
+            f.write("root:x:0:0:root:/root:/bin/bash\n")
+    elif kind == "dangling link":
+        os.symlink(tmp_path / "gone", path)
+    with pytest.raises(
+        ParameterError, match=f"`design` '{path}' is not a design file \\({what}\\)"
+    ):
+        resolve_design(path)
+    assert main(["design", "--design", path]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "unknown preset" not in err
+    assert f"--design '{path}' is not a design file ({what})" in err
+
+
+def test_a_preset_name_is_still_a_preset_beside_a_file_of_that_name(tmp_path, monkeypatch):
+    from pacam_render.model.camera import preset
+    from pacam_render.model.design_file import resolve_design
+
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "prototype").write_text("not a design\n")
+    assert resolve_design("prototype") == preset("prototype")
+    with pytest.raises(ParameterError, match="unknown preset 'no-such-camera'"):
+        resolve_design("no-such-camera")

@@ -34,6 +34,7 @@ FLAGS = {
     "cover_px_per_ms": "--cover",
     "cover": "--cover",
     "schedule": "--schedule",
+    "design": "--design",
     "max_velocity_px_per_ms": "--max-velocity",
     "object_depth_mm": "--depth",
     "depth_range_mm": "--depth-range",

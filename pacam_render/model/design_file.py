@@ -50,6 +50,7 @@ import json
 import math
 import os
 import re
+import stat
 from pathlib import Path
 
 import numpy as np
@@ -59,7 +60,7 @@ from ..io.arrays import read_json
 from ..io.outputs import atomic_save, check_writable, write_text
 from ..io.toml_file import read_toml
 from ..limits import note
-from .camera import CameraDesign, preset
+from .camera import PRESETS, CameraDesign, preset
 from .masks import read_mask_stack
 from .schedule_file import apply_schedule, read_schedule
 
@@ -379,9 +380,28 @@ def resolve_design(source, **overrides) -> CameraDesign:
         cam = read_design(path)
     elif path.suffix.lower() in (".exr", ".json"):
         cam = _design_from_json(path)
+    elif s not in PRESETS and os.path.lexists(s):  # a path, not a preset's name
+        raise ParameterError(
+            f"`design` {s!r} is not a design file ({_what_is(path)}); give a design file "
+            "(.toml), a capture (.exr or .json), a psf.json or schedule.json, or a preset: "
+            f"{', '.join(sorted(PRESETS))}"
+        )
     else:
         cam = preset(s)
     return cam.with_(**overrides) if overrides else cam
+
+
+def _what_is(path: Path) -> str:
+    """What an existing path that no design reader takes is, for the message."""
+    try:
+        mode = os.stat(path).st_mode
+    except OSError:
+        return "a link to nothing"
+    if stat.S_ISDIR(mode):
+        return "a folder"
+    if stat.S_ISREG(mode):
+        return "a file not named .toml, .json or .exr"
+    return "a device, a pipe or a socket"
 
 
 def _design_from_json(path: Path) -> CameraDesign:
