@@ -311,3 +311,14 @@ def test_a_preset_name_is_still_a_preset_beside_a_file_of_that_name(tmp_path, mo
     assert resolve_design("prototype") == preset("prototype")
     with pytest.raises(ParameterError, match="unknown preset 'no-such-camera'"):
         resolve_design("no-such-camera")
+
+
+def test_a_motion_file_nested_too_deep_is_refused_naming_it(tmp_path, deep_schedule):
+    """The scene's ``<stem>.motion.json`` was read as the schedule was: a RecursionError."""
+    from pacam_render.scenes.description import load_scene_file
+
+    bomb_png(tmp_path / "small.png", side=8)
+    path = _scene(tmp_path, "small.png", through_default=False)
+    (tmp_path / "card.motion.json").write_bytes(deep_schedule.read_bytes())
+    with pytest.raises(ParameterError, match="motion file .*card.motion.json is nested too deep"):
+        load_scene_file(path)

@@ -12,7 +12,6 @@ refers to.
 from __future__ import annotations
 
 import hashlib
-import json
 import os
 import re
 import warnings
@@ -23,6 +22,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import ParameterError, check_finite, did_you_mean
+from ..io.arrays import read_json
 from ..limits import PacamWarning
 from ..model.camera import CameraDesign
 from . import assets as sa
@@ -226,10 +226,7 @@ MOTION_FILE_KEYS = ("shapes", "depths_mm", "info", "units")
 def _apply_motion_file(desc: SceneDescription, mpath: Path) -> None:
     """Motions and depths from ``mpath``; every key is checked, for a misspelt one would
     leave a shape still with no word."""
-    try:
-        data = json.loads(mpath.read_text())
-    except (OSError, ValueError) as exc:
-        raise ParameterError(f"motion file {str(mpath)!r} is not valid JSON: {exc}") from exc
+    data = read_json(mpath, "motion file")  # bounded in size and nesting, as records are
     what = f"motion file {str(mpath)!r}"
     check_keys(what, data, MOTION_FILE_KEYS, required=("shapes",))
     ids = sorted(desc.bboxes_mm)
