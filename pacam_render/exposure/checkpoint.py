@@ -88,11 +88,10 @@ def resume_parts(spec_key: str, scene, desc, plan, versions: dict, variant: str)
     dict
         ``spec``, ``scene``, ``motion``, ``integrator``, ``versions`` and ``steps``, each a hash.
     """
-    motions = {k: desc.motions[k].to_json() for k in sorted(desc.motions)}
     return {
         "spec": spec_key,
         "scene": _sha(scene_fingerprint(scene), desc.digest()),
-        "motion": _sha(json.dumps(motions, sort_keys=True, default=repr)),
+        "motion": desc.motion_digest(),
         "integrator": _sha(str(scene.integrator())),
         "versions": _sha(json.dumps({**versions, "variant": variant}, sort_keys=True)),
         "steps": _sha(json.dumps(plan, sort_keys=True)),

@@ -23,6 +23,7 @@ from ..exposure.integrate import CaptureInterrupted
 from ..exposure.plan import plan_capture
 from ..exposure.steps import merge_windows, plan_windows, share_spp, step_draws, step_time
 from ..exposure.truth import render_truth
+from ..io.arrays import read_json
 from ..io.lock import output_lock
 from ..io.signals import deferred_signals
 from ..limits import DEFAULT_MAX_STEPS
@@ -43,8 +44,10 @@ from .store import (
     bytes_per_sample,
     check_budget,
     load_shard,
+    manifest_digest,
     planned_samples,
     save_shard,
+    scene_digest,
     shard_digest,
     shard_name,
     store_digest,
@@ -222,7 +225,7 @@ def render_lightfield(
     _check_store_budget(cam, steps, cap, desc, out, max_disk)
     out.mkdir(parents=True, exist_ok=True)
     with output_lock(out), deferred_signals() as flag:
-        manifest = _manifest(spec, plan, cam, steps, out, desc.digest())
+        manifest = _manifest(spec, plan, cam, steps, out, scene_digest(desc))
         digests = _render_shards(spec, plan, cam, desc, steps, out, manifest, flag, progress,
                                  stop_after)  # fmt: skip
         if truth and not (out / "truth.npz").exists():
@@ -231,21 +234,25 @@ def render_lightfield(
         if planned is not None:
             manifest["noise_target"] = planned
         manifest["shard_digests"] = digests
+        manifest["truth_digest"] = (
+            shard_digest(*load_shard(out / "truth.npz")) if (out / "truth.npz").exists() else None
+        )
         manifest["seconds"] = round(manifest.get("seconds", 0.0), 3)
+        manifest["manifest_digest"] = manifest_digest(manifest)
         write_manifest(out, manifest)
     return Store.open(out)
 
 
 def _manifest(spec: StoreSpec, plan, cam: dict, steps, out: Path, scene_digest: str) -> dict:
     """The store's manifest: a new one, or the one on disk when it is this spec's (resume)."""
-    import json
 
     path = out / "store.json"
     if path.is_file():
-        old = json.loads(path.read_text())
-        if old.get("key") != spec.key():
+        old = read_json(path, "the store's manifest")
+        if not isinstance(old, dict) or old.get("key") != spec.key():
+            key = old.get("key") if isinstance(old, dict) else None
             raise ParameterError(
-                f"{out} holds a light-field store of another spec (key {old.get('key')}, this "
+                f"{out} holds a light-field store of another spec (key {key}, this "
                 f"one {spec.key()}); choose another `out`, or remove it"
             )
         return old

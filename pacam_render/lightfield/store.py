@@ -18,6 +18,7 @@ from __future__ import annotations
 import hashlib
 import json
 import shutil
+import stat
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import NamedTuple
@@ -26,6 +27,7 @@ import numpy as np
 
 from ..errors import ParameterError, check_positive
 from ..exposure.spec import CaptureSpec
+from ..io.arrays import read_json
 from ..io.outputs import atomic_save, write_json
 from ..limits import available_bytes, gib
 from .trace import CHUNK_LANES
@@ -79,6 +81,12 @@ class StoreSpec:
         for d in self.designs:
             h.update(d.key().encode())
         return h.hexdigest()[:16]
+
+
+def scene_digest(desc) -> str:
+    """The digest of what a store renders of a scene: its description and its motions (a store
+    rendered before ``scene.motion.json`` changed is another scene's)."""
+    return f"{desc.digest()}-{desc.motion_digest()}"
 
 
 def shard_name(pass_index: int, step: int) -> str:
@@ -142,14 +150,82 @@ def save_shard(folder: Path, name: str, records: dict, meta: dict) -> str:
     return shard_digest(records, meta)
 
 
+MAX_SHARD_BYTES = 64 * 2**30
+"""The largest shard file read (a store's whole disk budget is :data:`DISK_BYTES`)."""
+
+
 def load_shard(path: Path) -> tuple[dict, dict]:
-    """A shard's records and its meta (the step's times and samples)."""
+    """A shard's records and its meta (the step's times and samples), or a one-line refusal
+    naming the file: a missing, empty, truncated or linked-away file, or one that is not an
+    ``.npz`` of arrays, whatever numpy raises on it."""
+    path = Path(path)
+    try:
+        info = path.stat()
+    except OSError as exc:
+        raise ParameterError(f"{path}: the store's file cannot be read ({exc.strerror})") from None
+    if not stat.S_ISREG(info.st_mode):  # a FIFO would hang the read, a device never ends
+        raise ParameterError(f"{path}: not a regular file (a store's shards are .npz files)")
+    if info.st_size > MAX_SHARD_BYTES:
+        raise ParameterError(f"{path}: {gib(info.st_size)}, larger than any shard a store writes")
     try:
         with np.load(path, allow_pickle=False) as z:
             meta = json.loads(bytes(z["meta"]).decode())
-            return {k: z[k] for k in z.files if k != "meta"}, meta
-    except (OSError, ValueError, KeyError) as exc:
-        raise ParameterError(f"{path}: not a readable light-field shard ({exc})") from None
+            records = {k: z[k] for k in z.files if k != "meta"}
+    except Exception as exc:  # noqa: BLE001 - BadZipFile, EOFError, KeyError, ...: one line
+        raise ParameterError(
+            f"{path}: not a readable light-field shard ({_why(exc)}); the store is damaged: "
+            "render it again"
+        ) from None
+    if not isinstance(meta, dict):
+        raise ParameterError(f"{path}: its meta is not an object; the store is damaged")
+    return records, meta
+
+
+def _why(exc: Exception) -> str:
+    """What went wrong reading a file, in a few words (never numpy's advice to unpickle)."""
+    text = str(exc)
+    if "pickle" in text or not text:
+        text = "not an .npz archive of arrays"
+    return f"{type(exc).__name__}: {text[:200]}"
+
+
+def check_shard(records: dict, meta: dict, channels: int, exposure_ms: float, path) -> None:
+    """Refuse a shard whose arrays or meta no store writes, naming the file: the record fields
+    (:data:`RECORD_FIELDS`, float32, one value per sample), the radiance ``L`` (channels, n),
+    finite and non-negative, a time ``t`` where it varies, and a step inside the exposure
+    with spp > 0."""
+    missing = [k for k in (*RECORD_FIELDS, "L") if k not in records]
+    if missing:
+        raise ParameterError(f"{path}: the shard lacks {', '.join(missing)}; the store is damaged")
+    n = records["x"].shape[0] if records["x"].ndim == 1 else -1
+    for k in (*RECORD_FIELDS, *(("t",) if "t" in records else ())):
+        a = records[k]
+        if a.dtype != np.float32 or a.shape != (n,):
+            raise ParameterError(
+                f"{path}: its {k} is {a.dtype} of shape {a.shape}, not float32 of shape ({n},)"
+            )
+    L = records["L"]
+    if L.dtype != np.float32 or L.shape != (channels, n):
+        raise ParameterError(
+            f"{path}: its radiance L is {L.dtype} of shape {L.shape}, not float32 of shape "
+            f"({channels}, {n}) (the store's channels)"
+        )
+    if not np.isfinite(L).all() or (L < 0).any():
+        raise ParameterError(
+            f"{path}: its radiance holds values that are not finite or are negative (least "
+            f"{np.nanmin(L):.3g}); a render gives none: the store is damaged or edited"
+        )
+    try:
+        t0, t1, spp = float(meta["t0"]), float(meta["t1"]), meta["spp"]
+    except (KeyError, TypeError, ValueError):
+        raise ParameterError(
+            f"{path}: its meta lacks t0, t1 or spp; the store is damaged"
+        ) from None
+    if not (isinstance(spp, int) and spp > 0 and 0.0 <= t0 < t1 <= exposure_ms * (1 + 1e-9)):
+        raise ParameterError(
+            f"{path}: its step ({t0:g} to {t1:g} ms, spp {spp!r}) is not a step of the store's "
+            f"{exposure_ms:g} ms exposure with spp > 0"
+        )
 
 
 @dataclass(frozen=True)
@@ -217,6 +293,10 @@ class Manifest:
         The tracing's seconds in all.
     digest : str
         The store's digest (:func:`store_digest`).
+    shard_digests : tuple of tuple of str
+        Each shard's :func:`shard_digest`, pass by pass: checked when the shard is read.
+    truth_digest : str or None
+        ``truth.npz``'s digest (None: the store has no truth layers).
     raw : dict
         The JSON as read (the spec, proposal, noise target, versions).
     """
@@ -232,6 +312,8 @@ class Manifest:
     mid_ms: float
     seconds: float
     digest: str
+    shard_digests: tuple
+    truth_digest: str | None
     raw: dict = field(repr=False)
 
     @property
@@ -251,16 +333,70 @@ class Manifest:
             )  # fmt: skip
             steps = tuple(tuple(StoreStep(float(a), float(b), int(n)) for a, b, n in row)
                           for row in d["steps"])  # fmt: skip
+            shards = tuple(tuple(str(x) for x in row) for row in d["shard_digests"])
+            truth = d.get("truth_digest")
             out = cls(
                 str(d["key"]), dict(d["spec"]["capture"]), camera, str(d["scene"]),
                 str(d.get("scene_digest")), int(d["channels"]), int(d["passes"]), steps,
-                float(d["mid_ms"]), float(d.get("seconds", 0.0)), str(d["digest"]), d,
+                float(d["mid_ms"]), float(d.get("seconds", 0.0)), str(d["digest"]), shards,
+                None if truth is None else str(truth), d,
             )  # fmt: skip
         except (KeyError, TypeError, ValueError, IndexError, AttributeError) as exc:
-            raise ParameterError(f"{where}: not a readable store manifest ({exc!r})") from None
-        if len(out.steps) != out.passes or not out.steps:
-            raise ParameterError(f"{where}: {out.passes} passes but {len(out.steps)} step rows")
+            raise ParameterError(
+                f"{where}: not a readable store manifest (missing or malformed {exc!s}); "
+                "render the store again"
+            ) from None
+        out.check(where)
         return out
+
+    def check(self, where: str) -> None:
+        """Refuse a manifest that no store writes (a hand edit), naming the file and the field:
+        its own digest (:func:`manifest_digest`), then each value against the rest."""
+        recorded = self.raw.get("manifest_digest")
+        if recorded is None:
+            raise ParameterError(
+                f"{where}: the store was written by an earlier pacam, without the digest of its "
+                "manifest, and cannot be verified: render it again"
+            )
+        if manifest_digest(self.raw) != recorded:
+            raise ParameterError(
+                f"{where}: the manifest was edited (its digest is not the one recorded when the "
+                "store was written): render the store again rather than edit it"
+            )
+        cam, spec = self.camera, self.capture
+        positive = {"exposure_ms": cam.exposure_ms, "f_px": cam.f_px, "fov_deg": cam.fov_deg,
+                    "lens_radius_mm": cam.lens_radius_mm, "focus_mm": cam.focus_mm}  # fmt: skip
+        for name, v in positive.items():
+            if not (np.isfinite(v) and v > 0):
+                raise ParameterError(f"{where}: camera.{name} must be > 0, got {v!r}")
+        crop = spec.get("crop") or (0, 0, spec.get("width"), spec.get("height"))
+        if list(cam.window) != list(crop) or cam.window[2] <= 0 or cam.window[3] <= 0:
+            raise ParameterError(f"{where}: camera.window {list(cam.window)} is not the "
+                                 f"capture's window {list(crop)}")  # fmt: skip
+        if self.channels != (1 if spec.get("grey") else 3) or self.passes < 1:
+            raise ParameterError(f"{where}: {self.channels} channels and {self.passes} passes do "
+                                 "not fit the capture")  # fmt: skip
+        rows = [len(r) for r in self.steps]
+        if len(rows) != self.passes or rows != [len(r) for r in self.shard_digests] or not rows[0]:
+            raise ParameterError(f"{where}: its steps and shard digests do not fit its "
+                                 f"{self.passes} passes")  # fmt: skip
+        for s in self.steps[0]:
+            if not (s.spp > 0 and 0.0 <= s.t0_ms < s.t1_ms <= cam.exposure_ms * (1 + 1e-9)):
+                raise ParameterError(f"{where}: step {tuple(s)} is not inside the exposure")
+        if store_digest(self.key, [list(r) for r in self.shard_digests]) != self.digest:
+            raise ParameterError(f"{where}: its digest is not its shards' digest")
+
+
+MANIFEST_UNHASHED = ("manifest_digest", "seconds", "versions")
+"""Manifest keys its own digest leaves out: the digest itself, and what does not change a
+capture (the tracing's seconds, the versions that wrote it)."""
+
+
+def manifest_digest(manifest: dict) -> str:
+    """The SHA-256 (16 hex digits) of a manifest's content but :data:`MANIFEST_UNHASHED`: written
+    when the store is finished, checked when it is read."""
+    kept = {k: v for k, v in manifest.items() if k not in MANIFEST_UNHASHED}
+    return hashlib.sha256(json.dumps(kept, sort_keys=True).encode()).hexdigest()[:16]
 
 
 @dataclass
@@ -280,10 +416,7 @@ class Store:
         path = Path(folder) / "store.json"
         if not path.is_file():
             raise ParameterError(f"no light-field store at {folder} (its store.json is missing)")
-        try:
-            manifest = json.loads(path.read_text())
-        except json.JSONDecodeError as exc:
-            raise ParameterError(f"{path} is not valid JSON ({exc})") from None
+        manifest = read_json(path, "the store's manifest")
         if not isinstance(manifest, dict) or manifest.get("format") != FORMAT:
             raise ParameterError(f"{path} is not a {FORMAT} store")
         if not manifest.get("complete"):
@@ -298,27 +431,49 @@ class Store:
         return self.manifest.digest
 
     def shards(self, pass_index: int):
-        """(records, meta) of each of a pass's shards, in step order, one at a time."""
+        """(records, meta) of each of a pass's shards, in step order, one at a time, each
+        verified against the manifest (:meth:`read_shard`)."""
         for step in range(len(self.manifest.steps[pass_index])):
             name = shard_name(pass_index, step)
             if name in self._cache:
                 yield self._cache[name]
                 continue
-            shard = load_shard(self.folder / name)
+            shard = self.read_shard(pass_index, step)
             size = sum(a.nbytes for a in shard[0].values())
             if self._cached + size <= self.cache_bytes:
                 self._cache[name] = shard
                 self._cached += size
             yield shard
 
+    def read_shard(self, pass_index: int, step: int) -> tuple[dict, dict]:
+        """One shard, refused in one line naming its file unless it is the one the manifest
+        recorded (its digest: not another window's, pass's or store's) and holds what a render
+        writes (:func:`check_shard`: finite, non-negative radiance)."""
+        path = self.folder / shard_name(pass_index, step)
+        records, meta = load_shard(path)
+        got, want = shard_digest(records, meta), self.manifest.shard_digests[pass_index][step]
+        if got != want:
+            raise ParameterError(
+                f"{path}: its digest {got} is not the {want} that store.json recorded: the shard "
+                "was replaced or changed (another window's, another pass's or another store's); "
+                "render the store again"
+            )
+        m = self.manifest
+        check_shard(records, meta, m.channels, m.camera.exposure_ms, path)
+        return records, meta
+
     def truth(self) -> tuple[dict, dict | None, float | None]:
         """The ground-truth layers, the ``object_id`` legend and the ``sharp`` layer's Monte
-        Carlo sigma (white = 1; None for a store written before it was kept); empty without
-        truth."""
-        path = self.folder / "truth.npz"
-        if not path.is_file():
+        Carlo sigma (white = 1); empty for a store rendered without truth. The file is the
+        one the manifest recorded, or refused naming it."""
+        want = self.manifest.truth_digest
+        if want is None:
             return {}, None, None
+        path = self.folder / "truth.npz"
         records, meta = load_shard(path)
+        if shard_digest(records, meta) != want:
+            raise ParameterError(f"{path}: not the truth layers store.json recorded (its digest "
+                                 "differs); render the store again")  # fmt: skip
         return records, meta.get("objects"), meta.get("sharp_mc_sigma")
 
 

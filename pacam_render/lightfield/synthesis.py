@@ -26,7 +26,7 @@ from ..model.illumination import cos4_at_film
 from ..scenes import load_scene
 from . import geometry as geo
 from .codes import check_served, design_aperture, transmission
-from .store import Store
+from .store import Store, scene_digest
 
 APPROXIMATION = "exact: the store's rays reweighted (same estimator as a direct render)"
 
@@ -263,7 +263,7 @@ def _pixels(x: np.ndarray, y: np.ndarray, w: int, h: int) -> np.ndarray:
 def _scene(store: Store, spec, description):
     """The store's scene description, checked against the digest it was rendered with."""
     desc = description if description is not None else load_scene(spec.scene)
-    if desc.digest() != store.manifest.scene_digest:
+    if scene_digest(desc) != store.manifest.scene_digest:
         raise ParameterError(
             f"the scene {spec.scene!r} is not the one the store at {store.folder} was rendered "
             "from (its digest differs: edited since, or another description)"

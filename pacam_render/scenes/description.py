@@ -12,6 +12,7 @@ refers to.
 from __future__ import annotations
 
 import hashlib
+import json
 import os
 import re
 import warnings
@@ -62,6 +63,13 @@ class SceneDescription:
         h = hashlib.sha256()
         _hash_value(h, self.scene_dict)
         return h.hexdigest()[:16]
+
+    def motion_digest(self) -> str:
+        """A hash of the scene's motions (16 hex digits): its ``scene.motion.json``, or the
+        built-in scene's, which :meth:`digest` leaves out."""
+        motions = {k: self.motions[k].to_json() for k in sorted(self.motions)}
+        text = json.dumps(motions, sort_keys=True, default=repr)
+        return hashlib.sha256(text.encode()).hexdigest()[:16]
 
     @property
     def moving_ids(self) -> list[str]:
