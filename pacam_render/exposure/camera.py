@@ -5,6 +5,8 @@ speed, or read from a schedule file), the mode's camera and sensor parameters fr
 
 from __future__ import annotations
 
+import numpy as np
+
 from ..errors import ParameterError
 from ..limits import note
 from ..model.camera import CameraDesign, preset
@@ -16,6 +18,7 @@ from ..model.illumination import (
     thin_lens_relative_illumination,
 )
 from ..model.modes import DESIGNED_REFUSED, MODES, capture_camera, mode, sensor_params
+from ..model.schedule import RASKAR_2006_CODE, flutter_code
 from ..model.schedule_file import apply_schedule, read_schedule
 from .spec import CaptureSpec
 
@@ -149,6 +152,25 @@ def contrast_params(spec: CaptureSpec, params: dict) -> dict:
         f"(schedule {params.get('schedule', 'none')})"
     )
     return {}
+
+
+SWITCHING_SCHEDULES = ("parabolic", "centres", "bitmap", "flutter")
+"""The sensor schedules that show a sequence of patterns on the LCoS, which switch between them;
+a ``static`` opening (normal, short), Levin's moving camera and a continuous parabola switch
+none."""
+
+
+def switched_patterns(params: dict, cam: CameraDesign) -> int:
+    """How many patterns the mode's schedule (``params``, the sensor's) switches between on the
+    LCoS over the exposure: the design's ``n_patterns``, or 1 where it shows one opening or
+    moves it continuously (the LCoS's switching then blends nothing)."""
+    schedule = params.get("schedule")
+    if schedule not in SWITCHING_SCHEDULES or params.get("continuous"):
+        return 1
+    if schedule == "flutter":  # the shutter's open and closed runs: its transitions + 1
+        bits = flutter_code(params.get("flutter_code", RASKAR_2006_CODE))
+        return 1 + int(np.count_nonzero(bits[1:] != bits[:-1]))
+    return cam.n_patterns
 
 
 def switching_params(spec: CaptureSpec, params: dict, cam: CameraDesign) -> dict:

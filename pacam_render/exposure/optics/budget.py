@@ -29,6 +29,7 @@ from ...sensor.model import SensorModel
 from ...sensor.presets import mono_preset
 from ...sensor.radiometry import DEFAULT_LIGHT_LEVEL
 from ...wave.patterns import channel_wavelengths_nm, shows_bitmaps
+from ..camera import switched_patterns
 from ..estimate import rms
 from .diffraction import diffract
 from .wave_residual import occlusion_rms, residual_rms
@@ -204,7 +205,7 @@ def finish_optics(plan, desc, image, patterns, variance, ctx: OpticsContext) -> 
         "lcos_grid": oe.grid_entry(image, spec.lcos_fill_factor if included else None),
         "lcos_switching": oe.switching_entry(
             image,
-            cam.n_patterns,
+            switched_patterns(plan.mode_params, cam),
             cam.exposure_ms,
             lcos.get("lcos_switching"),
             spec.lcos_switching_ms,
