@@ -54,6 +54,7 @@ _EXPORTS = {
     ".render": ["select_variant", "sensor_dict"],
     ".restore": ["metrics"],
     ".restore.deconvolve": [("DECONVOLUTION_METHODS", "METHODS"), "deconvolve", "wiener"],
+    ".restore.restoration": ["Restoration", "restore_capture"],
     ".scenes": ["load_scene", "psf_scene"],
     ".sensor.apply": ["SensorTarget", "add_sensor_layers"],
     ".sensor.on_capture": ["load_capture", "sensor_on_capture"],

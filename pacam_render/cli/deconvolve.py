@@ -3,9 +3,7 @@
 from __future__ import annotations
 
 import argparse
-import json
 import sys
-import time
 import warnings
 from pathlib import Path
 
@@ -19,19 +17,15 @@ from ..io.exr import pick_layer, read_exr, read_layer_shapes, write_exr
 from ..io.outputs import check_writable, prepare_out_dir, write_json
 from ..io.preview import srgb8, write_png
 from ..limits import PacamWarning, gib, note
-from ..psf.origin import to_pinhole
-from ..restore.capture_deblur import deblur_input
 from ..restore.capture_noise import check_noise_sigma, deblur_layer, sparse_options
 from ..restore.deconvolve import (
     BM3D_LICENCE,
     METHODS,
-    deconvolve,
-    nonnegative_for,
     require_method,
 )
 from ..restore.deconvolve_cost import check_deconvolve
 from ..restore.model_error import capture_model_sigma
-from ..restore.object_score import score_capture
+from ..restore.restoration import restore_capture
 from .common import add_force, add_out
 
 _FILE_SUFFIXES = {".txt", ".json", ".npy", ".tif", ".tiff", ".jpg", ".jpeg", ".hdr", ".pfm"}
@@ -119,34 +113,26 @@ def run(args: argparse.Namespace) -> int:
     check_layers_fit(layers, record, capture, capture.with_suffix(".json"))
     model = _model_sigma(args)
     psf = load_capture_psf(args.psf, capture, record, args.allow_psf_mismatch)
-    d = deblur_input({**layers, layer: image}, layer, record, args.method, args.colour,
-                     args.noise_sigma, model)  # fmt: skip
-    kw, how, noise, image = d.kw, d.how, d.noise, d.image  # irradiance -> radiance
-    if cost is None:  # an input the checks above refuse came first; else still before the work
-        cost = _check_cost(shapes, layer, psf.kernel.shape, args.method, kw)
-    if noise["source"] == "noise_sigma":
-        noise["source"] = "--noise-sigma"
     if args.method == "bm3d":
         print(f"note: {BM3D_LICENCE}", file=sys.stderr)
-    image, clipped = nonnegative_for(args.method, image)
-    if clipped:
-        print(
-            f"note: rl needs non-negative data: {clipped} value(s) of layer {layer} below 0 "
-            "(read noise) clipped to 0",
-            file=sys.stderr,
-        )
-    start = time.perf_counter()
+    costs = [cost]
+
+    def check(kw: dict) -> None:  # an input the checks above refuse came first; still before
+        if costs[0] is None:
+            costs[0] = _check_cost(shapes, layer, psf.kernel.shape, args.method, kw)
+
     try:
-        est = deconvolve(image, psf.kernel, args.method, **kw)
+        res = restore_capture({**layers, layer: image}, record, psf, args.method, layer,
+                              args.colour, args.noise_sigma, model, before=check)  # fmt: skip
     except MemoryError:  # the estimate fitted, the machine's memory did not: one line
         raise MemoryError(
-            f"deblurring layer {layer} with --method {args.method} ({cost.describe()} "
-            f"estimated, {gib(cost.free)} available when it began); free memory, or use a "
+            f"deblurring layer {layer} with --method {args.method} ({costs[0].describe()} "
+            f"estimated, {gib(costs[0].free)} available when it began); free memory, or use a "
             "method that needs less (wiener)"
         ) from None
-    est = to_pinhole(est, psf.origin, psf.t0_offset_px)  # the capture's registration
-    seconds = time.perf_counter() - start
-    sc = _deconvolve_score(est, layers, layer, record)
+    est, noise, how, seconds, sc = res.estimate, res.noise, res.how, res.seconds, res.score
+    if noise["source"] == "noise_sigma":
+        noise["source"] = "--noise-sigma"
     if single_file:
         _write_deconvolved_file(out, est, args.force)
     else:
@@ -261,23 +247,6 @@ def _deconvolve_out(args: argparse.Namespace, inputs: list[Path]) -> tuple[Path,
             f"--out {out} names a file; give a folder (or a file ending in .exr or .png)"
         )
     return prepare_out_dir(out, args.force), False
-
-
-def _deconvolve_score(est, layers: dict, layer: str, record) -> dict:
-    """PSNR and SSIM against ``sharp`` as a study scores
-    (:func:`~pacam_render.restore.object_score.score_capture`), on the white scale; empty
-    without the truth layers (``--no-truth``) or for a layer that is not the image."""
-
-    truth = {"sharp", "object_id", "velocity"}
-    if record is None or layer not in ("capture", "noisy") or not truth <= set(layers):
-        return {}
-    if record.light_factor <= 0 or est.shape != layers["sharp"].shape:
-        return {}
-    if not np.all(np.isfinite(layers["sharp"])):
-        print("note: the capture's sharp layer holds NaN or inf: no score", file=sys.stderr)
-        return {}
-    out = score_capture(est / record.light_factor, layers, record)
-    return {**out, "psnr_by_object": json.loads(out["psnr_by_object"])}
 
 
 def _score_line(sc: dict) -> str:

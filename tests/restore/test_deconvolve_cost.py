@@ -123,7 +123,7 @@ def test_a_long_deconvolution_says_its_estimate_before_reading(big_capture, tmp_
 
 
 def test_a_memory_error_is_one_line(tmp_path, capsys, monkeypatch):
-    import pacam_render.cli.deconvolve as cli
+    import pacam_render.restore.restoration as restoration
 
     write_exr(tmp_path / "capture.exr", {"capture": np.full((24, 32, 3), 0.5)})
     np.save(tmp_path / "k.npy", np.ones((5, 5)))
@@ -131,7 +131,7 @@ def test_a_memory_error_is_one_line(tmp_path, capsys, monkeypatch):
     def out_of_memory(*args, **kwargs):
         raise MemoryError
 
-    monkeypatch.setattr(cli, "deconvolve", out_of_memory)
+    monkeypatch.setattr(restoration, "deconvolve", out_of_memory)
     argv = ["deconvolve", str(tmp_path / "capture.exr"), "--psf", str(tmp_path / "k.npy")]
     assert main([*argv, "--noise-sigma", "0.01", "--out", str(tmp_path / "d")]) == 1
     err = capsys.readouterr().err
