@@ -48,9 +48,9 @@ from .assemble import Passes, assemble_capture, build_record, versions
 from .checkpoint import Checkpoint, partial_lock, resume_parts
 from .estimate import PILOT_PASSES, rms
 from .integrate import CaptureInterrupted, Run, integrate
-from .optics.diffraction import PREVIEW_SPP, decide, diffract
+from .optics.diffraction import decide, diffract, preview_sampling
 from .plan import CapturePlan, plan_capture
-from .render_time import estimate_capture, in_overall, metered, say
+from .render_time import estimate_capture, in_overall, metered, planned_steps, say
 from .spec import CaptureSpec
 from .steps import plan_exposure
 from .truth import render_truth
@@ -194,12 +194,14 @@ def preview_scene(desc):
 
 def _diffraction_choice(plan: CapturePlan, description, run: Run, target) -> tuple[bool, str]:
     """``spec.diffraction`` resolved: (in the capture, the decision in words). ``auto`` renders
-    a short geometric preview (:func:`preview_scene`: 2 passes, independent samples, no
-    truth) and measures
-    diffraction's effect on it with the post-process
+    a short geometric preview (:func:`preview_scene`: 2 passes with the capture's own sampler,
+    no truth) and measures diffraction's effect on it with the post-process
     (:func:`~pacam_render.exposure.optics.diffraction.diffract`, its Monte Carlo share removed):
-    included unless below the noise target, or without one below the Monte Carlo sigma that
-    ``spec.spp`` will reach (the preview's, scaled by sqrt(spp ratio))."""
+    included unless below the noise target, or without one below the Monte Carlo sigma the
+    capture will reach: the preview's, scaled by the square root of its samples over those the
+    capture's passes will take (:func:`~pacam_render.exposure.render_time.planned_spp`, every
+    pattern's step counted). An ``independent`` preview overstated a capture's ``ldsampler``
+    sigma 1.4-1.7x, and ``spec.spp`` understated a 32-pattern design's samples 2x (issue 56)."""
 
     spec = plan.spec
     if not plan.lens:
@@ -208,12 +210,14 @@ def _diffraction_choice(plan: CapturePlan, description, run: Run, target) -> tup
         return decide(spec.diffraction, 0.0, 0.0, "")  # as asked
 
     t0 = time.perf_counter()
-    quick = plan.with_spec(diffraction="off", spp=PREVIEW_SPP, passes=2, per_pattern=False,
-                           sampler="independent").with_diffraction(False, "preview")  # fmt: skip
-    frozen = preview_scene(description if description is not None else load_scene(spec.scene))
+    desc = description if description is not None else load_scene(spec.scene)
+    n, passes = preview_sampling(spec.sampler, planned_steps(plan, desc, run.max_steps))
+    quick = plan.with_spec(diffraction="off", spp=n * passes, passes=passes,
+                           per_pattern=False).with_diffraction(False, "preview")  # fmt: skip
+    frozen = preview_scene(desc)
     quiet = replace(run, progress=False, partial_dir=None, pilot_only=False, stop_after_steps=None)
     if run.progress:  # a preview is announced: it runs before the capture's own bar
-        say(f"diffraction auto: rendering a short geometric preview first ({PREVIEW_SPP} spp, the "
+        say(f"diffraction auto: rendering a short geometric preview first ({n * passes} spp, the "
             "scene at t = 0, no truth layers) to measure diffraction's effect")  # fmt: skip
     with warnings.catch_warnings():  # the preview's own notes are not the capture's
         warnings.simplefilter("ignore", PacamWarning)
@@ -230,7 +234,7 @@ def _diffraction_choice(plan: CapturePlan, description, run: Run, target) -> tup
     if target is not None:
         threshold, why = float(target.sigma(pre.image, pre.record)), "the noise target"
     else:
-        spp = max(spec.spp, pre.record.effective_spp)  # the steps' quantum sets a floor
+        spp = plan.spec.passes * sum(s.spp for s in planned_steps(plan, desc, run.max_steps))
         threshold = rms(var) * (pre.record.effective_spp / spp) ** 0.5
         why = f"the Monte Carlo sigma at {spp} spp"
     on, text = decide("auto", d.record["effect_rms"], threshold, why)

@@ -43,7 +43,7 @@ from ..render.samplers import quantum
 from ..scenes import load_scene
 from ..scenes.assets import cache_root
 from .estimate import PILOT_PASSES
-from .optics.diffraction import PREVIEW_SPP
+from .optics.diffraction import preview_sampling
 from .plan import CapturePlan, plan_capture
 from .steps import Exposure, exposure_windows
 
@@ -279,7 +279,8 @@ def capture_parts(exp, spec, lens: bool, targeted: bool, truth: bool, preview: b
     parts = {}
     if preview:
         frozen = replace(exp, windows=[], quantum=1)
-        parts["preview"] = Work(1, int(first)) + pass_work(frozen, PREVIEW_SPP // 2, 2)
+        n, passes = preview_sampling(spec.sampler, exp.steps(-(-spec.spp // spec.passes)))
+        parts["preview"] = Work(1, int(first)) + pass_work(frozen, n, passes)
     call = Work(1, int(first and not preview))
     if targeted:
         parts["pilot"] = call + pass_work(exp, exp.pass_quantum(), PILOT_PASSES)
@@ -289,6 +290,33 @@ def capture_parts(exp, spec, lens: bool, targeted: bool, truth: bool, preview: b
         static = replace(exp, windows=[])  # the reference is its own sharp layer
         parts["truth"] = pass_work(static, -(-spec.spp // spec.passes), spec.passes)
     return parts
+
+
+def planned_exposure(plan, desc, max_steps: int = DEFAULT_MAX_STEPS) -> Exposure:
+    """The :class:`~.steps.Exposure` a capture's passes will render (no scene loaded): its time
+    steps planned from the scene's description and the aperture's patterns, as the render plans
+    them."""
+    spec = plan.spec
+    w, h = spec.image_size
+    exp = Exposure(None, None, quantum=quantum(spec.sampler), pixels=w * h)
+    if plan.lens and not desc.is_static:
+        aperture = plan.aperture()
+        exp.windows = exposure_windows(desc, plan.design, plan.cam, spec, aperture, max_steps)[0]
+    return exp
+
+
+def planned_steps(plan, desc, max_steps: int = DEFAULT_MAX_STEPS) -> list:
+    """The :class:`~.steps.Step` s of one of a capture's passes, as its render will take them
+    (one for a still scene)."""
+    spec = plan.spec
+    return planned_exposure(plan, desc, max_steps).steps(-(-spec.spp // spec.passes))
+
+
+def planned_spp(plan, desc, max_steps: int = DEFAULT_MAX_STEPS) -> int:
+    """The samples per pixel a capture's passes take over every step (its record's
+    ``effective_spp``): ``spec.spp``, or more where each pattern needs one step of at least the
+    sampler's smallest render (a 32-pattern design at 16 spp takes 256)."""
+    return plan.spec.passes * sum(s.spp for s in planned_steps(plan, desc, max_steps))
 
 
 def estimate_capture(
@@ -318,11 +346,7 @@ def estimate_capture(
     plan = plan if isinstance(plan, CapturePlan) else plan_capture(plan)
     spec = plan.spec
     desc = description if description is not None else load_scene(spec.scene)
-    w, h = spec.image_size
-    exp = Exposure(None, None, quantum=quantum(spec.sampler), pixels=w * h)
-    if plan.lens and not desc.is_static:
-        aperture = plan.aperture()
-        exp.windows = exposure_windows(desc, plan.design, plan.cam, spec, aperture, max_steps)[0]
+    exp = planned_exposure(plan, desc, max_steps)
     preview = plan.lens and spec.diffraction == "auto" and plan.diffraction is None
     first = not process_warm() if first is None else first
     parts = capture_parts(exp, spec, plan.lens, targeted, truth, preview, first)

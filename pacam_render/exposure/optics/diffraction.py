@@ -33,6 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ...errors import ParameterError
+from ...render.samplers import quantum
 from ...wave.fraunhofer import DEFAULT_MAX_LOST
 from ...wave.image import diffract_image
 from ...wave.patterns import (
@@ -45,8 +46,23 @@ from ...wave.patterns import (
 DIFFRACTION_CHOICES = ("auto", "on", "off")
 """The ``diffraction`` settings of a capture."""
 PREVIEW_SPP = 32
-"""Samples per pixel of ``auto``'s geometric preview: two passes of 16 (``independent``) of the
-scene frozen at t = 0 (:func:`~pacam_render.exposure.direct.preview_scene`), one render each."""
+"""Samples per pixel of ``auto``'s geometric preview (the capture's sampler) of the scene frozen
+at t = 0 (:func:`~pacam_render.exposure.direct.preview_scene`), in renders of the capture's own
+per-step samples (:func:`~pacam_render.exposure.direct.preview_plan`)."""
+
+
+def preview_sampling(sampler: str, steps: list) -> tuple[int, int]:
+    """(samples per render, passes) of ``auto``'s preview: about :data:`PREVIEW_SPP` samples,
+    in renders of the capture's own per-step samples (``steps``, one of its passes' time steps;
+    at most half the preview's). A sampler's convergence depends on the samples of one render:
+    a pass split into many time steps of 4 spp converges as 4 spp renders do, not as one
+    render of their sum (a moving capture stated up to 1.5x the sigma that a preview of whole
+    passes predicted), so each preview pass is one such render, and its sigma scales to the
+    capture's samples."""
+    q = quantum(sampler)
+    per_step = sorted(s.spp for s in steps)[len(steps) // 2]
+    n = max(q, min(per_step, PREVIEW_SPP // 2) // q * q)
+    return n, max(2, PREVIEW_SPP // n)
 
 
 def check_diffraction(value) -> str:
