@@ -22,7 +22,7 @@ from ..render.samplers import DEFAULT_SAMPLER, SAMPLERS
 from ..render.variant import grey_request
 from ..sensor.apply import SensorTarget, add_sensor_layers, check_grey_sensor
 from ..sensor.model import SensorModel
-from ..sensor.radiometry import DEFAULT_LIGHT_LEVEL
+from ..sensor.radiometry import DEFAULT_LIGHT_LEVEL, check_light_level
 from .capture_out import error_line, optics_lines, scale_line, write_or_rescue
 from .common import (
     add_design_flags,
@@ -261,7 +261,7 @@ def _checked_sensor(args: argparse.Namespace, spec):
     if args.light_level is not None and model is None:
         raise ParameterError("--light-level needs --sensor")
     if args.light_level is not None:
-        check_positive("--light-level", args.light_level, "photons/px/ms")
+        check_light_level(args.light_level, "--light-level")
     return model
 
 

@@ -6,11 +6,11 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from ..errors import ParameterError, check_positive
+from ..errors import ParameterError
 from ..io.lock import output_lock
 from ..sensor.model import SensorModel
 from ..sensor.on_capture import sensor_on_capture
-from ..sensor.radiometry import DEFAULT_LIGHT_LEVEL
+from ..sensor.radiometry import DEFAULT_LIGHT_LEVEL, check_light_level
 from .capture_out import write_or_rescue
 from .common import add_force, add_out, new_folder
 
@@ -59,7 +59,7 @@ def run(args: argparse.Namespace) -> int:
     except ParameterError as exc:
         raise ParameterError(f"--sensor: {exc}") from None
     if args.light_level is not None:
-        check_positive("--light-level", args.light_level, "photons/px/ms")
+        check_light_level(args.light_level, "--light-level")
     if args.seed is not None and not 0 <= args.seed < 2**32:
         raise ParameterError(f"--seed must be an integer in [0, 2^32), got {args.seed}")
     out = Path(args.out)

@@ -24,6 +24,7 @@ from ..model.design_file import resolve_design
 from ..model.schedule_file import check_pattern_count
 from ..restore.noise import NoiseModel
 from ..sensor.model import SensorModel
+from ..sensor.radiometry import check_light_level
 from .objective import BETA_RANGE, MEAN_LEVEL, Objective, make_grid
 
 DEFAULT_LIGHT_LEVEL = 300.0
@@ -82,7 +83,7 @@ def check_problem(p: Problem) -> None:
     check_pattern_count(p.n_patterns, base.exposure_ms, "n_patterns", base.lcos_rate_fps)
     model = SensorModel.from_preset(p.sensor)
     if p.light_level is not None:
-        check_positive("light_level", p.light_level, "photons/px/ms")
+        check_light_level(p.light_level)
         if not model.shot_noise:
             raise ParameterError(
                 f"light_level: sensor {p.sensor!r} adds noise relative to white whatever the "

@@ -18,7 +18,7 @@ from ..errors import ParameterError, check_positive
 from ..limits import PacamWarning
 from .model import SensorModel, simulate_capture
 from .presets import mono_preset
-from .radiometry import DEFAULT_LIGHT_LEVEL
+from .radiometry import DEFAULT_LIGHT_LEVEL, check_light_level
 
 SATURATION_NOTE = 1e-3
 """A capture with more than this fraction of saturated values gets a note."""
@@ -48,7 +48,7 @@ def apply_sensor(cap, model: SensorModel, light_level: float | None, seed: int):
     if light_level is None:
         res = simulate_capture(image, model, exposure_ms=rec.exposure_ms, seed=seed)
         return res.raw_dn, res.linear * back, res.photons_per_unit
-    level = check_positive("light_level", light_level, "photons/px/ms")
+    level = check_light_level(light_level)
     res = simulate_capture(
         image,
         model,
@@ -124,7 +124,7 @@ def add_sensor_layers(
 
     The noiseless capture stays. A physical sensor (one with shot noise) needs photons: with
     ``light_level=None`` it gets :data:`~pacam_render.sensor.radiometry.DEFAULT_LIGHT_LEVEL`. The
-    noise sigma is taken at the noisy image's mean level.
+    noise sigma is taken at the noise-free capture's mean level.
 
     Raises
     ------
@@ -144,7 +144,11 @@ def add_sensor_layers(
         )
         warnings.warn(note, PacamWarning, stacklevel=2)
         rec.notes.append(note)
-    level = float(np.mean(noisy)) / rec.light_factor
+    # The level from the noise-free capture: the noisy layer's mean less the sensor's offset and
+    # read noise can be negative at low light, and is the same level plus noise otherwise. In
+    # float32, as the capture is written, so that a capture read back gives the same sigma.
+    mean = float(np.mean(np.asarray(cap.image, dtype=np.float32), dtype=np.float64))
+    level = max(0.0, mean) / rec.light_factor
     sigma = sensor_sigma(rec, model, light_level, level)
     cap.extra_layers.update({"raw": raw.astype(np.float32), "noisy": noisy})
     rec.sensor = SensorRecord(
@@ -249,7 +253,7 @@ class SensorTarget:
         for preset, level in self.sensors:
             SensorModel.from_preset(preset)  # raises, naming the presets
             if level is not None:
-                check_positive("light_level", level, "photons/px/ms")
+                check_light_level(level)
 
     def sensor_sigmas(self, mean_image: np.ndarray, rec) -> list[float]:
         """Each sensor's noise sigma at the image's mean level, the capture's units."""

@@ -18,7 +18,7 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import ParameterError, check_positive
+from ..errors import ParameterError, check_positive, check_range
 
 DEFAULT_LIGHT_LEVEL = 7000.0
 """Photons/px/ms from a white diffuse surface at the full clear aperture (F2.8 on the prototype).
@@ -27,6 +27,33 @@ An estimate for a brightly lit table-top scene, chosen so that with the ``grassh
 preset a white surface at F9.85 over 45 ms (the coded capture) collects about 70 % of the full
 well: 7000 * 45 * (2.8 / 9.85)**2 * 0.5 ~ 12700 e- of 18000 e-.
 """
+
+LIGHT_LEVEL_RANGE = (1e-6, 1e9)
+"""The light levels taken, photons/px/ms: 1e-6 is a photon per pixel in 20 min, 1e9 saturates
+every sensor preset 10^4-fold over a microsecond. Outside it the arithmetic overflows or
+underflows (1e308, 1e-300) rather than describing a scene."""
+
+
+def check_light_level(light_level: Any, name: str = "light_level") -> float:
+    """``light_level`` as float, or raise naming ``name`` and :data:`LIGHT_LEVEL_RANGE`.
+
+    Parameters
+    ----------
+    light_level : float
+        Photons/px/ms of white through the reference aperture.
+    name : str
+        The parameter, for the message.
+
+    Returns
+    -------
+    float
+
+    Raises
+    ------
+    ParameterError
+        If ``light_level`` is not a finite number in :data:`LIGHT_LEVEL_RANGE`.
+    """
+    return check_range(name, light_level, *LIGHT_LEVEL_RANGE, "photons/px/ms")
 
 
 def check_image(name: str, image: Any) -> np.ndarray:
@@ -94,9 +121,10 @@ def photons_per_unit(
     Raises
     ------
     ParameterError
-        If any argument is not a finite number > 0.
+        If any argument is not a finite number > 0, or ``light_level`` is outside
+        :data:`LIGHT_LEVEL_RANGE`.
     """
-    level = check_positive("light_level", light_level, "photons/px/ms")
+    level = check_light_level(light_level)
     t = check_positive("exposure_ms", exposure_ms, "ms")
     a = check_positive("open_area_mm2", open_area_mm2, "mm^2")
     a_ref = check_positive("reference_area_mm2", reference_area_mm2, "mm^2")

@@ -45,7 +45,7 @@ from ..scenes.builtin import BUILTIN_SCENES
 from ..scenes.description import file_digest
 from ..sensor.model import SensorModel
 from ..sensor.presets import mono_preset
-from ..sensor.radiometry import DEFAULT_LIGHT_LEVEL
+from ..sensor.radiometry import DEFAULT_LIGHT_LEVEL, check_light_level
 
 AXES = {
     "scene": "train",
@@ -623,13 +623,20 @@ def _check_point(v: dict) -> dict:
     except ParameterError as exc:
         raise ParameterError(f"{where}: {exc}") from None
     parse_design(v["design"])
-    for key, lo in (("speed_px_per_ms", 0.0), ("depth_mm", 1.0), ("light_level", 0.0)):
+    for key, lo in (("speed_px_per_ms", 0.0), ("depth_mm", 1.0)):
         x = v[key]
-        if x is None and key != "light_level":
+        if x is None:
             continue
         if isinstance(x, bool) or not isinstance(x, (int, float)) or not x > lo or x > 1e9:
             raise ParameterError(f"{where}: {key} must be a number in ({lo:g}, 1e9], got {x!r}")
         v[key] = float(x)
+    x = v["light_level"]
+    if isinstance(x, bool) or not isinstance(x, (int, float)):
+        raise ParameterError(f"{where}: light_level must be a number, got {x!r}")
+    try:
+        v["light_level"] = check_light_level(x)
+    except ParameterError as exc:
+        raise ParameterError(f"{where}: {exc}") from None
     if isinstance(v["seed"], bool) or not isinstance(v["seed"], int) or not 0 <= v["seed"] < 2**31:
         raise ParameterError(f"{where}: seed must be an integer in [0, 2^31), got {v['seed']!r}")
 

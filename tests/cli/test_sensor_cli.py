@@ -76,7 +76,10 @@ def test_a_capture_with_a_sensor_gets_it_replaced_with_a_note(captures, tmp_path
     ("extra", "message"),
     [
         (["--sensor", "nope"], "--sensor: unknown sensor preset 'nope'"),
-        (["--sensor", PRESET, "--light-level", "-1"], "--light-level must be > 0 photons/px/ms"),
+        (
+            ["--sensor", PRESET, "--light-level", "-1"],
+            "--light-level must be in [1e-06, 1e+09] photons/px/ms",
+        ),
         (["--sensor", PRESET, "--light-level", "nan"], "--light-level must be a finite number"),
     ],
 )

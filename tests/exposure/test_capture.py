@@ -178,7 +178,7 @@ def test_cli_checks_options_before_rendering(tmp_path, capsys):
     out = tmp_path / "never"
     argv = ["render", "train", "--sensor", "paper", "--light-level", "-5", "--out", str(out)]
     assert main(argv) == 2
-    assert "--light-level must be > 0" in capsys.readouterr().err
+    assert "--light-level must be in [1e-06, 1e+09]" in capsys.readouterr().err
     assert not out.exists()  # nothing rendered, nothing written
     assert main(["reproduce", "fig9", "--quick", "--seed", "-1", "--out", str(out)]) == 2
     assert "--seed must be" in capsys.readouterr().err and not out.exists()

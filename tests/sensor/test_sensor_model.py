@@ -678,7 +678,10 @@ def test_missing_preset_file_raises(tmp_path):
     [
         ((np.array([-1.0]), 1.0, 1.0, 1.0, 1.0), r"linear_image must be >= 0"),
         ((np.array([np.nan]), 1.0, 1.0, 1.0, 1.0), r"linear_image must be finite"),
-        ((np.ones(2), 0.0, 1.0, 1.0, 1.0), r"light_level must be > 0 photons/px/ms"),
+        (
+            (np.ones(2), 0.0, 1.0, 1.0, 1.0),
+            r"light_level must be in \[1e-06, 1e\+09\] photons/px/ms",
+        ),
         ((np.ones(2), 1.0, 0.0, 1.0, 1.0), r"exposure_ms must be > 0 ms"),
         ((np.ones(2), 1.0, 1.0, -1.0, 1.0), r"open_area_mm2 must be > 0"),
         ((np.ones(2), 1.0, 1.0, 1.0, 0.0), r"reference_area_mm2 must be > 0"),

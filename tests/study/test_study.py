@@ -53,7 +53,7 @@ def _rows(out):
         ({"grid": {"speed": [1.0]}}, "[grid]: unknown key 'speed'"),
         ({"render": {"wdith": 3}}, "[render]: unknown key 'wdith'"),
         ({"grid": {"mode": []}}, "[grid] mode must be a non-empty list"),
-        ({"grid": {"light_level": [-1.0]}}, "light_level must be a number in (0"),
+        ({"grid": {"light_level": [-1.0]}}, "light_level must be in [1e-06, 1e+09]"),
         ({"grid": {"scene": ["nope"]}}, "unknown scene 'nope'"),
         ({"grid": {"mode": ["blurry"]}}, "unknown mode 'blurry'"),
         ({"grid": {"mode": ["reference"]}}, "unknown mode 'reference'"),
