@@ -6,12 +6,18 @@ noise) can be negative, and the noise sigma was taken there: "signal_e must be >
 the EMVA 1288 sigma at the noise-free capture's mean, written out from the preset's numbers.
 Light levels of 1e308 and 1e-300 overflowed with RuntimeWarnings; they are refused in one line
 naming light_level (--light-level on the command line) and the range.
+
+Item 2: ``optimize --lightfield --positions 20000`` allocated 10.7 GiB of centre bases with no
+estimate. Reference: tracemalloc's peak of the basis actually built, at two sizes; the
+refusal names `positions` (--positions) and the most that fit.
 """
 
 from __future__ import annotations
 
 import copy
+import dataclasses
 import math
+import tracemalloc
 import warnings
 
 import numpy as np
@@ -20,8 +26,13 @@ import pytest
 from pacam_render.cli import main
 from pacam_render.errors import ParameterError
 from pacam_render.exposure.direct import render_capture
+from pacam_render.exposure.plan import plan_capture
 from pacam_render.exposure.spec import CaptureSpec
+from pacam_render.lightfield import StoreSpec, render_lightfield
+from pacam_render.lightfield.centre_basis import centre_basis
 from pacam_render.limits import PacamWarning
+from pacam_render.optimize import rendered_run
+from pacam_render.optimize.rendered_run import RenderedProblem, basis_bytes, open_stores
 from pacam_render.sensor.apply import add_sensor_layers
 from pacam_render.sensor.model import SensorModel
 
@@ -84,4 +95,52 @@ def test_the_cli_refuses_an_absurd_light_level_in_one_line_before_rendering(
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1
     assert "--light-level must be in [1e-06, 1e+09] photons/px/ms" in err
+    assert not out.exists()
+
+
+# --- item 2: optimize --positions --------------------------------------------------------------
+LF_SPEC = CaptureSpec.geometric(scene="train", width=1280, height=960, crop=(440, 400, 96, 64),
+                                mode="coded", spp=4, passes=2, seed=3)  # fmt: skip
+
+
+@pytest.fixture(scope="module")
+def store(tmp_path_factory):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", PacamWarning)
+        folder = tmp_path_factory.mktemp("lf") / "store"
+        return render_lightfield(StoreSpec(LF_SPEC, alpha=1.0), folder, progress=False)
+
+
+@pytest.mark.parametrize("count", [5, 40])
+def test_the_positions_estimate_covers_the_basis_built(store, count):
+    cam = plan_capture(LF_SPEC).cam
+    positions = rendered_run.candidate_positions(cam, count)
+    tracemalloc.start()
+    try:
+        basis = centre_basis(store, LF_SPEC, positions)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    n = basis.n_patterns
+    estimate = basis_bytes([store], n, len(positions))
+    assert peak <= estimate <= 1.5 * peak
+    assert basis_bytes([store], n, count + n) >= estimate  # the check's J bounds the unique one
+
+
+def test_too_many_positions_are_refused_naming_the_most_that_fit(store, monkeypatch, capsys,
+                                                                 tmp_path):  # fmt: skip
+    n = len(plan_capture(LF_SPEC).cam.pattern_centres_xy_mm())
+    monkeypatch.setattr(rendered_run, "available_bytes", lambda: basis_bytes([store], n, 100 + n))
+    problem = RenderedProblem((str(store.folder),), positions=20000)
+    with pytest.raises(ParameterError, match=r"^`positions` 20000: .* available; at most 100 fit"):
+        open_stores(problem)
+    open_stores(dataclasses.replace(problem, positions=100))
+    with pytest.raises(ParameterError, match="at most 100 fit"):
+        open_stores(dataclasses.replace(problem, positions=101))
+    out = tmp_path / "never"
+    argv = ["optimize", "--lightfield", str(store.folder), "--positions", "20000",
+            "--out", str(out)]  # fmt: skip
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "--positions 20000:" in err and "at most 100" in err
     assert not out.exists()

@@ -82,6 +82,10 @@ FLAGS = {
     "max_disk": "--max-disk-gib",
     "alpha": "--uniform-share",
     "masks": "--masks",
+    "positions": "--positions",
+    "sweeps": "--sweeps",
+    "noise_draws": "--noise-draws",
+    "check_seeds": "--check-seeds",
 }
 """Parameter names in library messages, and the flags a CLI user typed instead: the one
 mapping (a file's keys, :class:`~pacam_render.errors.FileKeyError`, are left as they are)."""

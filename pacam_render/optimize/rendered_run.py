@@ -24,6 +24,7 @@ from ..exposure.spec import CaptureSpec
 from ..lightfield import Store
 from ..lightfield.centre_basis import centre_basis
 from ..lightfield.synthesis import synthesize
+from ..limits import available_bytes, gib
 from ..model.design_file import write_design
 from ..restore.deconvolve import METHODS, require_method
 from ..sensor.model import SensorModel
@@ -79,7 +80,7 @@ def open_stores(p: RenderedProblem):
     if not p.stores:
         raise ParameterError("stores: give at least one light-field store")
     for name, lo in (("positions", 2), ("sweeps", 1), ("noise_draws", 1), ("check_seeds", 0)):
-        check_integer(name, getattr(p, name), lo, None)
+        check_integer(f"`{name}`" if "_" not in name else name, getattr(p, name), lo, None)
     if p.method not in METHODS:
         raise ParameterError(f"method must be one of {', '.join(METHODS)}, got {p.method!r}")
     require_method(p.method)
@@ -94,7 +95,55 @@ def open_stores(p: RenderedProblem):
                     f"stores: {folder} has {key} = {other[key]!r}, {p.stores[0]} has "
                     f"{first[key]!r}: the stores of one search share one camera"
                 )
+    check_positions_memory(p.positions, stores)
     return stores
+
+
+def basis_bytes(stores, n_patterns: int, candidates: int) -> float:
+    """Peak memory of the stores' centre bases (:func:`~..lightfield.centre_basis.centre_basis`)
+    for ``candidates`` centres, bytes: what grows with the candidates.
+
+    Each store keeps n (J + 1) h w c float32 values; the one being built holds them twice more
+    in float64 (the sums and the mean over passes), and each shard's sample-to-centre distances,
+    rows x J float64 with their temporaries and mask (17 bytes a pair), besides its records.
+    """
+    kept, build = 0.0, 0.0
+    for store in stores:
+        cam = store.manifest.camera
+        _, _, w, h = cam.window
+        entries = store.manifest.channels * n_patterns * (candidates + 1) * w * h
+        film = (w + 2 * cam.margin_px) * (h + 2 * cam.margin_px)
+        rows = film * max(step.spp for steps in store.manifest.steps for step in steps)
+        kept += 4.0 * entries
+        build = max(build, 16.0 * entries + rows * (17.0 * candidates + 64.0))
+    return kept + build
+
+
+def check_positions_memory(positions: int, stores) -> None:
+    """Refuse ``positions`` candidate centres whose centre bases would not fit in the memory
+    available now, naming ``positions`` and the most that fit, before any store is read.
+
+    Raises
+    ------
+    ParameterError
+        If :func:`basis_bytes` at ``positions`` (and the base design's own n centres) exceeds
+        :func:`~pacam_render.limits.available_bytes`.
+    """
+    n = len(plan_capture(base_spec(stores[0])).cam.pattern_centres_xy_mm())
+    free = available_bytes()
+    need = basis_bytes(stores, n, positions + n)
+    if need <= free:
+        return
+    lo, hi = 1, positions  # the most that fit, by bisection (the need grows with positions)
+    while lo < hi:
+        mid = (lo + hi + 1) // 2
+        lo, hi = (mid, hi) if basis_bytes(stores, n, mid + n) <= free else (lo, mid - 1)
+    most = f"at most {lo} fit" if lo >= 2 else "not even 2 fit"
+    raise ParameterError(
+        f"`positions` {positions}: the centre bases of {len(stores)} store(s) ({n} patterns x "
+        f"{positions + n} centres) need about {gib(need)} of memory, and {gib(free)} is "
+        f"available; {most}"
+    )
 
 
 def candidate_positions(cam, count: int) -> np.ndarray:
