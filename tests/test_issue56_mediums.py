@@ -10,6 +10,10 @@ naming light_level (--light-level on the command line) and the range.
 Item 2: ``optimize --lightfield --positions 20000`` allocated 10.7 GiB of centre bases with no
 estimate. Reference: tracemalloc's peak of the basis actually built, at two sizes; the
 refusal names `positions` (--positions) and the most that fit.
+
+Item 3: ``lightfield --passes 100000000`` listed every pass's steps (24 s, gigabytes) before the
+disk budget refused it. Reference: passes x spp x pixels x bytes per sample, worked out here;
+the refusal comes before the step planner is called (patched to raise), not by timing.
 """
 
 from __future__ import annotations
@@ -29,6 +33,7 @@ from pacam_render.exposure.direct import render_capture
 from pacam_render.exposure.plan import plan_capture
 from pacam_render.exposure.spec import CaptureSpec
 from pacam_render.lightfield import StoreSpec, render_lightfield
+from pacam_render.lightfield import render as lf_render
 from pacam_render.lightfield.centre_basis import centre_basis
 from pacam_render.limits import PacamWarning
 from pacam_render.optimize import rendered_run
@@ -144,3 +149,30 @@ def test_too_many_positions_are_refused_naming_the_most_that_fit(store, monkeypa
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "--positions 20000:" in err and "at most 100" in err
     assert not out.exists()
+
+
+# --- item 3: lightfield --passes ----------------------------------------------------------------
+def _no_planning(*args, **kw):
+    raise AssertionError("the step planner ran before the refusal")
+
+
+def test_absurd_passes_are_refused_before_the_steps_are_planned(monkeypatch, tmp_path, capsys):
+    monkeypatch.setattr(lf_render, "plan_store_steps", _no_planning)
+    spec = dataclasses.replace(LF_SPEC, passes=10**8, spp=64)
+    need = 10**8 * 64 * 96 * 64 * 4 * (5 + 3)  # passes x spp x window x (x y u v p, RGB) float32
+    with pytest.raises(ParameterError, match="`passes`") as info:
+        render_lightfield(StoreSpec(spec), tmp_path / "s", progress=False)
+    assert f"{need / 2**30:.3g} GiB on disk" in str(info.value)
+    assert not (tmp_path / "s").exists()
+    argv = ["lightfield", "train", "--crop", "440,400,96,64", "--passes", "100000000",
+            "--out", str(tmp_path / "c")]  # fmt: skip
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "--passes" in err and "on disk" in err
+    assert not (tmp_path / "c").exists()
+
+
+def test_a_store_within_the_budget_still_plans_its_steps(monkeypatch, tmp_path):
+    monkeypatch.setattr(lf_render, "plan_store_steps", _no_planning)
+    with pytest.raises(AssertionError, match="step planner ran"):
+        render_lightfield(StoreSpec(LF_SPEC), tmp_path / "s", progress=False)

@@ -149,9 +149,20 @@ def _check_store_budget(cam: dict, steps, cap, desc, out: Path, max_disk: int) -
     """Disk and memory for the store's samples, refused with the numbers before any work."""
     window = cam["sensor"]["film"]
     pixels = window["crop_width"] * window["crop_height"]
-    total, largest = planned_samples([steps] * cap.passes, pixels)
+    total, largest = planned_samples(steps, cap.passes, pixels)
     per = bytes_per_sample(1 if cap.grey else 3, desc.is_static)
     check_budget(total, largest, per, out, max_disk)
+
+
+def _check_least_disk(spec: StoreSpec, target, out: Path, max_disk: int) -> None:
+    """Refuse a store whose fewest possible samples already exceed the disk budget, before a
+    pilot, a scene or a step is planned: ``passes`` x ``spp`` (1 with a noise target, which
+    plans it) x the window's pixels (the margin only adds), without per-sample times."""
+    cap = spec.capture
+    _, _, w, h = cap.crop if cap.crop else (0, 0, cap.width, cap.height)
+    spp = 1 if target is not None else int(cap.spp)
+    per = bytes_per_sample(1 if cap.grey else 3, False)
+    check_budget(int(cap.passes) * spp * w * h, 0, per, out, max_disk)
 
 
 def _planned(spec: StoreSpec, target, progress: bool, description):
@@ -216,6 +227,7 @@ def render_lightfield(
     """
 
     out = Path(out)
+    _check_least_disk(spec, target, out, max_disk)
     spec, planned = _planned(spec, target, progress, description)
     cap = replace(spec.capture, mode="coded", diffraction="off", relative_illumination="off")
     plan = plan_capture(cap)

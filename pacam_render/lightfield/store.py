@@ -488,7 +488,9 @@ def store_digest(key: str, shard_digests: list[list[str]]) -> str:
     return h.hexdigest()[:16]
 
 
-def planned_samples(steps: list[list[tuple]], pixels: int) -> tuple[int, int]:
-    """Total samples of a store's steps, and those of its largest shard."""
-    per = [s[2] * pixels for row in steps for s in row]
-    return sum(per), max(per)
+def planned_samples(steps: list[tuple], passes: int, pixels: int) -> tuple[int, int]:
+    """Total samples of a store whose ``passes`` passes each take ``steps`` ((t0, t1, spp)
+    each) over ``pixels``, and those of its largest shard: by arithmetic, since a list of the
+    passes' steps is itself too large for an absurd ``passes``."""
+    per = [s[2] * pixels for s in steps]
+    return int(passes) * sum(per), max(per)
