@@ -14,12 +14,16 @@ refusal names `positions` (--positions) and the most that fit.
 Item 3: ``lightfield --passes 100000000`` listed every pass's steps (24 s, gigabytes) before the
 disk budget refused it. Reference: passes x spp x pixels x bytes per sample, worked out here;
 the refusal comes before the step planner is called (patched to raise), not by timing.
+
+Item 4: one hand-edited history row (10^12 s for a small render) was fitted as this machine's
+rate ("about 5.8e+08 h"). Reference: the estimate from the same history without that row.
 """
 
 from __future__ import annotations
 
 import copy
 import dataclasses
+import json
 import math
 import tracemalloc
 import warnings
@@ -29,6 +33,7 @@ import pytest
 
 from pacam_render.cli import main
 from pacam_render.errors import ParameterError
+from pacam_render.exposure import render_time as cost
 from pacam_render.exposure.direct import render_capture
 from pacam_render.exposure.plan import plan_capture
 from pacam_render.exposure.spec import CaptureSpec
@@ -176,3 +181,32 @@ def test_a_store_within_the_budget_still_plans_its_steps(monkeypatch, tmp_path):
     monkeypatch.setattr(lf_render, "plan_store_steps", _no_planning)
     with pytest.raises(AssertionError, match="step planner ran"):
         render_lightfield(StoreSpec(LF_SPEC), tmp_path / "s", progress=False)
+
+
+# --- item 4: render-time history ----------------------------------------------------------------
+@pytest.mark.parametrize(
+    "bad",
+    [
+        {"msamples": 1000.0, "renders": 100, "seconds": 2e12},
+        {"msamples": 1e6, "renders": 100, "seconds": 1e30},
+        {"msamples": 50.0, "renders": 100, "seconds": 1e-3},  # far too fast, too
+    ],
+)
+def test_an_absurd_history_row_does_not_make_the_estimate(tmp_path, monkeypatch, bad):
+    path = tmp_path / "times.jsonl"
+    monkeypatch.setenv("PACAM_RENDER_TIMES", str(path))
+    true = np.array([0.1, 0.5, 0.02, 0.01])
+    rng = np.random.default_rng(0)
+    for i in range(10):
+        w = cost.Work(1, int(i == 0), float(rng.uniform(1, 50)), int(rng.integers(2, 300)))
+        cost.remember("k", w, float(true @ w.vector()) * rng.uniform(0.9, 1.1))
+    job = cost.Work(1, 1, 500.0, 600)
+    clean = cost.rates("k").seconds(job)
+    assert clean == pytest.approx(true @ job.vector(), rel=0.2)
+    row = {"key": "k", "calls": 1, "first_calls": 0, **bad}
+    path.write_text(path.read_text() + json.dumps(row) + "\n")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)
+        r = cost.rates("k")
+    assert clean / 2 <= r.seconds(job) <= 2 * clean
+    assert "1 row(s) over 100x off the others' seconds left out" in r.basis

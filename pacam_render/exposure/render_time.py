@@ -57,6 +57,11 @@ MAX_HISTORY_BYTES = 2**20
 a huge file costs no more (``PACAM_RENDER_TIMES`` at /dev/zero ran out of memory)."""
 MAX_LINE_BYTES = 4096
 """A history line longer than this is not a row (a row takes about 180 bytes): skipped."""
+OUTLIER_FACTOR = 100.0
+"""A history row whose seconds per reference second (its seconds over what
+:data:`REFERENCE_RATES` predict for its counts) is this far from the median of the others' is
+left out of the fit: a hand edit or a machine under other load, not this machine's rate (one
+row of 10^12 s made an estimate of 5.8e+08 h)."""
 FIELDS = ("calls", "first_calls", "msamples", "renders")
 """The counts of :class:`Work`, in the order of a :class:`Rates`' seconds."""
 REFERENCE_RATES = {"capture": (0.043, 1.03, 0.072, 0.017), "psf": (0.0, 0.001, 0.053, 0.0052)}
@@ -247,16 +252,53 @@ def fit_rates(rows: list[dict], reference: tuple = REFERENCE_RATES["capture"]) -
     return tuple(float(v) for v in full)
 
 
+def plausible_rows(rows: list[dict], reference: tuple) -> tuple[list[dict], int]:
+    """``rows`` less those far from the rest (:data:`OUTLIER_FACTOR`), and how many were left
+    out.
+
+    Parameters
+    ----------
+    rows : list of dict
+        History rows (the counts of :data:`FIELDS` and ``seconds``).
+    reference : tuple
+        The reference rates that put rows of different work on one scale.
+
+    Returns
+    -------
+    list of dict, int
+        The rows kept, in order, and the number left out (none of fewer than three rows: two
+        cannot tell which is off).
+    """
+    if len(rows) < 3:
+        return rows, 0
+    a = np.array([[float(r[k]) for k in FIELDS] for r in rows])
+    s = np.array([float(r["seconds"]) for r in rows])
+    pred = a @ np.asarray(reference, float)
+    ratio = np.divide(s, pred, out=np.full_like(s, np.inf), where=pred > 0)  # no work: inf
+    keep = []
+    for i in range(len(rows)):
+        others = float(np.median(np.delete(ratio, i)))
+        keep.append(others / OUTLIER_FACTOR <= ratio[i] <= others * OUTLIER_FACTOR)
+    return [r for r, k in zip(rows, keep) if k], len(rows) - sum(keep)
+
+
 def rates(key: str) -> Rates:
     """This machine's rates for the history key ``key`` (a variant, or ``psf`` and a variant:
-    :func:`fit_rates` on its history), else the reference machine's."""
+    :func:`fit_rates` on its history less the rows far from the rest, :func:`plausible_rows`),
+    else the reference machine's."""
     rows, unread = _history(key)
     reference = REFERENCE_RATES["psf" if key.startswith("psf") else "capture"]
+    rows, dropped = plausible_rows(rows, reference)
+    odd = (
+        f"; {dropped} row(s) over {OUTLIER_FACTOR:g}x off the others' seconds left out"
+        if dropped
+        else ""
+    )
     fitted = fit_rates(rows, reference)
     if fitted is None:
         have = f"; {len(rows)} earlier render(s) here" if rows else ""
-        return Rates(reference, f"a 2-core reference machine{have}{unread}")
-    return Rates(fitted, f"{len(rows)} earlier {key} renders on this machine")
+        return Rates(reference, f"a 2-core reference machine{have}{odd}{unread}")
+    return Rates(fitted, f"{len(rows)} earlier {key} renders on this machine{odd}")
 
 
 # ============================================================================================
