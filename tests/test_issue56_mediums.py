@@ -17,6 +17,10 @@ the refusal comes before the step planner is called (patched to raise), not by t
 
 Item 4: one hand-edited history row (10^12 s for a small render) was fitted as this machine's
 rate ("about 5.8e+08 h"). Reference: the estimate from the same history without that row.
+
+Item 5: a study with ``lightfield = true`` and ``diffraction = "on"`` rendered its store, then
+every point's synthesis refused diffraction on. It is refused when the spec is read, naming
+both keys; ``auto`` (measured, left out of a geometric capture) is still taken.
 """
 
 from __future__ import annotations
@@ -45,6 +49,7 @@ from pacam_render.optimize import rendered_run
 from pacam_render.optimize.rendered_run import RenderedProblem, basis_bytes, open_stores
 from pacam_render.sensor.apply import add_sensor_layers
 from pacam_render.sensor.model import SensorModel
+from pacam_render.study import load_study
 
 pytestmark = pytest.mark.render
 
@@ -210,3 +215,35 @@ def test_an_absurd_history_row_does_not_make_the_estimate(tmp_path, monkeypatch,
         r = cost.rates("k")
     assert clean / 2 <= r.seconds(job) <= 2 * clean
     assert "1 row(s) over 100x off the others' seconds left out" in r.basis
+
+
+# --- item 5: a light-field study with diffraction on --------------------------------------------
+LF_STUDY = """
+[study]
+name = "lf"
+report = "table"
+[render]
+width = 1280
+height = 960
+crop = [440, 400, 96, 64]
+spp = 8
+noise_ratio = false
+lightfield = true
+diffraction = "on"
+[grid]
+mode = ["coded", "normal"]
+"""
+
+
+def test_a_lightfield_study_with_diffraction_on_is_refused_when_read(tmp_path, capsys):
+    path = tmp_path / "lf.toml"
+    path.write_text(LF_STUDY)
+    with pytest.raises(ParameterError, match=r"lightfield = true with diffraction = \"on\""):
+        load_study(str(path))
+    out = tmp_path / "out"
+    assert main(["study", str(path), "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "lightfield" in err and "diffraction" in err
+    assert not out.exists()
+    path.write_text(LF_STUDY.replace('diffraction = "on"', 'diffraction = "auto"'))
+    assert load_study(str(path)).render["diffraction"] == "auto"

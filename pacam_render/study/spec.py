@@ -378,7 +378,8 @@ def check_model_error(value) -> str | float:
 
 
 def _check_lightfield(render: dict, points) -> None:
-    """``[render] lightfield``: a bool; with it, no noise target and no moving camera."""
+    """``[render] lightfield``: a bool; with it, no noise target, no moving camera and no
+    diffraction ``on`` (a synthesised capture is geometric)."""
     if LIGHTFIELD_RENDER not in render:
         return
     on = render[LIGHTFIELD_RENDER]
@@ -391,6 +392,12 @@ def _check_lightfield(render: dict, points) -> None:
         raise ParameterError(
             "[render] lightfield renders each store to `spp`: give noise_ratio = false (a "
             "store is not rendered to a noise target yet)"
+        )
+    if render.get(DIFFRACTION_RENDER) == "on":  # every point's synthesis would refuse it
+        raise ParameterError(
+            '[render] lightfield = true with diffraction = "on": a capture synthesised from a '
+            "store is geometric (diffraction is not linear in the aperture); give diffraction "
+            '= "auto" or "off" (its effect is then measured), or lightfield = false'
         )
     levin = sorted({p.mode for p in points if p.mode == "levin"})
     if levin:
