@@ -331,9 +331,11 @@ def noise_target_from_flags(args: argparse.Namespace):
     if len(given) == 2:
         raise ParameterError("give --noise-ratio or --noise-target, not both")
     if args.spp is not None:
+        # pacam lightfield has no --max-samples: its target plans the store's spp from a pilot
+        how = "within --max-samples" if hasattr(args, "max_samples") else "planned from a pilot"
         raise ParameterError(
             f"--spp and --{given[0].replace('_', '-')} both set the samples: give one "
-            "(a target renders until it is met, within --max-samples)"
+            f"(a target renders until it is met, {how})"
         )
     if args.noise_target is not None:
         return AbsoluteTarget(check_positive("--noise-target", args.noise_target))

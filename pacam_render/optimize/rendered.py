@@ -182,9 +182,9 @@ def coordinate_search(objectives, start, sweeps: int, seed: int, progress: bool 
     total = sweeps * n * (J - 1) * len(objectives)
     if progress:  # the first evaluation, timed, sizes the rest
         each = (time.perf_counter() - t0) / len(objectives)
-        say(f"estimate: rendered search at most {duration(total * each)} ({total} evaluations "
-            f"of {duration(each)}, the first timed; it stops after a sweep that moves "
-            "nothing)")  # fmt: skip
+        say(f"estimate: rendered search at most {duration(total * each)} ({evals + total} "
+            f"evaluations of {duration(each)}, the first done and timed; it stops after a "
+            "sweep that moves nothing)")  # fmt: skip
     with tqdm(total=total, desc="rendered search", unit="eval", disable=not progress) as bar:
         for sweep in range(1, sweeps + 1):
             moved = False

@@ -28,7 +28,7 @@ from dataclasses import asdict, dataclass, field
 from importlib import resources
 from pathlib import Path
 
-from ..errors import FileKeyError, ParameterError
+from ..errors import FileKeyError, ParameterError, did_you_mean
 from ..exposure.camera import capture_design
 from ..exposure.optics.diffraction import check_diffraction
 from ..exposure.spec import CaptureSpec
@@ -370,9 +370,10 @@ def check_model_error(value) -> str | float:
         return value
     ok = isinstance(value, (int, float)) and not isinstance(value, bool)
     if not ok or not 0.0 <= float(value) <= 10.0:  # also NaN
+        hint = did_you_mean(value, MODEL_ERRORS) if isinstance(value, str) else ""
         raise ParameterError(
             f"[study] model_error must be {' or '.join(MODEL_ERRORS)} or a model sigma in "
-            f"[0, 10] (white = 1), got {value!r}"
+            f"[0, 10] (white = 1), got {value!r}{hint}"
         )
     return float(value)
 
