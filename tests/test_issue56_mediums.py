@@ -24,7 +24,7 @@ both keys; ``auto`` (measured, left out of a geometric capture) is still taken.
 
 Item 6 (lows): the rendered search announced 256 evaluations and did 257 (the first, timed,
 was not counted); ``lightfield`` advised --max-samples, which it has not; a misspelt
-``model_error`` got no "did you mean".
+``model_error`` got no "did you mean"; ``/dev/zero`` "does not exist" to ``read_json``.
 """
 
 from __future__ import annotations
@@ -45,6 +45,7 @@ from pacam_render.exposure import render_time as cost
 from pacam_render.exposure.direct import render_capture
 from pacam_render.exposure.plan import plan_capture
 from pacam_render.exposure.spec import CaptureSpec
+from pacam_render.io.arrays import read_json
 from pacam_render.lightfield import StoreSpec, render_lightfield
 from pacam_render.lightfield import render as lf_render
 from pacam_render.lightfield.centre_basis import centre_basis
@@ -292,3 +293,11 @@ def test_a_misspelt_model_error_gets_a_did_you_mean(tmp_path):
     path.write_text('[study]\nname = "s"\nmodel_error = "orcale"\n[grid]\nmode = ["coded"]\n')
     with pytest.raises(ParameterError, match=r"got 'orcale' \(did you mean 'oracle'\?\)"):
         load_study(str(path))
+
+
+@pytest.mark.parametrize("kind", ["device", "folder", "missing"])
+def test_read_json_says_what_an_unreadable_path_is(tmp_path, kind):
+    path = {"device": "/dev/zero", "folder": str(tmp_path), "missing": str(tmp_path / "x")}[kind]
+    why = "does not exist" if kind == "missing" else "is not a regular file"
+    with pytest.raises(ParameterError, match=f"^the schedule {path} {why}$"):
+        read_json(path, "the schedule")

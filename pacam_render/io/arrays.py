@@ -27,8 +27,9 @@ def read_npy(path, what: str) -> np.ndarray:
         empty.
     """
     path = Path(path)
-    if not path.is_file():
-        raise ParameterError(f"{what} {path} does not exist")
+    if not path.is_file():  # a device, a folder or a pipe exists, but is no file to read
+        why = "is not a regular file" if path.exists() else "does not exist"
+        raise ParameterError(f"{what} {path} {why}")
     try:
         a = np.load(path, allow_pickle=False)
     except (ValueError, EOFError, OSError) as exc:  # objects, truncated, or not a .npy file
@@ -47,8 +48,9 @@ def read_json(path, what: str):
     """A JSON document, refused with one line (naming ``what`` and the file) when it is too
     large (:data:`MAX_JSON_BYTES`), not JSON, or nested too deep to parse."""
     path = Path(path)
-    if not path.is_file():
-        raise ParameterError(f"{what} {path} does not exist")
+    if not path.is_file():  # a device, a folder or a pipe exists, but is no file to read
+        why = "is not a regular file" if path.exists() else "does not exist"
+        raise ParameterError(f"{what} {path} {why}")
     try:
         size = path.stat().st_size
         if size > MAX_JSON_BYTES:
