@@ -28,7 +28,7 @@ from ..model.camera import CameraDesign
 from ..restore.capture_score import deconvolve_capture, flat_sigma, radiance
 from ..restore.metrics import shift_search_px
 from ..restore.object_score import moving_object_se, moving_shapes
-from ..sensor.apply import apply_sensor, sensor_sigma
+from ..sensor.apply import apply_sensor, clean_level, sensor_sigma
 from ..sensor.model import SensorModel
 
 DEFAULT_METHOD = "wiener"
@@ -84,7 +84,7 @@ class CaptureScorer:
         out: dict[str, list] = {}
         for seed in self.seeds:
             _, noisy, _ = apply_sensor(cap, self.model, self.light_level, seed)
-            level = float(np.mean(noisy)) / rec.light_factor
+            level = clean_level(cap)  # not the noisy layer's: negative at low light
             sigma = flat_sigma(cap, sensor_sigma(rec, self.model, self.light_level, level))
             total = math.hypot(sigma, self.render_sigma)
             est = deconvolve_capture(cap, radiance(cap, noisy), total, self.method)

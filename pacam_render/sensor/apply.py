@@ -117,6 +117,15 @@ def sensor_sigma(rec, model: SensorModel, light_level: float | None, level: floa
     return e / e_white
 
 
+def clean_level(cap) -> float:
+    """The capture's mean grey level (white = 1) that its sensor noise is taken at: the
+    noise-free capture's, as the noisy layer's mean less the sensor's offset and read noise can
+    be negative at low light (and is the same level plus noise otherwise). In float32, as the
+    capture is written, so that a capture read back gives the same sigma."""
+    mean = float(np.mean(np.asarray(cap.image, dtype=np.float32), dtype=np.float64))
+    return max(0.0, mean) / cap.record.light_factor
+
+
 def add_sensor_layers(
     cap, model: SensorModel, preset: str, light_level: float | None, seed: int
 ) -> None:
@@ -144,12 +153,7 @@ def add_sensor_layers(
         )
         warnings.warn(note, PacamWarning, stacklevel=2)
         rec.notes.append(note)
-    # The level from the noise-free capture: the noisy layer's mean less the sensor's offset and
-    # read noise can be negative at low light, and is the same level plus noise otherwise. In
-    # float32, as the capture is written, so that a capture read back gives the same sigma.
-    mean = float(np.mean(np.asarray(cap.image, dtype=np.float32), dtype=np.float64))
-    level = max(0.0, mean) / rec.light_factor
-    sigma = sensor_sigma(rec, model, light_level, level)
+    sigma = sensor_sigma(rec, model, light_level, clean_level(cap))
     cap.extra_layers.update({"raw": raw.astype(np.float32), "noisy": noisy})
     rec.sensor = SensorRecord(
         preset=preset,
