@@ -3,12 +3,35 @@ the pinhole image, with the capture's diffraction where it includes it."""
 
 from __future__ import annotations
 
+from pathlib import Path
+from typing import NamedTuple
+
+import numpy as np
+
 from ..model.camera import CameraDesign
 from ..psf.analytic import design_psf
 from ..psf.diffraction import DECONVOLUTION_MAX_LOST
 from ..psf.exact_defocus import ray_kernel
 from ..psf.robust import speed_robust_psf
 from .record import CaptureRecord
+
+
+class CapturePSF(NamedTuple):
+    """A kernel to deblur with, where it came from, what its centre pixel stands for, and how
+    its camera differs from the capture's (empty: the same design, or not recorded)."""
+
+    kernel: np.ndarray
+    file: Path | None
+    origin: str
+    t0_offset_px: float
+    mismatch: tuple[str, ...] = ()
+
+
+def named_psf(name: str, record: CaptureRecord) -> CapturePSF:
+    """The kernel ``analytic`` (:func:`analytic_psf`) or ``robust`` (:func:`robust_psf`) of a
+    capture's record, on the pinhole registration."""
+    k = analytic_psf(record) if name == "analytic" else robust_psf(record)
+    return CapturePSF(k, None, "pinhole", 0.0)
 
 
 def capture_diffraction(record: CaptureRecord) -> dict | None:

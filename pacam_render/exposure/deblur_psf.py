@@ -7,11 +7,10 @@ from __future__ import annotations
 import os
 import warnings
 from pathlib import Path
-from typing import NamedTuple
 
 import numpy as np
 
-from ..capture.kernels import analytic_psf, capture_diffraction, robust_psf
+from ..capture.kernels import CapturePSF, capture_diffraction, named_psf
 from ..capture.record import CaptureRecord
 from ..errors import ParameterError
 from ..io.arrays import read_json, read_npy
@@ -22,17 +21,6 @@ from ..psf.origin import recorded_origin
 
 PSF_SOURCES = ("analytic", "robust", "rendered")
 """The kernels named rather than given by path: from the record, or ``psf_rendered.exr``."""
-
-
-class CapturePSF(NamedTuple):
-    """A kernel to deblur with, where it came from, what its centre pixel stands for, and how
-    its camera differs from the capture's (empty: the same design, or not recorded)."""
-
-    kernel: np.ndarray
-    file: Path | None
-    origin: str
-    t0_offset_px: float
-    mismatch: tuple[str, ...] = ()
 
 
 class PSFMismatchError(ParameterError):
@@ -174,8 +162,7 @@ def load_capture_psf(
         if record is None:
             path = capture.with_suffix(".json")
             raise ParameterError(f"`psf` {psf} needs the capture's parameters in {path}")
-        k = analytic_psf(record) if psf == "analytic" else robust_psf(record)
-        return CapturePSF(k, None, "pinhole", 0.0)
+        return named_psf(psf, record)
     path = psf_path(psf, capture)
     if psf == "rendered" and not path.is_file():
         raise ParameterError(

@@ -18,8 +18,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..capture.kernels import CapturePSF, named_psf
 from ..capture.record import CaptureRecord
-from ..exposure.deblur_psf import CapturePSF, load_capture_psf
+from ..errors import ParameterError
 from ..limits import note
 from ..psf.origin import to_pinhole
 from .capture_deblur import deblur_input
@@ -123,8 +124,10 @@ def restore_capture(
     layer = deblur_layer(list(layers), layer)
     image = np.asarray(layers[layer])
     check_noise_sigma(noise_sigma, image)
-    if isinstance(psf, str):
-        psf = load_capture_psf(psf, "capture.exr", record)
+    if isinstance(psf, str):  # a kernel file is loaded by its reader (exposure.deblur_psf)
+        if record is None:
+            raise ParameterError(f"`psf` {psf} needs the capture's record")
+        psf = named_psf(check_psf_name(psf), record)
     d = deblur_input({**layers, layer: image}, layer, record, method, colour, noise_sigma,
                      model_sigma)  # fmt: skip
     if before is not None:
@@ -139,6 +142,16 @@ def restore_capture(
     seconds = time.perf_counter() - start
     score = score_restoration(est, layers, layer, record)
     return Restoration(est, layer, method, psf, d.noise, d.how, seconds, score)
+
+
+def check_psf_name(psf: str) -> str:
+    """``psf`` given by name: ``analytic`` or ``robust`` (a file is loaded first)."""
+    if psf not in ("analytic", "robust"):
+        raise ParameterError(
+            f"`psf` {psf!r}: give analytic or robust, or a kernel loaded with "
+            "pacam_render.exposure.deblur_psf.load_capture_psf"
+        )
+    return psf
 
 
 def score_restoration(est, layers: dict, layer: str, record) -> dict:
