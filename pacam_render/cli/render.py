@@ -200,6 +200,13 @@ def _run_from_store(args: argparse.Namespace) -> int:
             raise ParameterError(f"{flag}: a capture from --from takes the store's samples")
     store = Store.open(args.from_store)
     s = store.manifest.capture
+    if args.scene != s["scene"]:  # before the scene is read: its digest would say less
+        raise ParameterError(
+            f"the store at {args.from_store} is of scene {s['scene']!r}, not {args.scene!r}: a "
+            f"store serves captures of its own scene only; synthesise from it with: pacam "
+            f"render {s['scene']} --from {args.from_store} ..., or render a store of "
+            f"{args.scene!r} with pacam lightfield {args.scene}"
+        )
     args.width, args.height = args.width or s["width"], args.height or s["height"]
     if args.crop is None and s["crop"]:
         args.crop = ",".join(str(v) for v in s["crop"])

@@ -34,7 +34,8 @@ APPROXIMATION = "exact: the store's rays reweighted (same estimator as a direct 
 def check_fits(store: Store, spec) -> None:
     """Refuse a capture the store cannot give, naming the field that differs."""
     s = store.manifest.capture
-    for key in ("scene", "width", "height", "grey"):
+    _check_scene_name(store, spec)
+    for key in ("width", "height", "grey"):
         if s[key] != getattr(spec, key):
             raise ParameterError(
                 f"`{key}` {getattr(spec, key)!r} differs from the store's {s[key]!r}: a store "
@@ -260,8 +261,21 @@ def _pixels(x: np.ndarray, y: np.ndarray, w: int, h: int) -> np.ndarray:
     return np.where(inside, iy * w + ix, h * w)
 
 
+def _check_scene_name(store: Store, spec) -> None:
+    """Refuse a capture of another scene than the store's, naming the store's scene."""
+    theirs = store.manifest.capture["scene"]
+    if spec.scene != theirs:
+        raise ParameterError(
+            f"the store at {store.folder} is of scene {theirs!r}, not `scene` {spec.scene!r}: a "
+            f"store serves captures of its own scene only; synthesise from it with scene "
+            f"{theirs!r}, or render a store of {spec.scene!r}"
+        )
+
+
 def _scene(store: Store, spec, description):
-    """The store's scene description, checked against the digest it was rendered with."""
+    """The store's scene description, checked against the digest it was rendered with (its
+    name first: another scene's digest differs too, and says less)."""
+    _check_scene_name(store, spec)
     desc = description if description is not None else load_scene(spec.scene)
     if scene_digest(desc) != store.manifest.scene_digest:
         raise ParameterError(
