@@ -5,18 +5,26 @@ rendered with the margin it names serves that refocus (the advice is checked by 
 
 Item 3: ``pacam render soccer --from STORE`` of a train store said the scene's digest differs;
 it names the store's scene and the command that synthesises from it.
+
+Item 2: an all-black mask stack was refused as "R_mm must be > 0"; it is refused as black,
+naming the masks (reference: a stack with one closed frame is taken, its R the mean open area's).
 """
 
 from __future__ import annotations
 
 import re
 
+import numpy as np
 import pytest
+from PIL import Image
 
 from pacam_render.cli import main
 from pacam_render.errors import ParameterError
 from pacam_render.exposure.spec import CaptureSpec
 from pacam_render.lightfield import Store, synthesize
+from pacam_render.model.camera import preset
+from pacam_render.model.design_file import resolve_design
+from pacam_render.model.masks import MaskStack, disc_masks
 
 CROP = "456,410,16,12"
 
@@ -62,3 +70,35 @@ def test_another_scene_from_a_store_names_the_stores_scene(store, tmp_path, caps
     spec = CaptureSpec.geometric(scene="soccer", width=1280, height=960, crop=(456, 410, 16, 12))
     with pytest.raises(ParameterError, match="is of scene 'train', not `scene` 'soccer'"):
         synthesize(lf, spec, progress=False)
+
+
+def _black_png(path) -> None:
+    Image.fromarray(np.zeros((64, 64), np.uint8)).save(path)
+
+
+def test_all_black_masks_are_refused_as_black_not_as_an_opening_of_zero(tmp_path, capsys):
+    """Item 2: an all-black stack was refused as 'R_mm must be > 0'; it is refused naming the
+    masks, in the library, a design file and ``pacam design --masks``."""
+    black = MaskStack(np.zeros((2, 64, 64), np.float32))
+    proto = preset("prototype")
+    for radius in (black.equivalent_radius_mm, lambda: 0.0):  # R from the masks, or theirs: 0
+        with pytest.raises(ParameterError) as err:
+            proto.with_(pattern_masks=black, n_patterns=2, pattern_centres_mm=None, R_mm=radius())
+        assert "the masks of pattern_masks are all black: no light passes" in str(err.value)
+        assert "R_mm" not in str(err.value)
+    one_closed = np.concatenate([disc_masks([0.0], 0.3, shape=(64, 64)), np.zeros((1, 64, 64))])
+    stack = MaskStack(one_closed.astype(np.float32))  # a closed frame is a shutter: taken
+    d = proto.with_(pattern_masks=stack, n_patterns=2, pattern_centres_mm=None,
+                    R_mm=stack.equivalent_radius_mm())  # fmt: skip
+    assert d.R_mm == pytest.approx(np.sqrt(one_closed.sum() / 2 / np.pi) * stack.pitch_mm)
+    _black_png(tmp_path / "black.png")
+    (tmp_path / "d.toml").write_text(
+        '[lens]\nfocus_distance_mm = 751.6\n[schedule]\nkind = "bitmap"\nmasks = "black.png"\n'
+    )
+    with pytest.raises(ParameterError, match=r"masks of \[schedule\] masks \(black.png\) are all"):
+        resolve_design(str(tmp_path / "d.toml"))
+    capsys.readouterr()
+    assert main(["design", "--masks", str(tmp_path / "black.png")]) == 2
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1
+    assert f"the masks of --masks ({tmp_path / 'black.png'}) are all black" in err, err

@@ -89,6 +89,8 @@ class CameraDesign:
             if int(getattr(self, k)) != getattr(self, k) or getattr(self, k) < 1:
                 raise ParameterError(f"{k} must be a positive integer, got {getattr(self, k)!r}")
         optics.focal_length_px(self.fov_deg, self.width_px)
+        if isinstance(self.pattern_masks, MaskStack):  # before R_mm: black masks give R = 0
+            self.pattern_masks.check_open("pattern_masks")
         for k in ("R_max_mm", "R_mm", "F_min", "focus_distance_mm", "object_depth_mm"):
             check_positive(k, getattr(self, k))
         check_positive("exposure_ms", self.exposure_ms, "ms")

@@ -235,6 +235,7 @@ def _schedule(t, cam: CameraDesign, where: str, base_dir: Path) -> dict:
         )
     path = base_dir / src
     stack = read_mask_stack(path, cam.lcos_pitch_mm, str(src), "[schedule] masks")
+    stack.check_open()  # as the file names the masks: the design would say pattern_masks
     return {"pattern_masks": stack, "n_patterns": stack.n_patterns}
 
 

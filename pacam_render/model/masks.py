@@ -333,7 +333,7 @@ class MaskStack:
         What the messages call the masks (a design file's ``[schedule] masks``).
     """
 
-    __slots__ = ("array", "pitch_mm", "digest", "source", "_memo")
+    __slots__ = ("array", "pitch_mm", "digest", "source", "name", "_memo")
 
     def __init__(
         self, masks, pitch_mm: float = LCOS_PITCH_MM, source: str | None = None, name="masks"
@@ -347,6 +347,7 @@ class MaskStack:
         object.__setattr__(self, "pitch_mm", float(pitch))
         object.__setattr__(self, "digest", h.hexdigest()[:16])
         object.__setattr__(self, "source", source)
+        object.__setattr__(self, "name", name)  # information only, as source
         object.__setattr__(self, "_memo", {})  # figures of the patterns, computed once
         if isinstance(masks, np.ndarray) and masks.dtype == np.uint8 and masks.shape == a.shape:
             codes = masks.copy()  # 8-bit levels, as a file stores them: compact_array's
@@ -370,7 +371,7 @@ class MaskStack:
         return self
 
     def __reduce__(self):  # pickled (to Dask workers) as its constructor's arguments
-        return (MaskStack, (np.asarray(self.array), self.pitch_mm, self.source))
+        return (MaskStack, (np.asarray(self.array), self.pitch_mm, self.source, self.name))
 
     @property
     def n_patterns(self) -> int:
@@ -381,6 +382,17 @@ class MaskStack:
         measured once per stack (a design is checked on every copy)."""
         reach2 = self.once("reach2", lambda: open_reach2_mm2(self.array, self.pitch_mm))
         check_masks(self.array, lens_radius_mm, self.pitch_mm, reach2)
+
+    def check_open(self, where: str | None = None) -> None:
+        """Raise unless some pattern passes light, naming the masks (``where``, else the name
+        they were read under) and their source: an all-black stack has no opening, and its
+        radius of 0 would be refused as an R_mm that says nothing of the masks."""
+        if not self.once("open", lambda: bool(np.any(self.array > 0))):
+            src = f" ({self.source})" if self.source else ""
+            raise ParameterError(
+                f"the masks of {where or self.name}{src} are all black: no light passes "
+                f"(transmittance 0 in every pattern); open some pixels"
+            )
 
     def once(self, name: str, compute):
         """``compute()``, kept: the stack is immutable, and a capture's record, checks and
@@ -414,7 +426,8 @@ class MaskStack:
 
     def equivalent_radius_mm(self) -> float:
         """The radius of a disc with the patterns' mean open area, mm (what a still mode
-        opens, so that every 2T mode collects the same light)."""
+        opens, so that every 2T mode collects the same light); refused for all-black masks."""
+        self.check_open()
         return float(np.sqrt(self.open_areas_mm2().mean() / np.pi))
 
     def compact_array(self) -> np.ndarray:
@@ -461,7 +474,7 @@ class MaskStack:
             pitch = float(d["pitch_mm"])
         except (KeyError, TypeError, ValueError, zlib.error) as exc:
             raise ParameterError(f"{where}: not a stored mask stack ({exc})") from None
-        stack = cls(a, pitch, d.get("source"))
+        stack = cls(a, pitch, d.get("source"), where)
         if d.get("digest") not in (None, stack.digest):
             raise ParameterError(
                 f"{where}: the patterns do not match their digest ({d['digest']} recorded, "
