@@ -81,10 +81,10 @@ def test_all_black_masks_are_refused_as_black_not_as_an_opening_of_zero(tmp_path
     masks, in the library, a design file and ``pacam design --masks``."""
     black = MaskStack(np.zeros((2, 64, 64), np.float32))
     proto = preset("prototype")
-    for radius in (black.equivalent_radius_mm, lambda: 0.0):  # R from the masks, or theirs: 0
-        with pytest.raises(ParameterError) as err:
+    for radius, name in ((black.equivalent_radius_mm, "masks"), (lambda: 0.0, "pattern_masks")):
+        with pytest.raises(ParameterError) as err:  # R from the masks, or the R they give: 0
             proto.with_(pattern_masks=black, n_patterns=2, pattern_centres_mm=None, R_mm=radius())
-        assert "the masks of pattern_masks are all black: no light passes" in str(err.value)
+        assert str(err.value).startswith(f"{name}: the masks are all black: no light passes")
         assert "R_mm" not in str(err.value)
     one_closed = np.concatenate([disc_masks([0.0], 0.3, shape=(64, 64)), np.zeros((1, 64, 64))])
     stack = MaskStack(one_closed.astype(np.float32))  # a closed frame is a shutter: taken
@@ -95,10 +95,12 @@ def test_all_black_masks_are_refused_as_black_not_as_an_opening_of_zero(tmp_path
     (tmp_path / "d.toml").write_text(
         '[lens]\nfocus_distance_mm = 751.6\n[schedule]\nkind = "bitmap"\nmasks = "black.png"\n'
     )
-    with pytest.raises(ParameterError, match=r"masks of \[schedule\] masks \(black.png\) are all"):
+    with pytest.raises(
+        ParameterError, match=r"^\[schedule\] masks \(black.png\): the masks are all"
+    ):
         resolve_design(str(tmp_path / "d.toml"))
     capsys.readouterr()
     assert main(["design", "--masks", str(tmp_path / "black.png")]) == 2
     err = capsys.readouterr().err
     assert len(err.strip().splitlines()) == 1
-    assert f"the masks of --masks ({tmp_path / 'black.png'}) are all black" in err, err
+    assert f"--masks ({tmp_path / 'black.png'}): the masks are all black" in err, err

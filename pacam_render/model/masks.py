@@ -390,7 +390,7 @@ class MaskStack:
         if not self.once("open", lambda: bool(np.any(self.array > 0))):
             src = f" ({self.source})" if self.source else ""
             raise ParameterError(
-                f"the masks of {where or self.name}{src} are all black: no light passes "
+                f"{where or self.name}{src}: the masks are all black: no light passes "
                 f"(transmittance 0 in every pattern); open some pixels"
             )
 
