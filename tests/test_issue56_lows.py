@@ -8,6 +8,9 @@ it names the store's scene and the command that synthesises from it.
 
 Item 2: an all-black mask stack was refused as "R_mm must be > 0"; it is refused as black,
 naming the masks (reference: a stack with one closed frame is taken, its R the mean open area's).
+
+Item 4: ``pacam design`` with other ``--n-patterns``/``--exposure`` wrote the name "prototype";
+the name says what changed (reference: the prototype's own values keep its name and digest).
 """
 
 from __future__ import annotations
@@ -21,8 +24,9 @@ from PIL import Image
 from pacam_render.cli import main
 from pacam_render.errors import ParameterError
 from pacam_render.exposure.spec import CaptureSpec
+from pacam_render.io.toml_file import read_toml
 from pacam_render.lightfield import Store, synthesize
-from pacam_render.model.camera import preset
+from pacam_render.model.camera import CameraDesign, preset
 from pacam_render.model.design_file import resolve_design
 from pacam_render.model.masks import MaskStack, disc_masks
 
@@ -104,3 +108,24 @@ def test_all_black_masks_are_refused_as_black_not_as_an_opening_of_zero(tmp_path
     err = capsys.readouterr().err
     assert len(err.strip().splitlines()) == 1
     assert f"--masks ({tmp_path / 'black.png'}): the masks are all black" in err, err
+
+
+def test_a_design_changed_by_flags_is_named_for_its_changes(tmp_path, capsys):
+    """Item 4: ``pacam design --n-patterns 32 --exposure 20`` wrote a design named
+    "prototype"; the written name says what changed, and the file is that design."""
+
+    def written(*flags) -> CameraDesign:
+        path = tmp_path / "d.toml"
+        assert main(["design", *flags, "--write", str(path), "--force"]) == 0
+        name = read_toml(path)["name"]
+        d = resolve_design(str(path))
+        assert d.name == name
+        return d
+
+    d = written("--n-patterns", "32", "--exposure", "20", "--lcos-rate", "2000")
+    assert (d.n_patterns, d.exposure_ms, d.lcos_rate_fps) == (32, 20.0, 2000.0)
+    assert d.name == "prototype, 32 patterns in 20 ms, LCoS at 2000 patterns/s"
+    assert written("--exposure", "60").name == "prototype, 16 patterns in 60 ms"
+    proto = preset("prototype")
+    same = written("--n-patterns", str(proto.n_patterns))  # the prototype's own: unchanged
+    assert same.name == "prototype" and same.digest() == proto.digest()

@@ -88,8 +88,23 @@ def _base(args: argparse.Namespace) -> CameraDesign:
     }
     if args.max_velocity is None:
         changes["exposure_ms"] = args.exposure
-    base = base.with_(**{k: v for k, v in changes.items() if v is not None})
+    changed = {k: v for k, v in changes.items() if v is not None and v != getattr(base, k)}
+    base = base.with_(**changed)
+    if changed:  # a changed design is not the one it started from: its name says what changed
+        base = base.with_(name=f"{base.name}, {_changes_named(base, changed)}")
     return _schedule(args, base)
+
+
+def _changes_named(d: CameraDesign, changed: dict) -> str:
+    """What the flags changed, in words: "32 patterns in 20 ms", "LCoS at 2000 patterns/s"."""
+    words = []
+    if {"n_patterns", "exposure_ms"} & set(changed):  # the two only mean something together
+        words.append(f"{d.n_patterns} patterns in {d.exposure_ms:g} ms")
+    if "lcos_rate_fps" in changed:
+        words.append(f"LCoS at {d.lcos_rate_fps:g} patterns/s")
+    if "sensor_preset" in changed:
+        words.append(f"sensor {d.sensor_preset}")
+    return ", ".join(words)
 
 
 def _schedule(args: argparse.Namespace, base: CameraDesign) -> CameraDesign:
