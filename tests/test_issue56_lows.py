@@ -11,11 +11,15 @@ naming the masks (reference: a stack with one closed frame is taken, its R the m
 
 Item 4: ``pacam design`` with other ``--n-patterns``/``--exposure`` wrote the name "prototype";
 the name says what changed (reference: the prototype's own values keep its name and digest).
+
+Item 5 (medium): a far-off design failed with no warning at any step. The solver (and so
+``pacam design``) notes a defocus radius over 4x the prototype's.
 """
 
 from __future__ import annotations
 
 import re
+import warnings
 
 import numpy as np
 import pytest
@@ -26,7 +30,9 @@ from pacam_render.errors import ParameterError
 from pacam_render.exposure.spec import CaptureSpec
 from pacam_render.io.toml_file import read_toml
 from pacam_render.lightfield import Store, synthesize
+from pacam_render.limits import PacamWarning
 from pacam_render.model.camera import CameraDesign, preset
+from pacam_render.model.design import FAR_R_FACTOR, solve
 from pacam_render.model.design_file import resolve_design
 from pacam_render.model.masks import MaskStack, disc_masks
 
@@ -129,3 +135,26 @@ def test_a_design_changed_by_flags_is_named_for_its_changes(tmp_path, capsys):
     proto = preset("prototype")
     same = written("--n-patterns", str(proto.n_patterns))  # the prototype's own: unchanged
     assert same.name == "prototype" and same.digest() == proto.digest()
+
+
+def test_a_far_design_is_noted_by_the_solver_and_pacam_design(tmp_path, capsys):
+    """Item 5a: ``--max-velocity 1.2 --f-number 4 --depth 450`` solved r = 15.75 px (8x the
+    prototype's 2 px) silently. Reference: Eq. 18 solved for r at that F-number by hand."""
+    proto = preset("prototype")
+    R = proto.R_max_mm * proto.F_min / 4.0
+    r = 1.2 * (proto.exposure_ms / 2) / (4.0 * (proto.R_max_mm / R - 1.0))
+    with pytest.warns(PacamWarning, match=r"defocus radius r = 15.7 px is 7.9x") as rec:
+        d = solve(1.2, f_number=4.0, object_depth_mm=450.0)
+    assert d.r_px == pytest.approx(r) and r / 2.0 > FAR_R_FACTOR
+    assert len(rec) == 1
+    for kw in ({}, {"r_px": FAR_R_FACTOR * 2.0}):  # the paper's speed; at the threshold
+        with warnings.catch_warnings():
+            warnings.simplefilter("error", PacamWarning)
+            solve(1.2, **kw)
+    capsys.readouterr()
+    argv = ["design", "--max-velocity", "1.2", "--f-number", "4", "--depth", "450"]
+    assert main([*argv, "--write", str(tmp_path / "f4.toml")]) == 0
+    notes = [x for x in capsys.readouterr().err.splitlines() if "note:" in x]
+    assert len(notes) == 1 and "7.9x the prototype's 2 px" in notes[0] and "--r-px" in notes[0]
+    assert main(["design", "--design", str(tmp_path / "f4.toml"), "--json"]) == 0
+    assert "7.9x the prototype's" in capsys.readouterr().err  # read back, noted again

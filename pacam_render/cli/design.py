@@ -8,7 +8,7 @@ import json
 
 from ..errors import ParameterError, check_positive
 from ..model.camera import CameraDesign, preset
-from ..model.design import solve
+from ..model.design import note_far_design, solve
 from ..model.design_file import resolve_design, write_design
 from ..model.masks import read_mask_stack
 from ..model.report import design_report
@@ -140,6 +140,7 @@ def _design_from_args(args: argparse.Namespace) -> CameraDesign:
         if args.f_number is not None or args.r_px is not None:
             raise ParameterError("--f-number and --r-px need --max-velocity (the speed to cover)")
         base.check_lcos_rate()
+        note_far_design(base)  # a design file's too (the solver notes its own)
         return base
     if base.designed:
         raise ParameterError(
