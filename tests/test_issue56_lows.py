@@ -13,7 +13,8 @@ Item 4: ``pacam design`` with other ``--n-patterns``/``--exposure`` wrote the na
 the name says what changed (reference: the prototype's own values keep its name and digest).
 
 Item 5 (medium): a far-off design failed with no warning at any step. The solver (and so
-``pacam design``) notes a defocus radius over 4x the prototype's.
+``pacam design``) notes a defocus radius over 4x the prototype's; ``restore_capture`` (and so
+``pacam deconvolve``) notes an estimate that scores below its own blurred input.
 """
 
 from __future__ import annotations
@@ -27,6 +28,7 @@ from PIL import Image
 
 from pacam_render.cli import main
 from pacam_render.errors import ParameterError
+from pacam_render.exposure.direct import render_capture, write_capture
 from pacam_render.exposure.spec import CaptureSpec
 from pacam_render.io.toml_file import read_toml
 from pacam_render.lightfield import Store, synthesize
@@ -35,6 +37,9 @@ from pacam_render.model.camera import CameraDesign, preset
 from pacam_render.model.design import FAR_R_FACTOR, solve
 from pacam_render.model.design_file import resolve_design
 from pacam_render.model.masks import MaskStack, disc_masks
+from pacam_render.restore import restoration
+from pacam_render.restore.metrics import aligned_psnr, shift_search_px
+from pacam_render.restore.restoration import restore_capture
 
 CROP = "456,410,16,12"
 
@@ -158,3 +163,48 @@ def test_a_far_design_is_noted_by_the_solver_and_pacam_design(tmp_path, capsys):
     assert len(notes) == 1 and "7.9x the prototype's 2 px" in notes[0] and "--r-px" in notes[0]
     assert main(["design", "--design", str(tmp_path / "f4.toml"), "--json"]) == 0
     assert "7.9x the prototype's" in capsys.readouterr().err  # read back, noted again
+
+
+@pytest.fixture(scope="module")
+def small_capture():
+    spec = CaptureSpec(scene="train", mode="coded", width=64, height=48, spp=16, seed=4,
+                       diffraction="off")  # fmt: skip
+    return render_capture(spec, progress=False)
+
+
+@pytest.mark.render
+def test_a_restoration_worse_than_its_input_is_noted(small_capture, monkeypatch, tmp_path, capsys):
+    """Item 5b: ``deconvolve`` returned -2.12 dB against the blurred input's 16.03 dB with no
+    note. A deconvolver returning zeros is noted with both PSNRs; the input's is recomputed
+    here from what the deconvolver was given (divided by the light factor, best shift)."""
+    cap = small_capture
+    given = {}
+
+    def zeros(data, kernel, method, **kw):
+        given["data"] = np.array(data)
+        return np.zeros_like(data)
+
+    monkeypatch.setattr(restoration, "deconvolve", zeros)
+    with pytest.warns(PacamWarning, match="below the blurred input") as rec:
+        res = restore_capture(cap, method="wiener")
+    sharp = cap.extra_layers["sharp"]
+    blurred = aligned_psnr(given["data"] / cap.record.light_factor, sharp, (0, 1, 0, 1),
+                           shift_search_px(64))  # fmt: skip
+    assert blurred > res.score["psnr_db"]
+    text = str(rec[-1].message)
+    assert f"{res.score['psnr_db']:.2f} dB" in text and f"{blurred:.2f} dB" in text, text
+    write_capture(cap, tmp_path / "cap")
+    capsys.readouterr()
+    argv = ["deconvolve", str(tmp_path / "cap"), "--method", "wiener", "--out", str(tmp_path / "d")]
+    assert main(argv) == 0
+    notes = [x for x in capsys.readouterr().err.splitlines() if "below the blurred input" in x]
+    assert len(notes) == 1 and "note:" in notes[0] and f"{blurred:.2f} dB" in notes[0], notes
+
+    def truth(data, kernel, method, **kw):  # the sharp image itself: better than its input
+        return sharp * cap.record.light_factor
+
+    monkeypatch.setattr(restoration, "deconvolve", truth)
+    monkeypatch.setattr(restoration, "to_pinhole", lambda image, origin, offset: image)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", PacamWarning)
+        assert restore_capture(cap, method="wiener").score["psnr_db"] > blurred

@@ -129,7 +129,7 @@ def score(
     still = valid & ~moving_mask
     se_still, _ = best_shift_se(est, truth, still, 0)
     return {
-        "psnr_db": aligned_psnr(est, truth, (0.0, 1.0, 0.0, 1.0), m),
+        "psnr_db": aligned_psnr(est, truth, FRAME, m),
         "ssim": ssim(est, truth),
         "psnr_moving_db": _psnr_from_mse(se_moving / n_moving) if n_moving else float("nan"),
         "psnr_static_db": _psnr_from_mse(se_still / max(1, still.sum() * channels)),
@@ -182,9 +182,23 @@ def score_capture(est, layers: dict, record) -> dict:
         As :func:`score`.
     """
 
-    width = record.spec.get("width") or record.camera.get("width_px")
     objects = record.objects or {}
     r_px = record.optics.get("r_px", 0.0)
     edge = edge_px(layers["velocity"], record.exposure_ms, r_px)
     moving = moving_shapes(layers, objects)
-    return score(est, layers, objects, moving, shift_search_px(width), edge)
+    return score(est, layers, objects, moving, _shift_search(record), edge)
+
+
+def frame_psnr_db(est, layers: dict, record) -> float:
+    """:func:`score_capture`'s ``psnr_db`` alone (the whole frame at its best shift), for an
+    image scored only for comparison (a deconvolver's blurred input)."""
+    return aligned_psnr(est, layers["sharp"], FRAME, _shift_search(record))
+
+
+FRAME = (0.0, 1.0, 0.0, 1.0)
+"""The whole frame, as :func:`~pacam_render.restore.metrics.aligned_psnr` crops."""
+
+
+def _shift_search(record) -> int:
+    """The capture's alignment search, px (:func:`shift_search_px` of its sensor's width)."""
+    return shift_search_px(record.spec.get("width") or record.camera.get("width_px"))

@@ -26,7 +26,7 @@ from ..psf.origin import to_pinhole
 from .capture_deblur import deblur_input
 from .capture_noise import check_noise_sigma, deblur_layer
 from .deconvolve import deconvolve, nonnegative_for, require_method
-from .object_score import score_capture
+from .object_score import frame_psnr_db, score_capture
 
 TRUTH = frozenset({"sharp", "object_id", "velocity"})
 """The layers a score needs."""
@@ -141,6 +141,8 @@ def restore_capture(
     est = to_pinhole(est, psf.origin, psf.t0_offset_px)  # the capture's registration
     seconds = time.perf_counter() - start
     score = score_restoration(est, layers, layer, record)
+    if score:
+        _note_worse_than_input(score["psnr_db"], d.image, layers, layer, record)
     return Restoration(est, layer, method, psf, d.noise, d.how, seconds, score)
 
 
@@ -152,6 +154,20 @@ def check_psf_name(psf: str) -> str:
             "pacam_render.exposure.deblur_psf.load_capture_psf"
         )
     return psf
+
+
+def _note_worse_than_input(psnr_db: float, image, layers: dict, layer: str, record) -> None:
+    """A note when the estimate scores below the blurred image it was deblurred from. That
+    image is scored as the estimate is (:func:`score_restoration`'s whole-frame PSNR, divided
+    by the light factor, best shift): it is the deconvolver's own input (flat-fielded like the
+    estimate), and a capture is already on the pinhole registration the estimate is moved to."""
+    blurred = frame_psnr_db(np.asarray(image) / record.light_factor, layers, record)
+    if psnr_db < blurred:
+        note(
+            f"the deblurred estimate scores {psnr_db:.2f} dB against sharp, below the blurred "
+            f"input's own {blurred:.2f} dB (layer {layer}, scored alike): deblurring made it "
+            "worse; check the kernel (`psf`), the noise told (noise_sigma) and the `method`"
+        )
 
 
 def score_restoration(est, layers: dict, layer: str, record) -> dict:
