@@ -4,14 +4,17 @@
 from __future__ import annotations
 
 import argparse
+import sys
+import warnings
 from pathlib import Path
 
 from ..errors import ParameterError, check_positive
 from ..exposure.spec import CaptureSpec, parse_crop
-from ..lightfield import StoreSpec, render_lightfield
+from ..lightfield import StoreSpec, render_lightfield, synthesize
 from ..lightfield.proposal import DEFENSIVE
+from ..lightfield.synthesis import store_noise_note
 from ..lightfield.target import PILOT_SPP
-from ..limits import gib
+from ..limits import PacamWarning, gib
 from .common import add_design_flags, add_grey, add_quiet, add_seed_and_steps, design_spec_fields
 from .render import noise_target_from_flags
 
@@ -169,4 +172,11 @@ def run(args: argparse.Namespace) -> int:
         f"digest {store.digest}; synthesise a design's capture with: pacam render "
         f"{m.scene} --from {args.out} ..."
     )
+    if target is None:  # a target sized the store already; else say what its samples give
+        with warnings.catch_warnings():  # the capture's own notes are not the store's
+            warnings.simplefilter("ignore", PacamWarning)
+            cap = synthesize(store, spec.capture, progress=False)
+            noisy = store_noise_note(cap, spp_name="--spp")
+        if noisy:
+            print(f"note: {noisy} (the coded capture it was rendered for)", file=sys.stderr)
     return 0

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import sys
 import warnings
 from pathlib import Path
 
@@ -14,6 +15,7 @@ from ..exposure.spec import CaptureSpec, parse_crop
 from ..exposure.truth import TRUTH_LAYERS
 from ..io.lock import output_lock
 from ..lightfield import Store, synthesize
+from ..lightfield.synthesis import store_noise_note
 from ..limits import PacamWarning
 from ..model.camera import preset
 from ..model.design_file import resolve_design
@@ -210,13 +212,14 @@ def _run_from_store(args: argparse.Namespace) -> int:
     args.width, args.height = args.width or s["width"], args.height or s["height"]
     if args.crop is None and s["crop"]:
         args.crop = ",".join(str(v) for v in s["crop"])
-    spec = _plan(args, None).spec
+    plan = _plan(args, None)  # resolved once: synthesize takes the plan
+    spec = plan.spec
     model = _checked_sensor(args, spec)
     out = Path(args.out)
     if (out / "capture.exr").exists() and not args.force:
         raise ParameterError(f"--out {out} already holds a capture; pass --force to overwrite it")
     with new_folder(out), output_lock(out):
-        cap = synthesize(store, spec, progress=not args.quiet)
+        cap = synthesize(store, plan, progress=not args.quiet)
         if args.no_truth:
             cap.extra_layers = {k: v for k, v in cap.extra_layers.items() if k not in TRUTH_LAYERS}
         if model is not None:
@@ -224,6 +227,9 @@ def _run_from_store(args: argparse.Namespace) -> int:
         paths = write_or_rescue(cap, out, args.force, args.mc_sigma_layer)
     _print_summary(cap, spec, paths, args.mc_sigma_layer)
     print(f"from the light-field store {args.from_store} (digest {store.digest})")
+    noisy = store_noise_note(cap, spp_name="pacam lightfield --spp")
+    if noisy:
+        print(f"note: {noisy}", file=sys.stderr)
     return 0
 
 

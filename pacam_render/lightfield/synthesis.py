@@ -12,6 +12,7 @@ store's truth layers and a record that names the store and its digest.
 
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import replace
 
@@ -114,6 +115,42 @@ TIME_SAMPLING = (
     "unbiased, their noise is in mc_sigma"
 )
 """``render_error.time_sampling`` of a synthesised capture."""
+
+
+RENDER_NOISE_SHARE = 0.3
+"""The render noise a synthesised capture should stay under, as a share of the sensor's noise:
+at 0.3x it adds 4 % to the noise its scores see, sqrt(1 + 0.3^2) = 1.04."""
+
+
+def store_noise_note(
+    cap, sensor_sigma: float | None = None, sensor: str | None = None, spp_name: str = "`spp`"
+):
+    """A note, or None, for a capture synthesised from a store whose Monte Carlo sigma exceeds
+    :data:`RENDER_NOISE_SHARE` of the sensor's noise: the ratio, and the samples per pass of a
+    store that would meet that share (a store's independent samples: sigma ~ 1/sqrt(spp)).
+
+    ``sensor_sigma`` is the sensor's noise in the capture's units, ``sensor`` names it; by
+    default the capture's own sensor, else its optics budget's stand-in (the design's sensor
+    at the default light level). ``spp_name`` names the store's samples per pass (a flag)."""
+    rec = cap.record
+    err = rec.render_error
+    if sensor_sigma is None and rec.noise_sigma:
+        sensor_sigma, sensor = rec.noise_sigma, rec.sensor.preset if rec.sensor else "the sensor"
+    if sensor_sigma is None:
+        ref = (rec.optics_error or {}).get("reference_noise") or {}
+        sensor_sigma, sensor = ref.get("sigma"), ref.get("sensor")
+    if err is None or not sensor_sigma or sensor_sigma <= 0:
+        return None
+    ratio = err.mc_sigma / sensor_sigma
+    if ratio <= RENDER_NOISE_SHARE:
+        return None
+    per_pass = -(-err.spp // max(err.passes, 1))
+    need = int(math.ceil(per_pass * (ratio / RENDER_NOISE_SHARE) ** 2))
+    return (
+        f"the light-field store's render noise in this capture is {ratio:.2g}x the sensor's "
+        f"({sensor}): its figures carry it; a store of {need} spp per pass ({spp_name}, now "
+        f"{per_pass}) would bring it to {RENDER_NOISE_SHARE:g}x"
+    )
 
 
 def _spec_of(spec):

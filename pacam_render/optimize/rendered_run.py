@@ -23,10 +23,11 @@ from ..exposure.plan import plan_capture
 from ..exposure.spec import CaptureSpec
 from ..lightfield import Store
 from ..lightfield.centre_basis import centre_basis
-from ..lightfield.synthesis import synthesize
-from ..limits import available_bytes, gib
+from ..lightfield.synthesis import store_noise_note, synthesize
+from ..limits import available_bytes, gib, note
 from ..model.design_file import write_design
 from ..restore.deconvolve import METHODS, require_method
+from ..sensor.apply import clean_level, sensor_sigma
 from ..sensor.model import SensorModel
 from .rendered import DEFAULT_METHOD, CaptureScorer, StoreObjective, coordinate_search
 from .rendered_outputs import write_outputs
@@ -97,6 +98,17 @@ def open_stores(p: RenderedProblem):
                 )
     check_positions_memory(p.positions, stores)
     return stores
+
+
+def _note_store_noise(template, scorer, sensor: str) -> None:
+    """Say when a store's render noise is a large share of the sensor's the search scores
+    through (:func:`~pacam_render.lightfield.synthesis.store_noise_note`)."""
+    rec = template.record
+    sigma = sensor_sigma(rec, scorer.model, scorer.light_level, clean_level(template))
+    light = "" if scorer.light_level is None else f" at {scorer.light_level:g} photons/px/ms"
+    text = store_noise_note(template, sigma * rec.light_factor, f"{sensor}{light}")
+    if text:
+        note(text)
 
 
 def basis_bytes(stores, n_patterns: int, candidates: int) -> float:
@@ -174,6 +186,7 @@ def run_rendered_optimize(p: RenderedProblem, out: Path, force: bool, progress: 
         template = synthesize(store, spec, progress=False)
         basis = centre_basis(store, spec, positions, progress)
         scorer = CaptureScorer(template, p.sensor, p.light_level, seeds, p.method)
+        _note_store_noise(template, scorer, p.sensor)
         objectives.append(StoreObjective(basis, template, scorer))
     setup_s = time.perf_counter() - t0
     start = np.searchsorted(positions, plan.cam.pattern_centres_xy_mm()[:, 0])
