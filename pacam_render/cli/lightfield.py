@@ -4,7 +4,6 @@
 from __future__ import annotations
 
 import argparse
-import sys
 import warnings
 from pathlib import Path
 
@@ -14,7 +13,7 @@ from ..lightfield import StoreSpec, render_lightfield, synthesize
 from ..lightfield.proposal import DEFENSIVE
 from ..lightfield.synthesis import store_noise_note
 from ..lightfield.target import PILOT_SPP
-from ..limits import PacamWarning, gib
+from ..limits import PacamWarning, gib, note
 from .common import add_design_flags, add_grey, add_quiet, add_seed_and_steps, design_spec_fields
 from .render import noise_target_from_flags
 
@@ -178,5 +177,5 @@ def run(args: argparse.Namespace) -> int:
             cap = synthesize(store, spec.capture, progress=False)
             noisy = store_noise_note(cap, spp_name="--spp")
         if noisy:
-            print(f"note: {noisy} (the coded capture it was rendered for)", file=sys.stderr)
+            note(f"{noisy} (the coded capture it was rendered for)")
     return 0

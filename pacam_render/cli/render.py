@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import sys
 import warnings
 from pathlib import Path
 
@@ -16,7 +15,7 @@ from ..exposure.truth import TRUTH_LAYERS
 from ..io.lock import output_lock
 from ..lightfield import Store, synthesize
 from ..lightfield.synthesis import store_noise_note
-from ..limits import PacamWarning
+from ..limits import PacamWarning, note
 from ..model.camera import preset
 from ..model.design_file import resolve_design
 from ..model.modes import MODES
@@ -229,7 +228,7 @@ def _run_from_store(args: argparse.Namespace) -> int:
     print(f"from the light-field store {args.from_store} (digest {store.digest})")
     noisy = store_noise_note(cap, spp_name="pacam lightfield --spp")
     if noisy:
-        print(f"note: {noisy}", file=sys.stderr)
+        note(noisy)
     return 0
 
 
