@@ -52,7 +52,7 @@ from .optics.diffraction import decide, diffract, preview_sampling
 from .plan import CapturePlan, plan_capture
 from .render_time import estimate_capture, in_overall, metered, planned_steps, say
 from .spec import CaptureSpec
-from .steps import plan_exposure
+from .steps import exposure_windows, fine_step_sampler, plan_exposure
 from .truth import render_truth
 
 
@@ -311,9 +311,10 @@ def _render(plan: CapturePlan, description, run: Run, truth: bool, target, keep:
 def _render_plan(plan: CapturePlan, description, run: Run, truth, target, keep: bool) -> Capture:
     """:func:`_render`'s work."""
 
-    spec, design, cam, variant = plan.spec, plan.design, plan.cam, plan.variant
     params = plan.sensor_params()
-    desc = description if description is not None else load_scene(spec.scene)
+    desc = description if description is not None else load_scene(plan.spec.scene)
+    plan = _fine_steps(plan, desc, params, run, target)
+    spec, design, cam, variant = plan.spec, plan.design, plan.cam, plan.variant
     t_start = time.perf_counter()
     scene = desc.load(sensor=sensor_entry(spec, cam, params, cam.exposure_ms))
     sensor = scene.sensors()[0]
@@ -352,6 +353,31 @@ def _render_plan(plan: CapturePlan, description, run: Run, truth, target, keep: 
         schedule=prog.sched, predicted_seconds=prog.predicted_s, sharp=sharp,
     )  # fmt: skip
     return assemble_capture(plan, desc, passes, layers, objects, target)
+
+
+def _fine_steps(plan: CapturePlan, desc, params: dict, run: Run, target) -> CapturePlan:
+    """The plan, with ``independent`` samples where a fixed capture's passes are too small
+    for its sampler to keep every time step within ``max_step_px``
+    (:func:`~.steps.fine_step_sampler`), said in a note."""
+
+    spec = plan.spec
+    if target is not None or desc.is_static or spec.mode == "reference" or not plan.lens:
+        return plan
+    windows, _ = exposure_windows(desc, plan.design, plan.cam, spec, plan.aperture(params),
+                                  run.max_steps)  # fmt: skip
+    per = -(-spec.spp // spec.passes)
+    sampler = fine_step_sampler(spec.sampler, per, windows)
+    if sampler == spec.sampler:
+        return plan
+    q = quantum(spec.sampler)
+    note(
+        f"sampler {sampler} instead of {spec.sampler}: a pass of {per} spp cannot give each of "
+        f"the {len(windows)} time steps (max_step_px {spec.max_step_px:g}) {spec.sampler}'s "
+        f"{q} spp, and steps joined beyond max_step_px put their time noise in a few "
+        "image-wide patterns that the passes' spread states at random; raise `spp` to "
+        f"{q * len(windows) * spec.passes} to keep {spec.sampler}"
+    )
+    return replace(plan, spec=replace(spec, sampler=sampler))  # the camera is unchanged
 
 
 TIME_SAMPLING = {

@@ -193,10 +193,12 @@ def test_sampler_chunks_are_sizes_mitsuba_renders_exactly():
 @pytest.mark.render
 @pytest.mark.parametrize("sampler", ["independent", "ldsampler"])
 def test_recorded_sigma_agrees_with_two_seed_measurement(sampler):
+    """256 spp: 2 passes of 32 steps, ldsampler's 4 spp each (at 128, ldsampler would join
+    them into 16, and the pass renders with independent samples: steps.fine_step_sampler)."""
     caps = [
         render_capture(
             CaptureSpec.geometric(
-                scene="train", mode="coded", spp=128, seed=s, sampler=sampler, **TRAIN_WINDOW
+                scene="train", mode="coded", spp=256, seed=s, sampler=sampler, **TRAIN_WINDOW
             ),
             progress=False,
             truth=False,
@@ -338,7 +340,12 @@ def test_merged_windows_keep_patterns_and_cover_the_exposure():
 @pytest.mark.render
 def test_target_is_met_and_stated():
     spec = CaptureSpec.geometric(scene="train", mode="coded", **TRAIN_WINDOW)
-    loose = render_capture(spec, progress=False, truth=False)
+    # as large as the target's pilot (2 passes of 32 steps x 4 spp), so that it keeps ldsampler
+    loose = render_capture(
+        CaptureSpec.geometric(scene="train", mode="coded", spp=256, **TRAIN_WINDOW),
+        progress=False,
+        truth=False,
+    )
     goal = loose.record.render_error.mc_sigma / 2
     cap = render_capture(spec, progress=False, target=AbsoluteTarget(goal))
     err = cap.record.render_error
