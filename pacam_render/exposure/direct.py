@@ -164,6 +164,8 @@ def render_capture(
         plan.replay_notes()  # the camera's notes go in the record, first, as they always have
         run = Run(partial_dir, progress, save_every_s, stop_after_steps, max_steps, flag)
         run = replace(run, max_samples=max_samples, pilot_only=pilot_only and target is not None)
+        scene = description if description is not None else load_scene(plan.spec.scene)
+        plan = _fine_steps(plan, scene, run, target)  # before the estimate and auto's preview
         if progress:
             _announce(plan, description, run, truth, target)
         plan = plan.with_diffraction(*_diffraction_choice(plan, description, run, target))
@@ -311,10 +313,9 @@ def _render(plan: CapturePlan, description, run: Run, truth: bool, target, keep:
 def _render_plan(plan: CapturePlan, description, run: Run, truth, target, keep: bool) -> Capture:
     """:func:`_render`'s work."""
 
-    params = plan.sensor_params()
-    desc = description if description is not None else load_scene(plan.spec.scene)
-    plan = _fine_steps(plan, desc, params, run, target)
     spec, design, cam, variant = plan.spec, plan.design, plan.cam, plan.variant
+    params = plan.sensor_params()
+    desc = description if description is not None else load_scene(spec.scene)
     t_start = time.perf_counter()
     scene = desc.load(sensor=sensor_entry(spec, cam, params, cam.exposure_ms))
     sensor = scene.sensors()[0]
@@ -355,7 +356,7 @@ def _render_plan(plan: CapturePlan, description, run: Run, truth, target, keep: 
     return assemble_capture(plan, desc, passes, layers, objects, target)
 
 
-def _fine_steps(plan: CapturePlan, desc, params: dict, run: Run, target) -> CapturePlan:
+def _fine_steps(plan: CapturePlan, desc, run: Run, target) -> CapturePlan:
     """The plan, with ``independent`` samples where a fixed capture's passes are too small
     for its sampler to keep every time step within ``max_step_px``
     (:func:`~.steps.fine_step_sampler`), said in a note."""
@@ -363,7 +364,7 @@ def _fine_steps(plan: CapturePlan, desc, params: dict, run: Run, target) -> Capt
     spec = plan.spec
     if target is not None or desc.is_static or spec.mode == "reference" or not plan.lens:
         return plan
-    windows, _ = exposure_windows(desc, plan.design, plan.cam, spec, plan.aperture(params),
+    windows, _ = exposure_windows(desc, plan.design, plan.cam, spec, plan.aperture(),
                                   run.max_steps)  # fmt: skip
     per = -(-spec.spp // spec.passes)
     sampler = fine_step_sampler(spec.sampler, per, windows)
