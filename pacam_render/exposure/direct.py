@@ -165,6 +165,7 @@ def render_capture(
         run = Run(partial_dir, progress, save_every_s, stop_after_steps, max_steps, flag)
         run = replace(run, max_samples=max_samples, pilot_only=pilot_only and target is not None)
         scene = description if description is not None else load_scene(plan.spec.scene)
+        run = replace(run, truth_sampler=plan.spec.sampler)  # sharp is still: as asked
         plan = _fine_steps(plan, scene, run, target)  # before the estimate and auto's preview
         if progress:
             _announce(plan, description, run, truth, target)
@@ -419,7 +420,8 @@ def _truth(scene, desc, spec, design, run: Run, prog, record, store, truth: bool
     goal = None if goal is None else goal / max(record.light_factor, 1e-300)
     quiet = replace(run, progress=False, stop_after_steps=None, partial_dir=None)
     try:
-        return render_truth(scene, desc, spec, design, spec.mode != "reference", quiet, goal)
+        asked = replace(spec, sampler=run.truth_sampler or spec.sampler)
+        return render_truth(scene, desc, asked, design, spec.mode != "reference", quiet, goal)
     except CaptureInterrupted as exc:
         where = run.partial_dir if store.folder is not None else None
         raise CaptureInterrupted(

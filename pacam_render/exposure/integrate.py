@@ -93,6 +93,9 @@ class Run:
     flag: dict = field(default_factory=lambda: {"signal": None})
     max_samples: int = 0
     pilot_only: bool = False
+    truth_sampler: str | None = None
+    """The sampler the ``sharp`` truth layer renders with (a still scene at t = 0, which keeps
+    the one asked where the time steps took another, :func:`~.steps.fine_step_sampler`)."""
 
     def signalled(self) -> bool:
         return self.flag["signal"] is not None

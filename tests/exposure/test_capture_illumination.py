@@ -27,7 +27,10 @@ from pacam_render.model.illumination import relative_illumination_map
 from pacam_render.restore.flat_field import FlatFieldNoise, flat_field_sigma
 from pacam_render.restore.noise import NoiseModel
 
-TINY = {"scene": "train", "mode": "normal", "width": 48, "height": 36, "spp": 8, "seed": 3}
+TINY = {"scene": "train", "mode": "normal", "width": 48, "height": 36, "spp": 8, "seed": 3,
+        "max_step_px": 4.0}  # fmt: skip
+"""One time step a pass (the train moves 1.7 px here), so the passes keep ldsampler: these
+tests weigh the relative illumination on the same stratified samples, not the time steps."""
 
 
 def test_spec_default_is_off_and_keeps_the_key():
