@@ -97,10 +97,10 @@ def test_an_untouched_store_reads(stores):
 def test_a_shard_of_another_window_or_pass_is_refused(stores, tmp_path):
     a = _copy(stores[0], tmp_path)
     shutil.copy(stores[1] / "p00_s0000.npz", a / "p00_s0000.npz")  # another window's
-    _refused(a, "p00_s0000.npz")
+    assert "store.json recorded" in _refused(a, "p00_s0000.npz")
     a = _copy(stores[0], tmp_path / "dup")
     shutil.copy(a / "p00_s0000.npz", a / "p01_s0000.npz")  # a duplicated pass
-    _refused(a, "p01_s0000.npz")
+    assert "store.json recorded" in _refused(a, "p01_s0000.npz")
 
 
 @pytest.mark.parametrize(
@@ -122,7 +122,7 @@ def test_an_edited_manifest_is_refused(stores, tmp_path, field, value):
         node = node[k]
     node[field[-1]] = value
     _write_manifest(a, m, resign=False)
-    _refused(a, "store.json")
+    assert "the manifest was edited" in _refused(a, "store.json")
 
 
 def test_a_manifest_edited_and_resigned_is_checked_against_itself(stores, tmp_path):
@@ -153,7 +153,7 @@ def test_a_manifest_without_its_spec_is_refused(stores, tmp_path):
     m = _manifest(a)
     del m["spec"]
     _write_manifest(a, m, resign=True)
-    _refused(a, "store.json")
+    assert "not a readable store manifest" in _refused(a, "store.json")
 
 
 @pytest.mark.parametrize("how", ["truncated", "empty", "fifo", "zero", "passwd"])
@@ -172,7 +172,8 @@ def test_a_damaged_file_is_refused_in_one_line(stores, tmp_path, how, name):
             os.mkfifo(path)
         else:
             path.symlink_to("/dev/zero" if how == "zero" else "/etc/passwd")
-    _refused(a, name)
+    why = "not a regular file" if how in ("fifo", "zero") else "not a readable light-field shard"
+    assert why in _refused(a, name)
 
 
 @pytest.mark.parametrize(
