@@ -164,15 +164,22 @@ def render_capture(
         plan.replay_notes()  # the camera's notes go in the record, first, as they always have
         run = Run(partial_dir, progress, save_every_s, stop_after_steps, max_steps, flag)
         run = replace(run, max_samples=max_samples, pilot_only=pilot_only and target is not None)
-        scene = description if description is not None else load_scene(plan.spec.scene)
-        run = replace(run, truth_sampler=plan.spec.sampler)  # sharp is still: as asked
-        plan = _fine_steps(plan, scene, run, target)  # before the estimate and auto's preview
-        if progress:
-            _announce(plan, description, run, truth, target)
-        plan = plan.with_diffraction(*_diffraction_choice(plan, description, run, target))
+        plan, run = _decide(plan, description, run, truth, target)
         cap = _render(plan, description, run, truth, target, keep_partial)
     cap.record.notes = _replay(caught)
     return cap
+
+
+def _decide(plan: CapturePlan, description, run: Run, truth: bool, target):
+    """(the plan as it renders, the run): the passes' sampler for fine time steps
+    (:func:`_fine_steps`; ``sharp`` keeps the one asked), the estimate said, and diffraction
+    decided (``auto`` renders its preview)."""
+    scene = description if description is not None else load_scene(plan.spec.scene)
+    run = replace(run, truth_sampler=plan.spec.sampler)  # sharp is still: as asked
+    plan = _fine_steps(plan, scene, run, target)  # before the estimate and auto's preview
+    if run.progress:
+        _announce(plan, description, run, truth, target)
+    return plan.with_diffraction(*_diffraction_choice(plan, description, run, target)), run
 
 
 def _announce(plan: CapturePlan, description, run: Run, truth: bool, target) -> None:
