@@ -346,6 +346,7 @@ def test_wave_is_a_numpy_only_leaf_below_psf():
 
 LAYERS = (
     "errors",
+    "lazy",
     "limits",
     "io",
     "model",

@@ -33,7 +33,7 @@ import stat
 import time
 from contextlib import contextmanager
 from contextvars import ContextVar
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -43,6 +43,7 @@ from ..render.samplers import quantum
 from ..scenes import load_scene
 from ..scenes.assets import cache_root
 from .estimate import PILOT_PASSES
+from .optics.cost import optics_seconds
 from .optics.diffraction import preview_sampling
 from .plan import CapturePlan, plan_capture
 from .steps import Exposure, exposure_windows
@@ -109,9 +110,11 @@ class Estimate:
     rates: Rates
     what: str = "samples"
     """What :attr:`Work.msamples` counts, for the message (a PSF render's: particles)."""
+    optics: dict = field(default_factory=dict)
+    """The optics budget's parts (name to seconds, :func:`~.optics.cost.optics_seconds`)."""
 
     def part_seconds(self) -> dict:
-        return {k: self.rates.seconds(w) for k, w in self.parts.items()}
+        return {**{k: self.rates.seconds(w) for k, w in self.parts.items()}, **self.optics}
 
     @property
     def seconds(self) -> float:
@@ -392,7 +395,8 @@ def estimate_capture(
     preview = plan.lens and spec.diffraction == "auto" and plan.diffraction is None
     first = not process_warm() if first is None else first
     parts = capture_parts(exp, spec, plan.lens, targeted, truth, preview, first)
-    return Estimate(parts, rates(plan.variant))
+    optics = optics_seconds(plan, preview, truth and not targeted)
+    return Estimate(parts, rates(plan.variant), optics=optics)
 
 
 # ============================================================================================

@@ -21,9 +21,8 @@ import tempfile
 from pathlib import Path
 
 import numpy as np
-import trimesh
 
-from .meshes import meshes
+from .meshes import meshes, trimesh
 from .textures import textures
 
 ASSET_VERSION = 1

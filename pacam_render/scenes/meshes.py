@@ -13,8 +13,8 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-import trimesh
 
+from ..lazy import lazy_module
 from .layout import (
     BACKDROP_SIZE_MM,
     BACKDROP_Z_MM,
@@ -42,6 +42,8 @@ from .layout import (
 )
 
 Rect = tuple[float, float, float, float]  # texel rectangle (col0, row0, col1, row1)
+
+trimesh = lazy_module("trimesh")  # 1.2 s to import: loaded when a mesh is built
 
 
 # ============================================================================================

@@ -165,6 +165,18 @@ def _refuse_size(need: int, otf: OTF, max_lost: float) -> None:
     )
 
 
+def kernel_side_px(tail_px: float, max_lost: float = DEFAULT_MAX_LOST) -> int:
+    """The odd kernel side :func:`kernel_from_otf` first tries for an OTF whose tail is
+    ``tail_px`` (:attr:`~.otf.OTF.tail_px`): the box whose tail beyond it is ``max_lost``."""
+    return 2 * math.ceil(tail_px / max_lost) + 1
+
+
+def kernel_period_px(side_px: int) -> int:
+    """The period L of the Fourier sum for a kernel of side ``side_px``: four sides (so the
+    aliased tail is a quarter of the kept one), a fast FFT length; its cost is ~L^2."""
+    return min(fast_len(max(4 * side_px, 64)), MAX_PERIOD_PX)
+
+
 def kernel_from_otf(
     otf: OTF,
     size: int | None = None,
@@ -200,11 +212,11 @@ def kernel_from_otf(
             )
         want = int(size)
     else:
-        want = 2 * math.ceil(otf.tail_px / max_lost) + 1
+        want = kernel_side_px(otf.tail_px, max_lost)
         if want > MAX_KERNEL_PX:
             _refuse_size(want, otf, max_lost)
     while True:
-        L = min(fast_len(max(4 * want, 64)), MAX_PERIOD_PX)
+        L = kernel_period_px(want)
         check_memory(f"a {L}x{L} Fourier sum", 40.0 * L * L, "size or max_lost")
         k = periodic_kernel(otf, L, sampling)
         if sampling == "pixel":

@@ -112,6 +112,11 @@ def channel_kernels(cam, mode: str, n_channels: int, pitch_mm: float, per_window
     return _KERNELS[key]
 
 
+def kernels_built(cam, mode: str, n_channels: int, pitch_mm: float, per_window: bool) -> bool:
+    """Whether :func:`channel_kernels` has these kernels already (they cost nothing now)."""
+    return _kernel_key(cam, mode, n_channels, pitch_mm, per_window) in _KERNELS
+
+
 def _channel_kernels(cam, mode: str, n_channels: int, pitch_mm: float, per_window: bool):
     out = []
     for wl in channel_wavelengths_nm(n_channels):
