@@ -27,7 +27,7 @@ from ..limits import duration
 from ..model.camera import CameraDesign
 from ..restore.capture_score import deconvolve_capture, flat_sigma, radiance
 from ..restore.metrics import shift_search_px
-from ..restore.object_score import moving_object_se, moving_shapes
+from ..restore.object_score import moving_object_se, moving_shapes, shift_bounds
 from ..sensor.apply import apply_sensor, clean_level, sensor_sigma
 from ..sensor.model import SensorModel
 
@@ -88,7 +88,10 @@ class CaptureScorer:
             sigma = flat_sigma(cap, sensor_sigma(rec, self.model, self.light_level, level))
             total = math.hypot(sigma, self.render_sigma)
             est = deconvolve_capture(cap, radiance(cap, noisy), total, self.method)
-            per = moving_object_se(est, cap.extra_layers, rec.objects, self.moving, self.shift)
+            bounds = shift_bounds(cap.extra_layers, rec.objects, self.moving, rec, self.shift)
+            per = moving_object_se(
+                est, cap.extra_layers, rec.objects, self.moving, self.shift, bounds
+            )
             for name, (se, n) in per.items():
                 acc = out.setdefault(name, [0.0, 0])
                 acc[0], acc[1] = acc[0] + se, acc[1] + n
@@ -117,7 +120,8 @@ class StoreObjective:
         image = image[..., 0] if self.template.image.ndim == 2 else image
         centres = tuple((float(x), 0.0) for x in self.basis.positions_mm[np.asarray(index)])
         camera = self.cam.with_(pattern_centres_mm=centres).inputs()
-        record = replace(self.template.record, camera=camera)
+        optics = {**(self.template.record.optics or {}), "schedule_kind": "centres"}
+        record = replace(self.template.record, camera=camera, optics=optics)  # as a design's
         return Capture(image, {}, record, dict(self.template.extra_layers))
 
     def psnr_db(self, index) -> float:

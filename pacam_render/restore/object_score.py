@@ -2,8 +2,12 @@
 
 A motion-invariant PSF moves each object by its own -s^2 / (2 a_i) px along the aperture's
 path (horizontal here), so each moving object is compared at its own best whole-pixel
-horizontal shift within +-``max_shift_px``; still pixels are compared where they are. Columns
-within ``max_shift_px`` of the left and right edges are left out, so every shift exists.
+horizontal shift; still pixels are compared where they are. The search is bounded by the
+physics (:func:`physical_shift_px`): within what the object's speed can move its restored
+image, plus a slack, so that a textured object cannot lock onto its texture's period (the
+prototype's box aligned at 15 px for one seed and 0 px for another, its checker's period being
+about 17 px). Columns within ``max_shift_px`` of the left and right edges are left out, so
+every shift exists.
 """
 
 from __future__ import annotations
@@ -12,10 +16,57 @@ import json
 
 import numpy as np
 
+from ..model.modes import mode as mode_of
 from ..restore.metrics import aligned_psnr, shift_search_px, ssim
 
 MIN_OBJECT_PX = 16
 """An object with fewer visible pixels is not scored on its own (too few to mean anything)."""
+SHIFT_SLACK_PX = 2
+"""Added to the physical shift bound beside the defocus radius: whole-pixel alignment and the
+kernel's asymmetry (the bound's slack is SHIFT_SLACK_PX + ceil(r_px))."""
+
+
+def physical_shift_px(speed_px_per_ms: float, mode: str, optics: dict, max_shift_px: int) -> int:
+    """How far an object at image speed ``speed_px_per_ms`` can appear shifted after a
+    restoration with the still PSF in a ``mode`` capture, px (at most ``max_shift_px``).
+
+    The parabola (``coded`` modes of a parabolic schedule and ``levin``: ``optics`` holds
+    ``a_i_px_per_ms2``, Eq. 18, and ``T_ms``): the object's path relative to the aperture's
+    is s t + a_i t^2 / 2, so inside the invariant range |s| <= |a_i| T its PSF is the still
+    one shifted by s^2 / (2 |a_i|) (the vertex); beyond, the path is monotonic and the shift
+    grows as |s| T - |a_i| T^2 / 2 (equal at the range's edge). A still opening (``normal``,
+    ``short``, the pinhole) blurs an object symmetrically about its t = 0 place: no shift.
+    Other schedules (designed centres, bitmaps, the flutter shutter): ``max_shift_px``, no
+    bound known. Each bound adds the slack :data:`SHIFT_SLACK_PX` + ceil(``r_px``).
+    """
+    m = int(max_shift_px)
+    slack = SHIFT_SLACK_PX + int(np.ceil(float(optics.get("r_px", 0.0))))
+    a = abs(float(optics.get("a_i_px_per_ms2") or 0.0))
+    s = abs(float(speed_px_per_ms))
+    schedule = mode_of(mode).schedule
+    parabola = optics.get("schedule_kind", "parabolic") == "parabolic"
+    parabola = parabola or schedule == "camera_parabolic"
+    if schedule in ("parabolic", "camera_parabolic") and parabola and a > 0:
+        T = float(optics["T_ms"])
+        d = s * s / (2 * a) if s <= a * T else s * T - a * T * T / 2
+    elif schedule in (None, "static"):
+        d = 0.0
+    else:
+        return m
+    return min(m, int(np.ceil(d)) + slack)
+
+
+def shift_bounds(layers: dict, objects: dict, moving: set[str], record, max_shift_px: int):
+    """Each moving object's :func:`physical_shift_px` at its fastest pixel's horizontal speed
+    (the ``velocity`` layer, px/ms), in the capture ``record``'s mode and optics."""
+    vx, ids = np.abs(layers["velocity"][..., 0]), layers["object_id"]
+    out = {}
+    for key, name in objects.items():
+        pix = ids == int(key)
+        if name in moving and pix.any():
+            speed = float(vx[pix].max())
+            out[name] = physical_shift_px(speed, record.mode, record.optics or {}, max_shift_px)
+    return out
 
 
 def _psnr_from_mse(mse: float) -> float:
@@ -43,10 +94,13 @@ def best_shift_se(est, truth, mask, max_shift_px: int) -> tuple[float, int]:
     return errs[k], k - max_shift_px
 
 
-def moving_object_se(est, layers: dict, objects: dict, moving: set[str], max_shift_px: int):
-    """Each moving object's smallest sum of squared errors over horizontal shifts and its
-    count of values (pixels x channels), for objects of at least :data:`MIN_OBJECT_PX`
-    visible pixels away from the shift search's edge columns.
+def moving_object_se(
+    est, layers: dict, objects: dict, moving: set[str], max_shift_px: int, bounds=None
+):
+    """Each moving object's smallest sum of squared errors over horizontal shifts (within
+    its ``bounds``, :func:`shift_bounds`, else ``max_shift_px``) and its count of values
+    (pixels x channels), for objects of at least :data:`MIN_OBJECT_PX` visible pixels away
+    from the shift search's edge columns.
 
     Returns
     -------
@@ -62,7 +116,8 @@ def moving_object_se(est, layers: dict, objects: dict, moving: set[str], max_shi
     for key, name in objects.items():
         mask = valid & (ids == int(key))
         if name in moving and mask.sum() >= MIN_OBJECT_PX:
-            out[name] = (best_shift_se(est, truth, mask, m)[0], int(mask.sum()) * channels)
+            b = (bounds or {}).get(name, m)
+            out[name] = (best_shift_se(est, truth, mask, b)[0], int(mask.sum()) * channels)
     return out
 
 
@@ -75,8 +130,9 @@ def psnr_moving_db(est, layers: dict, objects: dict, moving: set[str], max_shift
 
 
 def score(
-    est, layers: dict, objects: dict, moving: set[str], max_shift_px: int, edge_px: int = 0
-) -> dict:
+    est, layers: dict, objects: dict, moving: set[str], max_shift_px: int, edge_px: int = 0,
+    bounds: dict | None = None,
+) -> dict:  # fmt: skip
     """PSNR and SSIM of ``est`` against the ``sharp`` layer, overall and per object.
 
     Parameters
@@ -94,6 +150,8 @@ def score(
     edge_px : int, optional
         How far the blur reaches from a moving object's outline, px: its interior, where no
         background is mixed in, is its mask eroded by this much horizontally.
+    bounds : dict, optional
+        Shape id to its shift search, px (:func:`shift_bounds`); ``max_shift_px`` otherwise.
 
     Returns
     -------
@@ -102,7 +160,8 @@ def score(
         (the moving objects' pixels, each at its best shift; nan without any),
         ``psnr_static_db`` (every other pixel, unshifted), ``psnr_moving_interior_db`` (the
         moving objects' interiors, each at its best shift: no occlusion there) and
-        ``psnr_by_object`` (JSON: shape id to [PSNR dB, best shift px]), all with a peak of 1.
+        ``psnr_by_object`` (JSON: shape id to [PSNR dB, best shift px]), all with a peak of 1,
+        and ``shift_bound_px`` (JSON: each moving object's shift search, px).
     """
     truth, ids = layers["sharp"], layers["object_id"]
     channels = 1 if truth.ndim == 2 else truth.shape[2]  # a grey capture's sharp is (H, W)
@@ -117,14 +176,15 @@ def score(
             moving_mask |= mask
         if mask.sum() < MIN_OBJECT_PX:
             continue
-        se, shift = best_shift_se(est, truth, mask, m if name in moving else 0)
+        bound = (bounds or {}).get(name, m) if name in moving else 0
+        se, shift = best_shift_se(est, truth, mask, bound)
         n = mask.sum() * channels
         per[name] = [round(_psnr_from_mse(se / n), 3), shift]
         if name in moving:
             se_moving, n_moving = se_moving + se, n_moving + n
             inner = _interior(mask, edge_px)
             if inner.sum() >= MIN_OBJECT_PX:
-                se_i, _ = best_shift_se(est, truth, inner, m)
+                se_i, _ = best_shift_se(est, truth, inner, bound)
                 se_in, n_in = se_in + se_i, n_in + inner.sum() * channels
     still = valid & ~moving_mask
     se_still, _ = best_shift_se(est, truth, still, 0)
@@ -135,6 +195,9 @@ def score(
         "psnr_static_db": _psnr_from_mse(se_still / max(1, still.sum() * channels)),
         "psnr_moving_interior_db": _psnr_from_mse(se_in / n_in) if n_in else float("nan"),
         "psnr_by_object": json.dumps(per, sort_keys=True),
+        "shift_bound_px": json.dumps(
+            {k: (bounds or {}).get(k, m) for k in sorted(moving & set(per))}
+        ),
     }
 
 
@@ -186,7 +249,9 @@ def score_capture(est, layers: dict, record) -> dict:
     r_px = record.optics.get("r_px", 0.0)
     edge = edge_px(layers["velocity"], record.exposure_ms, r_px)
     moving = moving_shapes(layers, objects)
-    return score(est, layers, objects, moving, _shift_search(record), edge)
+    m = _shift_search(record)
+    bounds = shift_bounds(layers, objects, moving, record, m)
+    return score(est, layers, objects, moving, m, edge, bounds)
 
 
 def frame_psnr_db(est, layers: dict, record) -> float:

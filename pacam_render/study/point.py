@@ -26,7 +26,7 @@ from ..restore.capture_score import edge_px_of, flat_sigma, kernel, radiance
 from ..restore.deconvolve import deconvolve, nonnegative_for
 from ..restore.metrics import shift_search_px
 from ..restore.model_error import model_sigma
-from ..restore.object_score import score
+from ..restore.object_score import score, shift_bounds
 from ..scenes import load_scene
 from ..scenes.edit import at_depth, moving_depth_mm, scene_speed_px_per_ms, with_speed
 from ..sensor.apply import SensorTarget, add_sensor_layers
@@ -285,9 +285,11 @@ def _evaluate(cap, desc, p: Point, task: Task, info: dict) -> dict:
         _keep(cap, est, p, Path(task.keep_dir))
     shift = shift_search_px(cap.record.spec["width"])
     edge = edge_px_of(cap)
+    objects, moving = cap.record.objects, set(desc.moving_ids)
+    bounds = shift_bounds(cap.extra_layers, objects, moving, cap.record, shift)
 
     def scorer(image):
-        return score(image, cap.extra_layers, cap.record.objects, set(desc.moving_ids), shift, edge)
+        return score(image, cap.extra_layers, objects, moving, shift, edge, bounds)
 
     out = scorer(est)
     sigma = flat_sigma(cap, cap.record.noise_sigma_white_units)
