@@ -24,6 +24,7 @@ from . import (
     psf,
     render,
     reproduce,
+    scene,
     sensor,
     study,
     validate,
@@ -47,6 +48,7 @@ COMMANDS = (
     optimize,
     validate,
     study,
+    scene,
     demo,
 )
 """The command modules, in the order ``pacam --help`` lists them."""

@@ -86,6 +86,14 @@ FLAGS = {
     "sweeps": "--sweeps",
     "noise_draws": "--noise-draws",
     "check_seeds": "--check-seeds",
+    "family": "--family",
+    "speed_range_px_per_ms": "--speed-range",
+    "object_count": "--objects",
+    "size_range_px": "--size-range",
+    "direction_spread_deg": "--direction-spread",
+    "wall_depth_mm": "--wall-depth",
+    "textures": "--textures",
+    "window": "--window",
 }
 """Parameter names in library messages, and the flags a CLI user typed instead: the one
 mapping (a file's keys, :class:`~pacam_render.errors.FileKeyError`, are left as they are)."""

@@ -26,7 +26,11 @@ def add(sub) -> None:
         "lightfield",
         help="render a light-field store: one render that serves every design's capture",
     )
-    p.add_argument("scene", help="train, soccer, walker, or a path to a Mitsuba .xml scene")
+    p.add_argument(
+        "scene",
+        help="train, soccer, walker, family:NAME:SEED (e.g. family:occluders:12; see pacam "
+        "scene generate), or a path to a Mitsuba .xml scene",
+    )
     p.add_argument("--width", type=int, default=1280, metavar="W", help="sensor px (default 1280)")
     p.add_argument("--height", type=int, default=960, metavar="H", help="sensor px (default 960)")
     p.add_argument("--crop", metavar="X,Y,W,H", help="the window of the sensor to store")

@@ -41,7 +41,11 @@ from .optics_flags import add_optics
 
 def add(sub) -> None:
     p = sub.add_parser("render", help="render a capture of a scene in one mode")
-    p.add_argument("scene", help="train, soccer, walker, or a path to a Mitsuba .xml scene")
+    p.add_argument(
+        "scene",
+        help="train, soccer, walker, family:NAME:SEED (e.g. family:occluders:12; see pacam "
+        "scene generate), or a path to a Mitsuba .xml scene",
+    )
     p.add_argument(
         "--mode",
         default="coded",

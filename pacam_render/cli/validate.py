@@ -45,7 +45,11 @@ def _add_scene(sub) -> None:
         "validate-scene",
         help="a rendered scene against the per-surface convolution model, by region",
     )
-    p.add_argument("scene", help="train, soccer, walker, or a path to a Mitsuba .xml scene")
+    p.add_argument(
+        "scene",
+        help="train, soccer, walker, family:NAME:SEED (e.g. family:occluders:12; see pacam "
+        "scene generate), or a path to a Mitsuba .xml scene",
+    )
     p.add_argument("--mode", default="coded", choices=MODEL_MODES)
     p.add_argument("--width", type=int, metavar="W", help="sensor px (default the preset's)")
     p.add_argument("--height", type=int, metavar="H", help="sensor px (default the preset's)")

@@ -17,6 +17,8 @@ from ..model.camera import CameraDesign, prototype
 from . import assets as sa
 from . import layout
 from .description import SceneDescription, load_scene_file
+from .family.spec import FAMILIES, is_family_name
+from .family.write import family_scene
 from .motion import Motion, image_to_scene_velocity, look_at
 
 SCENE_DIR = Path(__file__).resolve().parents[2] / "scenes"
@@ -284,10 +286,22 @@ def load_scene(
     params: dict | None = None,
     **options,
 ) -> SceneDescription:
-    """A built-in scene by name (``options`` go to its builder, e.g. ``far_speed_px_per_ms``)
-    or a Mitsuba XML scene file (``params`` fill its ``$name`` parameters; motion comes from a
-    ``<stem>.motion.json`` beside it, if any)."""
+    """A built-in scene by name (``options`` go to its builder, e.g. ``far_speed_px_per_ms``),
+    a family scene ``family:NAME:SEED`` (generated once into the cache with the family's
+    default parameters, :func:`~.family.family_scene`), or a Mitsuba XML scene file
+    (``params`` fill its ``$name`` parameters; motion comes from a ``<stem>.motion.json``
+    beside it, if any)."""
     key = os.fspath(name_or_path)
+    if is_family_name(key):
+        if options or params:
+            raise ParameterError(
+                f"scene {key!r} takes no options: a family scene is drawn with its family's "
+                "defaults; generate one with other parameters (pacam scene generate) and load "
+                "its scene.xml"
+            )
+        desc = load_scene_file(family_scene(key, cache_dir=cache_dir), cache_dir=cache_dir)
+        desc.name = key
+        return desc
     if key in BUILTIN_SCENES:
         try:
             return BUILTIN_SCENES[key](cache_dir=cache_dir, **options)
@@ -297,7 +311,8 @@ def load_scene(
     if path.suffix.lower() != ".xml" and not path.exists():
         raise ParameterError(
             f"unknown scene {key!r}; valid names: {', '.join(sorted(BUILTIN_SCENES))}, "
-            "or a path to a Mitsuba .xml scene file"
+            f"family:NAME:SEED (families: {', '.join(FAMILIES)}), or a path to a Mitsuba .xml "
+            "scene file"
         )
     if options:
         raise ParameterError(f"options {sorted(options)} apply to built-in scenes only")

@@ -43,6 +43,7 @@ from ..restore.capture_deblur import MODEL_ERRORS
 from ..restore.deconvolve import METHODS, require_method
 from ..scenes.builtin import BUILTIN_SCENES
 from ..scenes.description import file_digest
+from ..scenes.family.spec import is_family_name, parse_family_name
 from ..sensor.model import SensorModel
 from ..sensor.presets import mono_preset
 from ..sensor.radiometry import DEFAULT_LIGHT_LEVEL, check_light_level
@@ -614,10 +615,15 @@ def parse_design(text: str) -> dict:
 def _check_point(v: dict) -> dict:
 
     where = f"point {json.dumps(v, default=str)}"
-    if v["scene"] not in BUILTIN_SCENES and not Path(v["scene"]).is_file():
+    if is_family_name(v["scene"]):
+        try:
+            parse_family_name(v["scene"])
+        except ParameterError as exc:
+            raise ParameterError(f"{where}: {exc}") from None
+    elif v["scene"] not in BUILTIN_SCENES and not Path(v["scene"]).is_file():
         raise ParameterError(
-            f"{where}: unknown scene {v['scene']!r}; valid: {', '.join(BUILTIN_SCENES)} or an "
-            "existing .xml file"
+            f"{where}: unknown scene {v['scene']!r}; valid: {', '.join(BUILTIN_SCENES)}, "
+            "family:NAME:SEED (e.g. family:occluders:12) or an existing .xml file"
         )
     modes = [m for m in MODES if m != "reference"]
     if v["mode"] not in modes:
