@@ -11,6 +11,8 @@ looking down +z.
 * :mod:`.layout` (where the built-in scenes' objects stand, the walker's gait), :mod:`.meshes`
   and :mod:`.textures` (their geometry and pictures), and :mod:`.assets`, the cache that
   holds them as files.
+* :mod:`.family`: seeded families of scenes (:func:`generate_scene`, :func:`family_scene`),
+  also loaded by name, ``family:NAME:SEED``.
 * :mod:`.units`: the check, before a capture renders, that a scene is in mm, not metres.
 
 Importing this package does not import Mitsuba; functions that need it import it when called.
@@ -35,6 +37,7 @@ from .description import (
     is_static,
     load_scene_file,
 )
+from .family import FAMILIES, family_scene, generate_scene, parse_family_name
 from .files import motion_to_json, scene_to_xml, write_scene_files
 from .motion import (
     Motion,
@@ -47,6 +50,7 @@ from .units import check_units
 
 __all__ = [
     "BUILTIN_SCENES",
+    "FAMILIES",
     "SCENE_DIR",
     "SOCCER_SPEED_PX_PER_MS",
     "WALKER_SPEED_MM_PER_MS",
@@ -56,13 +60,16 @@ __all__ = [
     "SceneDescription",
     "check_units",
     "default_camera_to_world",
+    "family_scene",
     "fastest_image_speed_px_per_ms",
+    "generate_scene",
     "image_to_scene_velocity",
     "is_static",
     "load_scene",
     "load_scene_file",
     "look_at",
     "motion_to_json",
+    "parse_family_name",
     "project_px",
     "psf_scene",
     "scene_to_xml",
