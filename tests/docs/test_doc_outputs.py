@@ -14,6 +14,7 @@ RUN_BY_TESTS = {  # document -> the test that runs its first command block
     "docs/howto/lightfield.md": "tests/docs/test_readme_howto.py",
     "docs/howto/design_on_renders.md": "tests/docs/test_readme_howto.py",
     "docs/howto/own_camera.md": "tests/test_howto_own_camera.py",
+    "docs/howto/scene_family.md": "tests/scenes/test_family.py",
 }
 MARK = re.compile(
     r"^\*Excerpt, not re-run by the tests: .*commit `[0-9a-f]{7,}` \(\d{4}-\d\d-\d\d\)"
