@@ -13,9 +13,16 @@ from pacam_render.errors import ParameterError
 from pacam_render.psf_render.spec import check_spp
 
 
-def _all_flags() -> set[str]:
-    sub = next(a for a in build_parser()._actions if isinstance(a, argparse._SubParsersAction))
-    return {s for p in sub.choices.values() for a in p._actions for s in a.option_strings}
+def _all_flags(parser: argparse.ArgumentParser | None = None) -> set[str]:
+    """Every flag of every command, and of their own subcommands (``pacam scene generate``)."""
+    out: set[str] = set()
+    for a in (parser or build_parser())._actions:
+        if isinstance(a, argparse._SubParsersAction):
+            for p in a.choices.values():
+                out |= _all_flags(p)
+        else:
+            out.update(a.option_strings)
+    return out
 
 
 def test_every_mapped_flag_is_a_flag_of_some_command():
