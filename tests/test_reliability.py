@@ -24,7 +24,7 @@ from pacam_render.io.exr import read_layer, write_exr
 from pacam_render.limits import PacamWarning
 from pacam_render.model.camera import CameraDesign, prototype
 from pacam_render.model.report import design_report
-from pacam_render.render.passes import MAX_PASS_SPP, split_spp
+from pacam_render.render.passes import MAX_CHUNK_SAMPLES, MAX_PASS_SPP, split_spp
 from pacam_render.restore.deconvolve import METHODS, deconvolve
 from tests.patching import patch_everywhere
 
@@ -135,6 +135,17 @@ def test_split_spp_is_powers_of_two_within_the_limits():
     assert max(split_spp(4096, 1280 * 960 * 2)) <= 2**31 // (1280 * 960 * 2)
     with pytest.raises(ValueError):
         split_spp(1, 2**32)
+
+
+def test_a_chunk_holds_a_few_seconds_of_samples_so_a_signal_is_answered_soon():
+    """Issue 56: a 1280x960 step at huge spp rendered 1024 spp chunks (90 s each) and a
+    SIGTERM, answered between chunks, came 150 s late. Chunks now hold at most
+    MAX_CHUNK_SAMPLES (2^26: about 5 s on the reference machine) where 1 spp allows."""
+    assert MAX_CHUNK_SAMPLES == 1 << 26
+    for pixels in (1, 76_800, 1280 * 960, 4000 * 3000, 2**26):
+        assert max(split_spp(1 << 16, pixels)) * pixels <= MAX_CHUNK_SAMPLES
+    assert set(split_spp(1024, 1280 * 960)) == {32}  # 2^26 / 1228800 = 54.6 -> 32
+    assert split_spp(3, 2**27) == [1, 1, 1]  # past it: one sample per pixel a chunk
 
 
 @pytest.mark.render

@@ -8,7 +8,8 @@ the float32 sum differs by an ulp (measured: 18 to 37 of 19 200 pixels at 300 sp
 A chunk whose spp is a power of two no larger than :data:`MAX_PASS_SPP` keeps every pixel
 inside one block, so it is deterministic. :func:`split_spp` writes any spp as such chunks (its
 binary digits, or the sizes a sampler renders exactly, :mod:`.samplers`), which also keeps a
-chunk below Mitsuba's limit of 2^32 samples per wavefront. (These chunks are one render's
+chunk below Mitsuba's limit of 2^32 samples per wavefront; and at most
+:data:`MAX_CHUNK_SAMPLES` samples where it can, so that a signal is answered within seconds. (These chunks are one render's
 parts; the independent passes whose spread measures a capture's Monte Carlo error are
 :mod:`pacam_render.exposure.estimate`'s.)
 """
@@ -23,6 +24,11 @@ MAX_PASS_SPP = 1 << 12
 """The largest pass: a power of two that divides Dr.Jit's LLVM block (2^14 lanes)."""
 MAX_WAVEFRONT = 1 << 31
 """The most samples one pass may hold (Mitsuba refuses 2^32 and more)."""
+MAX_CHUNK_SAMPLES = 1 << 26
+"""The most samples a chunk holds where one sample per pixel allows it: a signal (SIGTERM,
+which Python answers only between ``mi.render`` calls) waits for the chunk in flight, about
+5 s at this size on the 2-core reference machine (0.072 s per million samples). A 1280x960
+film took 1024 spp chunks before, 90 s each, and a SIGTERM was answered 150 s late."""
 
 
 def split_spp(spp: int, pixels: int, sampler: str = "independent") -> list[int]:
@@ -41,7 +47,8 @@ def split_spp(spp: int, pixels: int, sampler: str = "independent") -> list[int]:
     Returns
     -------
     list of int
-        Chunk sizes, each a power of two <= min(:data:`MAX_PASS_SPP`, MAX_WAVEFRONT / pixels).
+        Chunk sizes, each a power of two <= min(:data:`MAX_PASS_SPP`,
+        :data:`MAX_CHUNK_SAMPLES` / pixels), or 1 spp where that is less than one.
 
     Raises
     ------
@@ -52,7 +59,7 @@ def split_spp(spp: int, pixels: int, sampler: str = "independent") -> list[int]:
 
     if pixels > MAX_WAVEFRONT:
         raise ValueError(f"{pixels} pixels exceed one wavefront ({MAX_WAVEFRONT} samples)")
-    cap = min(MAX_PASS_SPP, 1 << (MAX_WAVEFRONT // pixels).bit_length() - 1)
+    cap = min(MAX_PASS_SPP, 1 << max(0, (MAX_CHUNK_SAMPLES // pixels).bit_length() - 1))
     sizes = [n for n in SAMPLERS[check_sampler(sampler)] if n <= cap][::-1]
     if not sizes or int(spp) % sizes[-1]:
         raise ValueError(f"{sampler} cannot render {spp} spp over {pixels} pixels exactly")
