@@ -208,3 +208,25 @@ def test_a_restoration_worse_than_its_input_is_noted(small_capture, monkeypatch,
     with warnings.catch_warnings():
         warnings.simplefilter("error", PacamWarning)
         assert restore_capture(cap, method="wiener").score["psnr_db"] > blurred
+
+
+def test_the_diffraction_numbers_say_where_each_was_measured():
+    """Low: three diffraction numbers on one screen (the preview's effect, the budget's, the
+    predicted sigma). The budget's line says it is measured on the capture where auto
+    decided on a preview, and an exact-rays residual says it is a scale, not a bound (it
+    was called 'what its approximation leaves out' and exceeded the whole effect)."""
+    from pacam_render.capture.optics_error import summary_line
+    from pacam_render.exposure.optics.budget import _EXACT_RAYS, _HOW_SIZED
+
+    left = {"included": False, "size_rms": 2e-4, "ratio_to_sensor": 0.5}
+    block = {"largest_left_out": "diffraction", "effects": {"diffraction": left},
+             "diffraction": {"setting": "auto"}, "reference_noise": {"sigma": 4e-4}}  # fmt: skip
+    assert "measured on the capture; auto decided on its preview" in summary_line(block)
+    block["diffraction"]["setting"] = "off"
+    assert "preview" not in summary_line(block)
+    scale = {"included": True, "residual": True, "size_rms": 1e-4, "ratio_to_sensor": 0.2,
+             "estimate": _HOW_SIZED[_EXACT_RAYS]}  # fmt: skip
+    block["effects"]["diffraction"] = scale
+    line = summary_line(block)
+    assert "scale of what rays cannot do at occluding edges, not a bound" in line
+    assert "leaves out" not in line

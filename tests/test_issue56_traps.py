@@ -48,7 +48,7 @@ def test_a_switching_time_asked_of_a_short_exposure_changes_nothing_and_is_sized
     assert asked.record.optics_error["largest_left_out"] != "lcos_switching"
 
 
-SIGMA_AT = re.compile(r"Monte Carlo sigma at (\d+) spp ([0-9.e+-]+)")
+SIGMA_AT = re.compile(r"Monte Carlo sigma predicted at (\d+) spp ([0-9.e+-]+)")
 
 
 def _auto(spec) -> tuple[int, float, float]:

@@ -262,7 +262,14 @@ def summary_line(block: dict | None) -> str | None:
     ratio = e.get("ratio_to_sensor")
     vs = f", {ratio:.2g}x {_noise_words(block)}" if ratio is not None else ""
     if e.get("residual"):
-        what += " (what its approximation leaves out)"
+        scale = str(e.get("estimate", "")).startswith("scale")
+        what += (
+            " (the scale of what rays cannot do at occluding edges, not a bound)"
+            if scale
+            else " (what its approximation leaves out)"
+        )
+    elif k == "diffraction" and (block.get("diffraction") or {}).get("setting") == "auto":
+        what += " (measured on the capture; auto decided on its preview)"
     if e.get("asked") is not None:
         what += f" at the asked {e['asked']:g} (not in the rays: the schedule has none)"
     return f"optics left out: largest is {what}, RMS {e['size_rms']:.3g}{vs}"

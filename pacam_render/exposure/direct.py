@@ -246,10 +246,11 @@ def _diffraction_choice(plan: CapturePlan, description, run: Run, target) -> tup
     else:
         spp = plan.spec.passes * sum(s.spp for s in planned_steps(plan, desc, run.max_steps))
         threshold = rms(var) * (pre.record.effective_spp / spp) ** 0.5
-        why = f"the Monte Carlo sigma at {spp} spp"
+        why = f"the Monte Carlo sigma predicted at {spp} spp"
     on, text = decide("auto", d.record["effect_rms"], threshold, why)
     took = time.perf_counter() - t0
-    return on, f"{text} (a {pre.record.effective_spp} spp geometric preview at t = 0, {took:.1f} s)"
+    n = pre.record.effective_spp
+    return on, f"{text} (both from a {n} spp geometric preview at t = 0, {took:.1f} s)"
 
 
 def _replay(caught) -> list[str]:
