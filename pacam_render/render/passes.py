@@ -9,9 +9,9 @@ A chunk whose spp is a power of two no larger than :data:`MAX_PASS_SPP` keeps ev
 inside one block, so it is deterministic. :func:`split_spp` writes any spp as such chunks (its
 binary digits, or the sizes a sampler renders exactly, :mod:`.samplers`), which also keeps a
 chunk below Mitsuba's limit of 2^32 samples per wavefront; and at most
-:data:`MAX_CHUNK_SAMPLES` samples where it can, so that a signal is answered within seconds. (These chunks are one render's
-parts; the independent passes whose spread measures a capture's Monte Carlo error are
-:mod:`pacam_render.exposure.estimate`'s.)
+:data:`MAX_CHUNK_SAMPLES` samples where it can, so that a signal is answered within
+seconds. (These chunks are one render's parts; the independent passes whose spread measures
+a capture's Monte Carlo error are :mod:`pacam_render.exposure.estimate`'s.)
 """
 
 from __future__ import annotations
