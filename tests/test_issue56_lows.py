@@ -19,6 +19,7 @@ Item 5 (medium): a far-off design failed with no warning at any step. The solver
 
 from __future__ import annotations
 
+import json
 import re
 import warnings
 
@@ -30,6 +31,7 @@ from pacam_render.cli import main
 from pacam_render.errors import ParameterError
 from pacam_render.exposure.direct import render_capture, write_capture
 from pacam_render.exposure.spec import CaptureSpec
+from pacam_render.io.exr import read_exr
 from pacam_render.io.toml_file import read_toml
 from pacam_render.lightfield import Store, synthesize
 from pacam_render.limits import PacamWarning
@@ -230,3 +232,35 @@ def test_the_diffraction_numbers_say_where_each_was_measured():
     line = summary_line(block)
     assert "scale of what rays cannot do at occluding edges, not a bound" in line
     assert "leaves out" not in line
+
+
+@pytest.mark.render
+def test_lightfield_prints_an_estimate_and_remembers_what_it_traced(tmp_path, capsys, monkeypatch):
+    """Low: ``lightfield`` printed no time estimate. It says one before tracing, and its
+    history row counts the samples the manifest's steps hold over the film with its margin
+    (arithmetic on store.json, not the estimate's code)."""
+    history = tmp_path / "times.jsonl"
+    monkeypatch.setenv("PACAM_RENDER_TIMES", str(history))
+    argv = ["lightfield", "train", "--crop", CROP, "--spp", "4", "--passes", "2"]
+    assert main([*argv, "--out", str(tmp_path / "s")]) == 0
+    assert re.search(r"estimate: about [0-9.]+ (s|min)", capsys.readouterr().err)
+    manifest = json.loads((tmp_path / "s" / "store.json").read_text())
+    m, (_, _, w, h) = manifest["camera"]["margin_px"], manifest["camera"]["window"]
+    samples = sum(s[2] for p in manifest["steps"] for s in p) * (w + 2 * m) * (h + 2 * m)
+    (row,) = [json.loads(x) for x in history.read_text().splitlines()]
+    assert row["key"].startswith("lightfield ")
+    assert row["msamples"] == pytest.approx(samples / 1e6)
+    assert row["renders"] == sum(len(p) for p in manifest["steps"])
+
+
+@pytest.mark.render
+def test_a_grey_store_serves_grey_captures_without_grey(tmp_path, capsys):
+    """Low: ``render --from`` a grey store without ``--grey`` was refused; the store's
+    channels are taken, as its window and spp are. The capture is one channel, and equals
+    the one asked with ``--grey`` (same store, same seed)."""
+    _store(tmp_path / "grey", "--grey")
+    base = ["render", "train", "--from", str(tmp_path / "grey"), "--mode", "coded", "--quiet"]
+    assert main([*base, "--out", str(tmp_path / "a")]) == 0
+    assert main([*base, "--grey", "--out", str(tmp_path / "b")]) == 0
+    a, b = read_exr(tmp_path / "a" / "capture.exr"), read_exr(tmp_path / "b" / "capture.exr")
+    assert a["capture"].ndim == 2 and np.array_equal(a["capture"], b["capture"])

@@ -213,6 +213,7 @@ def _run_from_store(args: argparse.Namespace) -> int:
             f"{args.scene!r} with pacam lightfield {args.scene}"
         )
     args.width, args.height = args.width or s["width"], args.height or s["height"]
+    args.grey = args.grey or bool(s["grey"])  # a grey store's captures are grey: its channels
     if args.crop is None and s["crop"]:
         args.crop = ",".join(str(v) for v in s["crop"])
     plan = _plan(args, None)  # resolved once: synthesize takes the plan

@@ -65,12 +65,19 @@ left out of the fit: a hand edit or a machine under other load, not this machine
 row of 10^12 s made an estimate of 5.8e+08 h)."""
 FIELDS = ("calls", "first_calls", "msamples", "renders")
 """The counts of :class:`Work`, in the order of a :class:`Rates`' seconds."""
-REFERENCE_RATES = {"capture": (0.043, 1.03, 0.072, 0.017), "psf": (0.0, 0.001, 0.053, 0.0052)}
+REFERENCE_RATES = {
+    "capture": (0.043, 1.03, 0.072, 0.017),
+    "psf": (0.0, 0.001, 0.053, 0.0052),
+    "lightfield": (0.0, 6.0, 1.54, 0.067),
+}
 """Seconds per call, per first call in a process, per million samples (a PSF's: particles)
 and per render of ``llvm_ad_rgb`` on the 2-core reference machine, for captures and for PSF
 renders (a history key that starts with ``psf``): fitted by
 ``python benchmarks/bench_cost_model.py`` to its calibration captures of the train scene and
-to ``validate-psf --quick``'s renders."""
+to ``validate-psf --quick``'s renders; and for light-field stores (a history key that starts
+with ``lightfield``: samples traced with their records, renders = shards, the first call the
+scene's load and the truth layers), fitted to three stores of the train window (48x32 to
+160x64, 64 to 512 samples per pixel, 16 to 128 shards) on a loaded 2-core machine."""
 
 
 @dataclass(frozen=True)
@@ -290,7 +297,8 @@ def rates(key: str) -> Rates:
     :func:`fit_rates` on its history less the rows far from the rest, :func:`plausible_rows`),
     else the reference machine's."""
     rows, unread = _history(key)
-    reference = REFERENCE_RATES["psf" if key.startswith("psf") else "capture"]
+    kind = next((k for k in ("psf", "lightfield") if key.startswith(k)), "capture")
+    reference = REFERENCE_RATES[kind]
     rows, dropped = plausible_rows(rows, reference)
     odd = (
         f"; {dropped} row(s) over {OUTLIER_FACTOR:g}x off the others' seconds left out"

@@ -21,6 +21,7 @@ from ..exposure.assemble import versions
 from ..exposure.estimate import rms
 from ..exposure.integrate import CaptureInterrupted
 from ..exposure.plan import plan_capture
+from ..exposure.render_time import Estimate, Work, rates, remember, say
 from ..exposure.steps import merge_windows, plan_windows, share_spp, step_draws, step_time
 from ..exposure.truth import render_truth
 from ..io.arrays import read_json
@@ -154,6 +155,18 @@ def _check_store_budget(cam: dict, steps, cap, desc, out: Path, max_disk: int) -
     check_budget(total, largest, per, out, max_disk)
 
 
+def store_work(cam: dict, steps, passes: int, out: Path) -> Work:
+    """What rendering the store's shards not yet on disk takes (:class:`~pacam_render.exposure.
+    render_time.Work`): one call, the first of its process (the scene, the truth layers), the
+    samples traced over the film with its margin, one render per shard."""
+    film = cam["sensor"]["film"]
+    pixels = film["crop_width"] * film["crop_height"]
+    todo = [(p, k) for p in range(passes) for k in range(len(steps))
+            if not (out / shard_name(p, k)).exists()]  # fmt: skip
+    samples = sum(steps[k][2] for _, k in todo) * pixels
+    return Work(calls=1, first_calls=1, msamples=samples / 1e6, renders=len(todo))
+
+
 def _check_least_disk(spec: StoreSpec, target, out: Path, max_disk: int) -> None:
     """Refuse a store whose fewest possible samples already exceed the disk budget, before a
     pilot, a scene or a step is planned: ``passes`` x ``spp`` (1 with a noise target, which
@@ -235,13 +248,18 @@ def render_lightfield(
     desc = description if description is not None else load_scene(cap.scene)
     steps = plan_store_steps(spec, desc, plan.design, max_steps)
     _check_store_budget(cam, steps, cap, desc, out, max_disk)
+    key, work = f"lightfield {plan.variant}", store_work(cam, steps, cap.passes, out)
+    if progress:
+        say(f"estimate: {Estimate({'store': work}, rates(key)).describe()}")
     out.mkdir(parents=True, exist_ok=True)
+    t_start = time.perf_counter()
     with output_lock(out), deferred_signals() as flag:
         manifest = _manifest(spec, plan, cam, steps, out, scene_digest(desc))
         digests = _render_shards(spec, plan, cam, desc, steps, out, manifest, flag, progress,
                                  stop_after)  # fmt: skip
         if truth and not (out / "truth.npz").exists():
             _render_truth(cap, plan, cam, desc, out)
+        remember(key, work, time.perf_counter() - t_start)
         manifest.update(complete=True, digest=store_digest(spec.key(), digests))
         if planned is not None:
             manifest["noise_target"] = planned
