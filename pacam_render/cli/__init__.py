@@ -16,6 +16,7 @@ from collections.abc import Sequence
 from ..errors import FileKeyError, ParameterError
 from ..exposure.integrate import CaptureInterrupted
 from . import (
+    dataset,
     deconvolve,
     demo,
     design,
@@ -49,6 +50,7 @@ COMMANDS = (
     validate,
     study,
     scene,
+    dataset,
     demo,
 )
 """The command modules, in the order ``pacam --help`` lists them."""
