@@ -362,6 +362,7 @@ LAYERS = (
     "lightfield",
     "optimize",
     "study",
+    "dataset",
     "experiments",
     "cli",
 )

@@ -208,12 +208,20 @@ def _family(table: dict) -> tuple[tuple[str, ...], str, dict | None]:
     params = table.get("params")
     if params is not None and not isinstance(params, dict):
         raise ParameterError(f"[scenes] params must be a table, got {params!r}")
-    if importlib.util.find_spec(FAMILY_MODULE) is None:
+    if not family_available():
         raise ParameterError(
             f"[scenes] family {family!r}: this installation has no scene families "
             f'({FAMILY_MODULE} is missing); list scenes instead: scenes = ["train", ...]'
         )
     return tuple(f"family:{family}:{s}" for s in numbers), family, params
+
+
+def family_available() -> bool:
+    """Whether this installation has scene families (:data:`FAMILY_MODULE`)."""
+    try:
+        return importlib.util.find_spec(FAMILY_MODULE) is not None
+    except ImportError:
+        return False
 
 
 def _capture(t: dict) -> tuple[dict, dict]:

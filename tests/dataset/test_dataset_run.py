@@ -1,0 +1,151 @@
+"""A tiny dataset rendered serially (2 scenes x 2 cameras, 32x24 windows, 4 spp): its index,
+its sample folders read back by the loader and by the EXR reader alike, resuming without a
+render, a failed sample recorded and retried, the same spec giving the same digests, and a
+family's scene cards in the data card."""
+
+from __future__ import annotations
+
+import json
+import shutil
+import sys
+import types
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from pacam_render.dataset import open_dataset, parse_spec, run_dataset
+from pacam_render.dataset import sample as sample_module
+from pacam_render.dataset import spec as spec_module
+from pacam_render.dataset.index import read_index
+from pacam_render.errors import ParameterError
+from pacam_render.io.exr import read_exr
+from tests.patching import patch_everywhere
+
+pytestmark = pytest.mark.render
+
+ROOT = Path(__file__).resolve().parents[2]
+MY_SCENE = ROOT / "docs" / "howto" / "my_scene.xml"
+CAPTURE = {"width": 1280, "height": 960, "crop": [440, 420, 32, 24], "spp": 4,
+           "diffraction": "off"}  # fmt: skip
+SENSOR = {"preset": "grasshopper-icx285", "light_levels": [300]}
+
+
+def _spec(scenes, cameras=("coded", "normal"), **top):
+    cams = [{"name": m, "mode": m} for m in cameras]
+    doc = {"name": "tiny", "seed": 1, "scenes": scenes, "capture": dict(CAPTURE),
+           "cameras": cams, "sensor": dict(SENSOR), **top}  # fmt: skip
+    return parse_spec(doc)
+
+
+@pytest.fixture(scope="module")
+def tiny(tmp_path_factory):
+    out = tmp_path_factory.mktemp("ds") / "tiny"
+    spec = _spec(["train", str(MY_SCENE)])
+    summary = run_dataset(spec, out, workers=0, progress=False)
+    return spec, out, summary
+
+
+def test_tiny_dataset_index_and_folders(tiny):
+    spec, out, summary = tiny
+    rows = read_index(out)
+    assert (summary.rendered, summary.failed, summary.skipped) == (4, 0, 0)
+    assert [r["status"] for r in rows] == ["ok"] * 4
+    assert {r["camera"] for r in rows} == {"coded", "normal"}
+    for r in rows:
+        assert float(r["render_error"]) > 0 and float(r["seconds"]) > 0
+        held = {p.name for p in (out / "samples" / r["id"]).iterdir()}
+        assert {"capture.exr", "capture.json", "psf_analytic.exr", "psf.json"} <= held
+    assert (out / "card.md").is_file() and (out / "card" / "render_error.png").is_file()
+    assert not list((out / "samples").glob(".*"))  # no temporary folder left
+
+
+def test_loader_returns_the_files_arrays(tiny):
+    _, out, _ = tiny
+    ds = open_dataset(out)
+    assert len(ds) == 4 and len(list(ds)) == 4
+    s = ds[0]
+    layers = read_exr(out / "samples" / s.id / "capture.exr")
+    shapes = {"capture": (24, 32, 3), "noisy": (24, 32, 3), "raw": (24, 32),
+              "sharp": (24, 32, 3), "depth": (24, 32), "velocity": (24, 32, 2),
+              "object_id": (24, 32)}  # fmt: skip
+    for name, shape in shapes.items():
+        got = getattr(s, name)
+        assert got.shape == shape, name
+        np.testing.assert_array_equal(got, layers[name])
+    psf = read_exr(out / "samples" / s.id / "psf_analytic.exr")["psf"]
+    np.testing.assert_array_equal(s.psf, psf)
+    assert s.psf.ndim == 2 and s.psf.sum() == pytest.approx(1.0, rel=1e-3)
+    assert s.record["sample"]["key"] == s.row["key"] and s.record["mode"] == s.row["camera"]
+    assert s.record["sensor"]["light_level_photons_per_px_per_ms"] == 300
+
+
+def _no_render(*args, **kwargs):
+    raise AssertionError("a finished sample was rendered again")
+
+
+def test_resume_renders_nothing(tiny, monkeypatch):
+    spec, out, _ = tiny
+    before = (out / "index.csv").read_text()
+    patch_everywhere(monkeypatch, sample_module, "render_capture", _no_render)
+    again = run_dataset(spec, out, workers=0, progress=False)
+    assert (again.rendered, again.skipped, again.failed) == (0, 4, 0)
+    assert (out / "index.csv").read_text() == before
+
+
+def test_another_spec_is_refused_without_force(tiny):
+    _, out, _ = tiny
+    with pytest.raises(ParameterError, match="another spec"):
+        run_dataset(_spec(["train"], seed=2), out, workers=0, progress=False)
+
+
+def test_failed_sample_is_recorded_then_retried(tiny, tmp_path, monkeypatch):
+    _, first, _ = tiny
+    spec, out = _spec(["train"], cameras=("coded",)), tmp_path / "one"
+
+    def boom(*args, **kwargs):
+        raise RuntimeError("boom")
+
+    with monkeypatch.context() as m:
+        patch_everywhere(m, sample_module, "render_capture", boom)
+        failed = run_dataset(spec, out, workers=0, progress=False)
+    (row,) = read_index(out)
+    assert failed.failed == 1 and row["status"] == "failed" and "boom" in row["error"]
+    assert len(open_dataset(out)) == 0 and len(open_dataset(out, status=None)) == 1
+    retried = run_dataset(spec, out, workers=0, progress=False)
+    (row,) = read_index(out)
+    assert retried.rendered == 1 and row["status"] == "ok"
+    # the same spec's sample, rendered in another dataset: the same key and arrays
+    same = {r["id"]: r for r in read_index(first)}[row["id"]]
+    assert (row["key"], row["digest"]) == (same["key"], same["digest"])
+
+
+def _fake_family(tmp_source: Path):
+    """A stand-in for pacam_render.scenes.family: my_scene copied per seed, with a card."""
+
+    def family_scene(family, seed, params=None, cache_dir=None):
+        folder = Path(cache_dir) / f"{family}-{seed}"
+        folder.mkdir(parents=True, exist_ok=True)
+        for name in ("my_scene.xml", "my_scene.motion.json"):
+            shutil.copy(tmp_source / name, folder / name.replace("my_scene", "scene"))
+        card = {"objects": [{"depth_mm": 450.0 + seed, "speed_px_per_ms": 1.2,
+                             "occlusions": [[0.1, 0.2]] if seed else []},
+                            {"depth_mm": 700.0, "speed_px_per_ms": 0.0}]}  # fmt: skip
+        (folder / "scene.json").write_text(json.dumps(card))
+        return folder / "scene.xml"
+
+    return types.SimpleNamespace(family_scene=family_scene)
+
+
+def test_family_scenes_and_their_cards(tmp_path, monkeypatch):
+    monkeypatch.setattr(spec_module, "family_available", lambda: True)
+    monkeypatch.setitem(sys.modules, spec_module.FAMILY_MODULE, _fake_family(MY_SCENE.parent))
+    spec = _spec({"family": "fake", "seeds": 2}, cameras=("reference",))
+    summary = run_dataset(spec, tmp_path / "fam", workers=0, progress=False)
+    rows = read_index(tmp_path / "fam")
+    assert summary.rendered == 2 and [r["scene_seed"] for r in rows] == ["0", "1"]
+    assert all(r["scene"].startswith("family:fake:") for r in rows)
+    card = (tmp_path / "fam" / "card.md").read_text()
+    for name in ("depth", "speed", "occlusion_share", "render_error"):
+        assert f"card/{name}.png" in card
+    assert open_dataset(tmp_path / "fam")[0].psf is None  # a reference capture has no PSF
