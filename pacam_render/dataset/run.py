@@ -98,10 +98,12 @@ def run_dataset(
         todo = sum(len(t.todo) for t in tasks)
         per = max(plan.bytes_per_sample.values())
         check_disk(todo * per, spec.max_disk_gib, out)
-        n = check_workers(workers, len(tasks)) if scheduler is None and client is None else 0
+        own = tasks and scheduler is None and client is None
+        n = check_workers(workers, len(tasks)) if own else 0
         summary = RunSummary(samples=len(plan.samples), skipped=len(done))
         summary.estimate_s = _estimate(tasks, max(n, 1), progress) if tasks else 0.0
         _render_all(tasks, plan, out, rows, summary, (n, scheduler, client), progress)
+        _remove_empty(out / ".renders")
         summary.seconds = time.perf_counter() - t0
         summary.rows = _ordered(plan, rows)
         write_card(out, spec, summary.rows, scene_cards(files))
@@ -235,6 +237,12 @@ def _render_all(tasks, plan, out: Path, rows: dict, summary: RunSummary, how, pr
 
     with bar:
         run_tasks(render_task, tasks, done, workers, scheduler, client=client)
+
+
+def _remove_empty(folder: Path) -> None:
+    """Remove the renders' checkpoint folder when no render left finished steps in it."""
+    if folder.is_dir() and not any(folder.iterdir()):
+        folder.rmdir()
 
 
 def _ordered(plan: DatasetPlan, rows: dict) -> list[dict]:
