@@ -220,6 +220,8 @@ def _render_all(tasks, plan, out: Path, rows: dict, summary: RunSummary, how, pr
     """Run every task; each finished render's rows go to index.csv at once."""
     from tqdm import tqdm
 
+    if not tasks:
+        return
     workers, scheduler, client = how
     bar = tqdm(total=sum(len(t.todo) for t in tasks), unit="sample", desc=plan.spec.name,
                disable=not progress, smoothing=0, file=sys.stderr)  # fmt: skip

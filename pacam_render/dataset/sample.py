@@ -17,6 +17,7 @@ import json
 import shutil
 import tempfile
 import time
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -29,7 +30,7 @@ from ..exposure.integrate import CaptureInterrupted
 from ..io.exr import write_exr
 from ..io.outputs import write_json
 from ..io.preview import write_psf_preview
-from ..limits import DEFAULT_MAX_SAMPLES, DEFAULT_MAX_STEPS
+from ..limits import DEFAULT_MAX_SAMPLES, DEFAULT_MAX_STEPS, PacamWarning
 from ..model.camera import CameraDesign
 from ..model.modes import MODES_WITH_PSF
 from ..psf.origin import origin_record
@@ -71,10 +72,14 @@ def make_target(target: dict | None, sensor: str):
 
 def render_task(task: RenderTask) -> list[dict]:
     """Render ``task`` and write its samples; index rows for them, ``failed`` with the error
-    when anything but an interrupt goes wrong (the next run retries them)."""
+    when anything but an interrupt goes wrong (the next run retries them). The captures' notes
+    are not shown (a dataset would repeat them per render): each capture.json keeps its own
+    under ``notes``."""
     todo = [s for s in task.render.samples if s.id in task.todo]
     try:
-        return _render_and_write(task, todo)
+        with warnings.catch_warnings():  # each capture keeps its notes in capture.json
+            warnings.simplefilter("ignore", PacamWarning)
+            return _render_and_write(task, todo)
     except (CaptureInterrupted, KeyboardInterrupt):
         raise
     except Exception as exc:  # noqa: BLE001 - recorded in the index, retried next run
