@@ -20,6 +20,7 @@ from ..exposure.spec import CaptureSpec, check_crop
 from ..io.toml_file import read_toml
 from ..model.modes import MODES
 from ..render.samplers import DEFAULT_SAMPLER, check_sampler
+from ..scenes.builtin import BUILTIN_SCENES
 from ..sensor.model import SensorModel
 from ..sensor.radiometry import check_light_level
 
@@ -178,7 +179,15 @@ def _scene_list(value, where: str, base: Path) -> tuple[str, ...]:
         if not isinstance(s, str) or not s:
             raise ParameterError(f"`{where}` entries must be scene names or paths, got {s!r}")
         near = base / s
-        out.append(str(near) if not Path(s).is_absolute() and near.exists() else s)
+        scene = str(near) if not Path(s).is_absolute() and near.exists() else s
+        if scene not in BUILTIN_SCENES and not scene.startswith("family:"):
+            if not Path(scene).is_file():
+                raise ParameterError(
+                    f"`{where}`: no scene {s!r}: give a built-in scene "
+                    f"({', '.join(sorted(BUILTIN_SCENES))}) or a scene file (beside the spec, "
+                    "or from the current folder)"
+                )
+        out.append(scene)
     if len(set(out)) != len(out):
         raise ParameterError(f"`{where}` names a scene twice: each scene once")
     return tuple(out)

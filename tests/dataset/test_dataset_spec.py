@@ -65,6 +65,7 @@ def _doc(**changes) -> dict:
         ({"seed": 1.5}, ["`seed`", "integer in [0,"]),
         ({"scenes": None}, ["`scenes` is missing"]),
         ({"scenes": []}, ["`scenes`", "non-empty"]),
+        ({"scenes": ["trian"]}, ["`scenes`", "no scene 'trian'", "train"]),
         ({"scenes": {"family": "occluders", "seeds": [5, 2]}}, ["[scenes] seeds", "empty"]),
         ({"scenes": {"family": "occluders", "seeds": "x"}}, ["[scenes] seeds", "integer"]),
         ({"scenes": {"family": "occluders", "seeds": 2, "size": 3}}, ["[scenes]", "'size'"]),
