@@ -240,19 +240,9 @@ def break_even_cameras() -> float:
 
 def use_store(spec: DatasetSpec) -> bool:
     """Whether the renders go through light-field stores: ``[run] store``, ``auto`` above
-    :func:`break_even_cameras`. Stores are not built into datasets yet: ``always`` is refused,
-    and ``auto`` above the break-even renders directly, with a note.
-
-    Raises
-    ------
-    ParameterError
-        For ``store = "always"``.
-    """
-    if spec.store == "always":
-        raise ParameterError(
-            '[run] store = "always": datasets do not render through light-field stores yet; '
-            'give "never" or "auto" (both render directly)'
-        )
+    :func:`break_even_cameras`. Stores are not built into datasets yet: ``always`` is refused
+    with the spec (:func:`~.spec.parse_spec`), and ``auto`` above the break-even renders
+    directly, with a note."""
     n, even = len(spec.cameras), break_even_cameras()
     if spec.store == "auto" and n > even:
         note(

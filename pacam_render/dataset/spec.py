@@ -146,6 +146,11 @@ def _parse(doc: dict, base: Path) -> DatasetSpec:
             f"[run] store must be one of {', '.join(STORE_CHOICES)}, got {store!r}"
             + did_you_mean(store, STORE_CHOICES)
         )
+    if store == "always":
+        raise ParameterError(
+            '[run] store = "always": datasets do not render through light-field stores yet; '
+            'give "never" or "auto" (both render directly)'
+        )
     disk = _number(run.get("max_disk_gib", 20.0), "[run] max_disk_gib", 1e-9, 1e6)
     return DatasetSpec(
         scenes=scenes, cameras=cameras, capture=capture, sensor=sensor, light_levels=levels,

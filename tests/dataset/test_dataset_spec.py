@@ -5,6 +5,7 @@ before any work, and the CLI answers a bad spec with one line and exit 2."""
 from __future__ import annotations
 
 import math
+import warnings
 
 import pytest
 
@@ -14,6 +15,7 @@ from pacam_render.dataset import spec as spec_module
 from pacam_render.dataset.plan import SIDECAR_BYTES, STORE_RATIOS, use_store
 from pacam_render.errors import FileKeyError, ParameterError
 from pacam_render.io.toml_file import parse_toml
+from pacam_render.limits import PacamWarning
 
 BASE = """
 name = "t"
@@ -128,8 +130,8 @@ def test_store_break_even_from_the_measured_ratios():
     t = math.log(r4) / (math.log(r4) - math.log(r16))
     assert even == pytest.approx(math.exp(math.log(n4) + t * (math.log(n16) - math.log(n4))))
     assert 12 < even < 13
-    with pytest.raises(ParameterError, match="not render through light-field stores yet"):
-        use_store(parse_spec(_doc(run={"store": "always"})))
+    with pytest.raises(FileKeyError, match="not render through light-field stores yet"):
+        parse_spec(_doc(run={"store": "always"}))
     assert use_store(parse_spec(_doc(run={"store": "never"}))) is False
 
 
@@ -143,3 +145,12 @@ def test_cli_bad_spec_is_one_line_and_exit_2(tmp_path, capsys):
     path.write_text("scenes = [")
     assert main(["dataset", str(path), "--out", str(tmp_path / "out")]) == 2
     assert "not valid TOML" in capsys.readouterr().err
+
+
+def test_auto_above_the_break_even_says_it_renders_directly():
+    cams = [{"name": f"c{i}", "mode": "reference"} for i in range(13)]
+    with pytest.warns(PacamWarning, match="break-even"):
+        assert use_store(parse_spec(_doc(cameras=cams))) is False
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", PacamWarning)
+        use_store(parse_spec(_doc(cameras=cams[:12])))
