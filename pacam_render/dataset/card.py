@@ -21,9 +21,10 @@ PICTURES = "card"
 
 OBJECT_KEYS = {
     "depth": ("depth_mm", "depth objects (mm)"),
-    "speed": ("speed_px_per_ms", "image speed of objects (px/ms)"),
+    "speed": ("image_speed_px_per_ms", "image speed of objects (px/ms)"),
 }
-"""Histograms of the scene cards' objects: picture name -> (the object's key, the axis)."""
+"""Histograms of the scene cards' objects (:mod:`pacam_render.scenes.family`'s ``scene.json``):
+picture name -> (the object's key, the axis)."""
 
 
 def write_card(out, spec: DatasetSpec, rows: list[dict], scene_cards: list[dict]) -> Path:
@@ -85,13 +86,15 @@ def object_values(scene_cards: list[dict], key: str) -> list[float]:
 
 
 def occlusion_share(card: dict) -> float | None:
-    """The share of a scene card's objects with an occlusion event (``occlusions`` or
-    ``occlusion_events``, non-empty); None without objects."""
-    objs = [o for o in card.get("objects", []) if isinstance(o, dict)]
+    """The share of a scene card's objects in an occlusion event (the card's
+    ``occlusion_events``, each naming its ``front`` and ``behind`` objects); None without
+    objects."""
+    objs = [o.get("id") for o in card.get("objects", []) if isinstance(o, dict)]
     if not objs:
         return None
-    hit = [o for o in objs if o.get("occlusions") or o.get("occlusion_events")]
-    return len(hit) / len(objs)
+    events = [e for e in card.get("occlusion_events", []) if isinstance(e, dict)]
+    hit = {e.get(k) for e in events for k in ("front", "behind")}
+    return sum(o in hit for o in objs) / len(objs)
 
 
 def _pictures(folder: Path, rows: list[dict], scene_cards: list[dict]) -> list[str]:

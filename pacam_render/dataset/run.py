@@ -9,7 +9,6 @@ folder records its key is skipped; a failed one is rendered again on the next ru
 
 from __future__ import annotations
 
-import importlib
 import sys
 import time
 from dataclasses import dataclass, field
@@ -22,12 +21,13 @@ from ..io.lock import check_unlocked, output_lock
 from ..io.outputs import writable_dir, write_json
 from ..limits import DEFAULT_MAX_SAMPLES, DEFAULT_MAX_STEPS, duration, gib, note
 from ..scenes import load_scene
+from ..scenes.family import family_scene
 from ..study.engine import check_scheduler, check_workers, run_tasks
 from .card import write_card
 from .index import read_index, row, write_index
 from .plan import DatasetPlan, check_disk, plan_dataset, use_store
 from .sample import RenderTask, finished, render_task
-from .spec import FAMILY_MODULE, DatasetSpec
+from .spec import DatasetSpec
 
 DATASET_JSON = "dataset.json"
 
@@ -136,11 +136,10 @@ def scene_files(spec: DatasetSpec, out: Path) -> dict[str, str]:
     listed scenes, which load by name or path."""
     if spec.family is None:
         return {}
-    family = importlib.import_module(FAMILY_MODULE)  # item 1 of issue 57: present or refused
     files = {}
     for scene in spec.scenes:
         seed = int(scene.rsplit(":", 1)[1])
-        path = family.family_scene(spec.family, seed, spec.family_params, cache_dir=out / "scenes")
+        path = family_scene(spec.family, seed, spec.family_params, cache_dir=out / "scenes")
         files[scene] = str(path)
     return files
 

@@ -9,7 +9,6 @@ the PSF's speed and how to render (direct, or through light-field stores). See
 from __future__ import annotations
 
 import hashlib
-import importlib.util
 import json
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -21,6 +20,7 @@ from ..io.toml_file import read_toml
 from ..model.modes import MODES
 from ..render.samplers import DEFAULT_SAMPLER, check_sampler
 from ..scenes.builtin import BUILTIN_SCENES
+from ..scenes.family import resolve_params
 from ..sensor.model import SensorModel
 from ..sensor.radiometry import check_light_level
 
@@ -28,7 +28,6 @@ STORE_CHOICES = ("auto", "always", "never")
 """``[run] store``: a light-field store per scene when the cameras exceed the break-even
 (``auto``), always, or never (direct renders)."""
 
-FAMILY_MODULE = "pacam_render.scenes.family"
 """The module of seeded scene families (issue 57, item 1), imported when a spec names one."""
 
 TOP_KEYS = {"name", "seed", "scenes", "capture", "cameras", "sensor", "psf", "run"}
@@ -222,20 +221,11 @@ def _family(table: dict) -> tuple[tuple[str, ...], str, dict | None]:
     params = table.get("params")
     if params is not None and not isinstance(params, dict):
         raise ParameterError(f"[scenes] params must be a table, got {params!r}")
-    if not family_available():
-        raise ParameterError(
-            f"[scenes] family {family!r}: this installation has no scene families "
-            f'({FAMILY_MODULE} is missing); list scenes instead: scenes = ["train", ...]'
-        )
+    try:  # the family and its parameters, checked before any scene is generated
+        resolve_params(family, **(params or {}))
+    except (ParameterError, TypeError) as exc:
+        raise ParameterError(f"[scenes] family {family!r}, params: {exc}") from None
     return tuple(f"family:{family}:{s}" for s in numbers), family, params
-
-
-def family_available() -> bool:
-    """Whether this installation has scene families (:data:`FAMILY_MODULE`)."""
-    try:
-        return importlib.util.find_spec(FAMILY_MODULE) is not None
-    except ImportError:
-        return False
 
 
 def _capture(t: dict) -> tuple[dict, dict]:

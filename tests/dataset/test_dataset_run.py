@@ -6,9 +6,6 @@ family's scene cards in the data card."""
 from __future__ import annotations
 
 import json
-import shutil
-import sys
-import types
 from pathlib import Path
 
 import numpy as np
@@ -16,7 +13,7 @@ import pytest
 
 from pacam_render.dataset import open_dataset, parse_spec, run_dataset
 from pacam_render.dataset import sample as sample_module
-from pacam_render.dataset import spec as spec_module
+from pacam_render.dataset.card import occlusion_share
 from pacam_render.dataset.index import read_index
 from pacam_render.errors import ParameterError
 from pacam_render.io.exr import read_exr
@@ -120,31 +117,22 @@ def test_failed_sample_is_recorded_then_retried(tiny, tmp_path, monkeypatch):
     assert (row["key"], row["digest"]) == (same["key"], same["digest"])
 
 
-def _fake_family(tmp_source: Path):
-    """A stand-in for pacam_render.scenes.family: my_scene copied per seed, with a card."""
-
-    def family_scene(family, seed, params=None, cache_dir=None):
-        folder = Path(cache_dir) / f"{family}-{seed}"
-        folder.mkdir(parents=True, exist_ok=True)
-        for name in ("my_scene.xml", "my_scene.motion.json"):
-            shutil.copy(tmp_source / name, folder / name.replace("my_scene", "scene"))
-        card = {"objects": [{"depth_mm": 450.0 + seed, "speed_px_per_ms": 1.2,
-                             "occlusions": [[0.1, 0.2]] if seed else []},
-                            {"depth_mm": 700.0, "speed_px_per_ms": 0.0}]}  # fmt: skip
-        (folder / "scene.json").write_text(json.dumps(card))
-        return folder / "scene.xml"
-
-    return types.SimpleNamespace(family_scene=family_scene)
-
-
-def test_family_scenes_and_their_cards(tmp_path, monkeypatch):
-    monkeypatch.setattr(spec_module, "family_available", lambda: True)
-    monkeypatch.setitem(sys.modules, spec_module.FAMILY_MODULE, _fake_family(MY_SCENE.parent))
-    spec = _spec({"family": "fake", "seeds": 2}, cameras=("reference",))
+def test_family_scenes_and_their_cards(tmp_path):
+    """Two seeds of the real ``occluders`` family (issue 57 item 1) through the pinhole: the
+    scenes are generated into the dataset, and the data card's occlusion share is the one
+    the scene cards' events give (counted here from scene.json)."""
+    capture = {**CAPTURE, "crop": [600, 440, 24, 16]}
+    spec = _spec({"family": "occluders", "seeds": 2}, cameras=("reference",), capture=capture)
     summary = run_dataset(spec, tmp_path / "fam", workers=0, progress=False)
     rows = read_index(tmp_path / "fam")
     assert summary.rendered == 2 and [r["scene_seed"] for r in rows] == ["0", "1"]
-    assert all(r["scene"].startswith("family:fake:") for r in rows)
+    assert all(r["scene"].startswith("family:occluders:") for r in rows)
+    cards = [json.loads(p.read_text()) for p in sorted((tmp_path / "fam").rglob("scene.json"))]
+    assert len(cards) == 2 and all(c["occlusion_events"] for c in cards)
+    for c in cards:
+        hit = {e[k] for e in c["occlusion_events"] for k in ("front", "behind")}
+        want = sum(o["id"] in hit for o in c["objects"]) / len(c["objects"])
+        assert occlusion_share(c) == want > 0
     card = (tmp_path / "fam" / "card.md").read_text()
     for name in ("depth", "speed", "occlusion_share", "render_error"):
         assert f"card/{name}.png" in card

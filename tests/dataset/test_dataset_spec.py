@@ -11,7 +11,6 @@ import pytest
 
 from pacam_render.cli import main
 from pacam_render.dataset import break_even_cameras, parse_spec, plan_dataset
-from pacam_render.dataset import spec as spec_module
 from pacam_render.dataset.plan import SIDECAR_BYTES, STORE_RATIOS, use_store
 from pacam_render.errors import FileKeyError, ParameterError
 from pacam_render.io.toml_file import parse_toml
@@ -83,8 +82,7 @@ def test_spec_errors_name_the_key(changes, words):
         assert w in str(err.value), (w, str(err.value))
 
 
-def test_family_seeds_become_scene_strings(monkeypatch):
-    monkeypatch.setattr(spec_module, "family_available", lambda: True)
+def test_family_seeds_become_scene_strings():
     count = parse_spec(_doc(scenes={"family": "occluders", "seeds": 3}))
     assert count.scenes == tuple(f"family:occluders:{s}" for s in range(3))
     ranged = parse_spec(_doc(scenes={"family": "occluders", "seeds": [10, 12], "params": {}}))
@@ -92,10 +90,20 @@ def test_family_seeds_become_scene_strings(monkeypatch):
     assert ranged.family == "occluders" and ranged.family_params == {}
 
 
-def test_a_family_without_the_family_module_is_refused(monkeypatch):
-    monkeypatch.setattr(spec_module, "family_available", lambda: False)
-    with pytest.raises(FileKeyError, match="no scene families"):
-        parse_spec(_doc(scenes={"family": "occluders", "seeds": 2}))
+@pytest.mark.parametrize(
+    "scenes, words",
+    [
+        ({"family": "occludrs", "seeds": 2}, ["[scenes] family 'occludrs'", "occluders"]),
+        ({"family": "occluders", "seeds": 2, "params": {"depth_range_mm": [900, 400]}},
+         ["[scenes] family 'occluders', params", "depth_range_mm"]),
+        ({"family": "occluders", "seeds": 2, "params": {"colour": 1}}, ["colour"]),
+    ],
+)  # fmt: skip
+def test_a_bad_family_or_parameter_is_refused_naming_it(scenes, words):
+    with pytest.raises(FileKeyError) as err:
+        parse_spec(_doc(scenes=scenes))
+    for w in words:
+        assert w in str(err.value), (w, str(err.value))
 
 
 def test_plan_counts_and_keys():
