@@ -24,7 +24,6 @@ from ..render.variant import grey_request
 from ..sensor.apply import SensorTarget, add_sensor_layers, check_grey_sensor
 from ..sensor.model import SensorModel
 from ..sensor.radiometry import DEFAULT_LIGHT_LEVEL, check_light_level
-from .capture_out import error_line, optics_lines, scale_line, write_or_rescue
 from .common import (
     add_design_flags,
     add_force,
@@ -36,7 +35,8 @@ from .common import (
     design_spec_fields,
     new_folder,
 )
-from .optics_flags import add_optics
+from .render_parts.capture_out import error_line, optics_lines, scale_line, write_or_rescue
+from .render_parts.optics_flags import add_optics
 
 
 def add(sub) -> None:

@@ -11,8 +11,8 @@ from ..io.lock import output_lock
 from ..sensor.model import SensorModel
 from ..sensor.on_capture import sensor_on_capture
 from ..sensor.radiometry import DEFAULT_LIGHT_LEVEL, check_light_level
-from .capture_out import write_or_rescue
 from .common import add_force, add_out, new_folder
+from .render_parts.capture_out import write_or_rescue
 
 
 def add(sub) -> None:

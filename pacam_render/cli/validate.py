@@ -15,7 +15,7 @@ from ..model.design_file import resolve_design
 from ..psf.scene import MODEL_MODES, QUANTUM_PX
 from ..study.engine import check_workers, probe_scheduler
 from .common import add_engine_args, add_outputs, add_preset
-from .optics_flags import add_camera_optics
+from .render_parts.optics_flags import add_camera_optics
 
 
 def add(sub) -> None:

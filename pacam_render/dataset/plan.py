@@ -25,8 +25,9 @@ from ..errors import ParameterError
 from ..exposure.direct import check_budget
 from ..exposure.plan import plan_capture
 from ..exposure.spec import CaptureSpec
-from ..limits import DEFAULT_MAX_SAMPLES, gib, note
-from ..model.modes import MODES_WITH_PSF
+from ..lightfield.codes import SERVED
+from ..limits import DEFAULT_MAX_SAMPLES, gib
+from ..model.modes import MODES, MODES_WITH_PSF
 from ..psf.analytic import least_lost_fraction
 from .spec import DatasetSpec
 
@@ -62,6 +63,9 @@ class Render:
     camera: str
     spec: CaptureSpec
     samples: tuple[PlannedSample, ...]
+    via: str = "direct"
+    """``direct`` (its own render) or ``store`` (synthesised from its scene's light-field
+    store, :func:`use_store`)."""
 
 
 @dataclass(frozen=True)
@@ -128,10 +132,12 @@ def plan_dataset(spec: DatasetSpec) -> DatasetPlan:
     """
     target = _target_json(spec)
     renders = []
+    stores = use_store(spec)
     for i, scene in enumerate(spec.scenes):
         digest, label = scene_digest(scene, spec), scene_label(scene, i)
         for cam in spec.cameras:
-            renders.append(_render(spec, scene, label, digest, cam, target))
+            via = "store" if stores and store_serves(_base_spec(spec, scene, cam)) else "direct"
+            renders.append(_render(spec, scene, label, digest, cam, target, via))
     v = spec.psf_velocity_px_per_ms
     sizes = {c.name: sample_bytes(_base_spec(spec, "train", c), v) for c in spec.cameras}
     plan = DatasetPlan(spec, tuple(renders), sizes)
@@ -154,12 +160,19 @@ def _base_spec(spec: DatasetSpec, scene: str, cam) -> CaptureSpec:
     return CaptureSpec(scene=scene, **spec.capture, **cam.fields)
 
 
-def _render(spec: DatasetSpec, scene: str, label: str, digest: str, cam, target) -> Render:
-    """One render of ``scene`` by ``cam``: its seed derived, and a sample per light level."""
+def _render(
+    spec: DatasetSpec, scene: str, label: str, digest: str, cam, target, via: str = "direct"
+) -> Render:
+    """One render of ``scene`` by ``cam``: its seed derived, and a sample per light level. A
+    store's captures take the store's seed (its scene's), so their keys name the store."""
     base = _base_spec(spec, scene, cam)
     unseeded = f"{base.key()}:{digest}:{json.dumps(target, sort_keys=True)}"
+    if via == "store":
+        unseeded = f"store:{digest}:{json.dumps(target, sort_keys=True)}"
     cap = replace(base, seed=derived_seed(spec.seed, unseeded))
-    render_key = f"{cap.key()}:{digest}:{json.dumps(target, sort_keys=True)}"
+    render_key = f"{cap.key()}:{digest}:{json.dumps(target, sort_keys=True)}:{via}"
+    if via == "store":  # the store's samples are shared by the scene's cameras
+        render_key += ":" + ":".join(_base_spec(spec, scene, c).key() for c in spec.cameras)
     samples = []
     for level in spec.light_levels:
         what = {"render": render_key, "sensor": spec.sensor,
@@ -170,7 +183,7 @@ def _render(spec: DatasetSpec, scene: str, label: str, digest: str, cam, target)
         key = hashlib.sha256(f"{text}:{seed}".encode()).hexdigest()[:16]
         sid = f"{label}_{cam.name}_L{level:g}"
         samples.append(PlannedSample(sid, key, scene, cam.name, level, seed))
-    return Render(scene, label, cam.name, cap, tuple(samples))
+    return Render(scene, label, cam.name, cap, tuple(samples), via)
 
 
 def _file_digest(name: str) -> str | None:
@@ -228,6 +241,17 @@ one Monte Carlo sigma, N covering designs" (``python benchmarks/bench_lightfield
 96x64 train window, 2 cores, 2026-11-28)."""
 
 
+def store_ratio(n_cameras: int) -> float:
+    """One store and ``n_cameras`` syntheses over ``n_cameras`` direct renders, in wall time
+    (:data:`STORE_RATIOS`, interpolated linearly in log N and log ratio, extrapolated at the
+    ends)."""
+    pts = [(math.log(n), math.log(r)) for n, r in STORE_RATIOS]
+    x = math.log(max(1, n_cameras))
+    i = min(max(0, sum(x > p[0] for p in pts) - 1), len(pts) - 2)
+    (x0, y0), (x1, y1) = pts[i], pts[i + 1]
+    return math.exp(y0 + (y1 - y0) * (x - x0) / (x1 - x0))
+
+
 def break_even_cameras() -> float:
     """The cameras per scene above which a store costs less than direct renders: where
     :data:`STORE_RATIOS` crosses 1, interpolated linearly in log N and log ratio (about 12.6)."""
@@ -239,14 +263,17 @@ def break_even_cameras() -> float:
 
 
 def use_store(spec: DatasetSpec) -> bool:
-    """Whether the renders go through light-field stores: ``[run] store``, ``auto`` above
-    :func:`break_even_cameras`. Stores are not built into datasets yet: ``always`` is refused
-    with the spec (:func:`~.spec.parse_spec`), and ``auto`` above the break-even renders
-    directly, with a note."""
-    n, even = len(spec.cameras), break_even_cameras()
-    if spec.store == "auto" and n > even:
-        note(
-            f"{n} cameras per scene is above a light-field store's break-even ({even:.3g}, "
-            "benchmarks/RESULTS.md), but datasets do not use stores yet: rendering directly"
-        )
-    return False
+    """Whether a scene's cameras are synthesised from one light-field store: ``[run] store``
+    ``always``, or ``auto`` above :func:`break_even_cameras` cameras per scene."""
+    if spec.store == "auto":
+        return len(spec.cameras) > break_even_cameras()
+    return spec.store == "always"
+
+
+def store_serves(spec: CaptureSpec) -> bool:
+    """Whether a store can give this camera's capture (:mod:`pacam_render.lightfield.codes`):
+    its camera does not move (not Levin's), it has a lens (not the pinhole reference), its
+    diffraction is not asked in the rays, and its LCoS does not switch."""
+    schedule = MODES[spec.mode].schedule
+    served = schedule is not None and schedule in SERVED
+    return served and spec.diffraction != "on" and not spec.lcos_switching_ms

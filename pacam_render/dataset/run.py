@@ -25,7 +25,7 @@ from ..scenes.family import family_scene
 from ..study.engine import check_scheduler, check_workers, run_tasks
 from .card import write_card
 from .index import read_index, row, write_index
-from .plan import DatasetPlan, check_disk, plan_dataset, use_store
+from .plan import DatasetPlan, check_disk, plan_dataset, store_ratio
 from .sample import RenderTask, finished, render_task
 from .spec import DatasetSpec
 
@@ -87,7 +87,6 @@ def run_dataset(
     t0 = time.perf_counter()
     out = Path(out)
     plan = plan_dataset(spec)
-    use_store(spec)
     check_scheduler(scheduler)
     _check_folder(out, spec, force)
     with output_lock(out):
@@ -104,6 +103,7 @@ def run_dataset(
         summary.estimate_s = _estimate(tasks, max(n, 1), progress) if tasks else 0.0
         _render_all(tasks, plan, out, rows, summary, (n, scheduler, client), progress)
         _remove_empty(out / ".renders")
+        _remove_empty(out / ".stores")
         summary.seconds = time.perf_counter() - t0
         summary.rows = _ordered(plan, rows)
         write_card(out, spec, summary.rows, scene_cards(files))
@@ -181,15 +181,27 @@ def _tasks(plan: DatasetPlan, out: Path, done: set[str], files: dict) -> list[Re
     elif spec.noise_target is not None:
         target = {"sigma": spec.noise_target}
     tasks = []
-    for r in plan.renders:
-        todo = tuple(s.id for s in r.samples if s.id not in done)
+    for group in _groups(plan.renders):
+        todo = tuple(s.id for r in group for s in r.samples if s.id not in done)
         if todo:
             tasks.append(RenderTask(
-                r, todo, str(out), spec.sensor, target, spec.psf_velocity_px_per_ms,
-                files.get(r.scene), spec.max_samples or DEFAULT_MAX_SAMPLES,
+                group, todo, str(out), spec.sensor, target, spec.psf_velocity_px_per_ms,
+                files.get(group[0].scene), spec.max_samples or DEFAULT_MAX_SAMPLES,
                 spec.max_steps or DEFAULT_MAX_STEPS,
             ))  # fmt: skip
     return tasks
+
+
+def _groups(renders) -> list[tuple]:
+    """The renders a task takes: one direct render, or a scene's renders through its store
+    (all of them again when one of its samples is missing: the store serves them at once)."""
+    out, stores = [], {}
+    for r in renders:
+        if r.via == "store":
+            stores.setdefault(r.scene, []).append(r)
+        else:
+            out.append((r,))
+    return [tuple(g) for g in stores.values()] + out
 
 
 def _estimate(tasks: list[RenderTask], workers: int, progress: bool) -> float:
@@ -200,16 +212,18 @@ def _estimate(tasks: list[RenderTask], workers: int, progress: bool) -> float:
     first: dict[str, float] = {}
     total = 0.0
     for t in tasks:
-        cam = t.render.camera
-        if cam not in first:
-            desc = load_scene(t.scene_file or t.render.scene)
-            est = estimate_capture(t.render.spec, desc, t.target is not None, True,
-                                   t.max_steps)  # fmt: skip
-            first[cam] = est.seconds
-        total += first[cam]
+        for r in t.renders:
+            if r.camera not in first:
+                desc = load_scene(t.scene_file or r.scene)
+                est = estimate_capture(r.spec, desc, t.target is not None, True, t.max_steps)
+                first[r.camera] = est.seconds
+        direct = sum(first[r.camera] for r in t.renders)
+        total += direct * (store_ratio(len(t.renders)) if t.store else 1.0)
     seconds = total / workers
     if progress:
         what = " (the noise target's pilots only)" if tasks[0].target else ""
+        stores = sum(t.store for t in tasks)
+        what += f", {stores} through light-field stores (RESULTS.md's ratios)" if stores else ""
         print(f"estimate: about {duration(seconds)} for {len(tasks)} renders on {workers} "
               f"worker(s){what}", file=sys.stderr)  # fmt: skip
     return seconds
@@ -228,7 +242,7 @@ def _render_all(tasks, plan, out: Path, rows: dict, summary: RunSummary, how, pr
     def done(task: RenderTask, result) -> None:
         if isinstance(result, BaseException):  # the worker died twice, or Dask failed it
             result = [row(s, "failed", f"{type(result).__name__}: {result}")
-                      for s in task.render.samples if s.id in task.todo]  # fmt: skip
+                      for s in task.samples()]  # fmt: skip
         for r in result:
             rows[r["id"]] = r
             summary.rendered += r["status"] == "ok"
@@ -241,7 +255,7 @@ def _render_all(tasks, plan, out: Path, rows: dict, summary: RunSummary, how, pr
 
 
 def _remove_empty(folder: Path) -> None:
-    """Remove the renders' checkpoint folder when no render left finished steps in it."""
+    """Remove the renders' checkpoint (or stores') folder when nothing was left in it."""
     if folder.is_dir() and not any(folder.iterdir()):
         folder.rmdir()
 

@@ -24,12 +24,14 @@ from pathlib import Path
 import numpy as np
 
 from ..capture.kernels import analytic_psf, capture_diffraction
+from ..errors import ParameterError
 from ..exposure.direct import render_capture, write_capture
 from ..exposure.estimate import AbsoluteTarget
 from ..exposure.integrate import CaptureInterrupted
 from ..io.exr import write_exr
 from ..io.outputs import write_json
 from ..io.preview import write_psf_preview
+from ..lightfield import StoreSpec, render_lightfield, synthesize
 from ..limits import DEFAULT_MAX_SAMPLES, DEFAULT_MAX_STEPS, PacamWarning
 from ..model.camera import CameraDesign
 from ..model.modes import MODES_WITH_PSF
@@ -46,10 +48,11 @@ SAMPLE_JSON = "sample.json"
 
 @dataclass(frozen=True)
 class RenderTask:
-    """What a worker needs for one render (picklable): the render, the samples still to write,
-    the dataset's folder, the sensor, the noise target and the bounds."""
+    """What a worker needs for one render (picklable): the render (or a scene's renders from
+    one light-field store), the samples still to write, the dataset's folder, the sensor, the
+    noise target and the bounds."""
 
-    render: Render
+    renders: tuple[Render, ...]
     todo: tuple[str, ...]
     out: str
     sensor: str
@@ -59,6 +62,21 @@ class RenderTask:
     """A family seed's generated scene.xml (None: ``render.scene`` loads as it is)."""
     max_samples: int = DEFAULT_MAX_SAMPLES
     max_steps: int = DEFAULT_MAX_STEPS
+
+    @property
+    def render(self) -> Render:
+        """The first render (the only one of a direct task)."""
+        return self.renders[0]
+
+    @property
+    def store(self) -> bool:
+        """Whether the renders are synthesised from one store of their scene."""
+        return self.renders[0].via == "store"
+
+    def samples(self, render: Render | None = None) -> list:
+        """The samples still to write (of ``render`` only, if given)."""
+        rs = self.renders if render is None else (render,)
+        return [s for r in rs for s in r.samples if s.id in self.todo]
 
 
 def make_target(target: dict | None, sensor: str):
@@ -75,10 +93,12 @@ def render_task(task: RenderTask) -> list[dict]:
     when anything but an interrupt goes wrong (the next run retries them). The captures' notes
     are not shown (a dataset would repeat them per render): each capture.json keeps its own
     under ``notes``."""
-    todo = [s for s in task.render.samples if s.id in task.todo]
+    todo = task.samples()
     try:
         with warnings.catch_warnings():  # each capture keeps its notes in capture.json
             warnings.simplefilter("ignore", PacamWarning)
+            if task.store:
+                return _store_and_write(task)
             return _render_and_write(task, todo)
     except (CaptureInterrupted, KeyboardInterrupt):
         raise
@@ -88,8 +108,13 @@ def render_task(task: RenderTask) -> list[dict]:
 
 def _render_and_write(task: RenderTask, todo: list) -> list[dict]:
     t0 = time.perf_counter()
-    r = task.render
     desc = load_scene(task.scene_file) if task.scene_file else None
+    cap = _direct(task, task.render, desc)
+    return _write_samples(task, cap, todo, time.perf_counter() - t0)
+
+
+def _direct(task: RenderTask, r: Render, desc):
+    """``r``'s capture rendered directly (checkpointed under ``.renders/``)."""
     partial = Path(task.out) / ".renders" / r.samples[0].key / "partial"
     cap = render_capture(
         r.spec, partial_dir=partial, progress=False, description=desc, truth=True,
@@ -97,8 +122,41 @@ def _render_and_write(task: RenderTask, todo: list) -> list[dict]:
         target=make_target(task.target, task.sensor),
     )  # fmt: skip
     shutil.rmtree(partial.parent, ignore_errors=True)
+    return cap
+
+
+def _store_and_write(task: RenderTask) -> list[dict]:
+    """One light-field store of the scene (proposal: the task's cameras), each camera's
+    capture synthesised from it (:func:`~pacam_render.lightfield.synthesis.synthesize`; a
+    camera it cannot serve after all renders directly, and its record says why), then the
+    samples. The store is removed once its samples are written."""
+    t0 = time.perf_counter()
+    desc = load_scene(task.scene_file or task.render.scene)
+    folder = Path(task.out) / ".stores" / task.render.samples[0].key
+    spec = StoreSpec(capture=task.render.spec, designs=tuple(r.spec for r in task.renders))
+    store = render_lightfield(
+        spec, folder, progress=False, max_steps=task.max_steps, description=desc,
+        target=make_target(task.target, task.sensor),
+    )  # fmt: skip
+    share = (time.perf_counter() - t0) / len(task.renders)
+    rows = []
+    for r in task.renders:
+        t1 = time.perf_counter()
+        try:
+            cap = synthesize(store, r.spec, progress=False, description=desc)
+        except ParameterError as exc:  # e.g. a refocus beyond the store's margin
+            cap = _direct(task, r, desc)
+            cap.record.notes.append(
+                f"rendered directly: the light-field store cannot serve it ({exc})"
+            )
+        rows += _write_samples(task, cap, task.samples(r), share + time.perf_counter() - t1)
+    shutil.rmtree(folder, ignore_errors=True)
+    return rows
+
+
+def _write_samples(task: RenderTask, cap, todo: list, seconds: float) -> list[dict]:
+    """Each of ``todo``'s samples: the capture through the sensor at its light level."""
     model = SensorModel.from_preset(task.sensor)
-    seconds = time.perf_counter() - t0
     rows = []
     for s in todo:
         one = copy.deepcopy(cap)

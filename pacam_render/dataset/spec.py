@@ -26,9 +26,8 @@ from ..sensor.radiometry import check_light_level
 
 STORE_CHOICES = ("auto", "always", "never")
 """``[run] store``: a light-field store per scene when the cameras exceed the break-even
-(``auto``), always, or never (direct renders)."""
-
-"""The module of seeded scene families (issue 57, item 1), imported when a spec names one."""
+(``auto``), always, or never (direct renders); a camera a store cannot serve renders
+directly either way."""
 
 TOP_KEYS = {"name", "seed", "scenes", "capture", "cameras", "sensor", "psf", "run"}
 CAPTURE_KEYS = {
@@ -144,11 +143,6 @@ def _parse(doc: dict, base: Path) -> DatasetSpec:
         raise ParameterError(
             f"[run] store must be one of {', '.join(STORE_CHOICES)}, got {store!r}"
             + did_you_mean(store, STORE_CHOICES)
-        )
-    if store == "always":
-        raise ParameterError(
-            '[run] store = "always": datasets do not render through light-field stores yet; '
-            'give "never" or "auto" (both render directly)'
         )
     disk = _number(run.get("max_disk_gib", 20.0), "[run] max_disk_gib", 1e-9, 1e6)
     return DatasetSpec(

@@ -6,6 +6,7 @@ family's scene cards in the data card."""
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -15,7 +16,9 @@ from pacam_render.dataset import open_dataset, parse_spec, run_dataset
 from pacam_render.dataset import sample as sample_module
 from pacam_render.dataset.card import occlusion_share
 from pacam_render.dataset.index import read_index
+from pacam_render.dataset.plan import plan_dataset
 from pacam_render.errors import ParameterError
+from pacam_render.exposure.direct import render_capture
 from pacam_render.io.exr import read_exr
 from tests.patching import patch_everywhere
 
@@ -137,3 +140,30 @@ def test_family_scenes_and_their_cards(tmp_path):
     for name in ("depth", "speed", "occlusion_share", "render_error"):
         assert f"card/{name}.png" in card
     assert open_dataset(tmp_path / "fam")[0].psf is None  # a reference capture has no PSF
+
+
+def test_a_store_per_scene_serves_its_cameras(tmp_path):
+    """``store = "always"``: one light-field store of the scene gives the coded and normal
+    captures (their records cite it), the pinhole is rendered directly, the store is removed
+    once its samples are written, and the synthesised coded capture agrees with a direct
+    render of the same camera within the two captures' stated sigmas (pooled chi^2)."""
+    capture = {**CAPTURE, "spp": 16, "passes": 4}
+    spec = _spec(["train"], cameras=("coded", "normal", "reference"), capture=capture,
+                 run={"store": "always"})  # fmt: skip
+    summary = run_dataset(spec, tmp_path / "st", workers=0, progress=False)
+    assert (summary.rendered, summary.failed) == (3, 0)
+    assert not (tmp_path / "st" / ".stores").exists() or not any(
+        (tmp_path / "st" / ".stores").iterdir()
+    )
+    data = {s.row["camera"]: s for s in open_dataset(tmp_path / "st")}
+    assert "lightfield" in data["coded"].record and "lightfield" in data["normal"].record
+    assert "lightfield" not in data["reference"].record
+    direct = render_capture(replace(spec_capture(spec, "coded"), seed=99), progress=False)
+    a, sa = data["coded"].capture, data["coded"].record["render_error"]["mc_sigma"]
+    chi2 = np.mean((a - direct.image) ** 2) / (sa**2 + direct.record.render_error.mc_sigma**2)
+    assert 0.6 < chi2 < 1.6, chi2
+
+
+def spec_capture(spec, camera: str):
+    """The CaptureSpec the dataset renders ``camera`` of its first scene with."""
+    return next(r.spec for r in plan_dataset(spec).renders if r.camera == camera)

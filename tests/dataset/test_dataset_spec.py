@@ -5,16 +5,14 @@ before any work, and the CLI answers a bad spec with one line and exit 2."""
 from __future__ import annotations
 
 import math
-import warnings
 
 import pytest
 
 from pacam_render.cli import main
 from pacam_render.dataset import break_even_cameras, parse_spec, plan_dataset
-from pacam_render.dataset.plan import SIDECAR_BYTES, STORE_RATIOS, use_store
+from pacam_render.dataset.plan import SIDECAR_BYTES, STORE_RATIOS, store_ratio, use_store
 from pacam_render.errors import FileKeyError, ParameterError
 from pacam_render.io.toml_file import parse_toml
-from pacam_render.limits import PacamWarning
 
 BASE = """
 name = "t"
@@ -138,9 +136,8 @@ def test_store_break_even_from_the_measured_ratios():
     t = math.log(r4) / (math.log(r4) - math.log(r16))
     assert even == pytest.approx(math.exp(math.log(n4) + t * (math.log(n16) - math.log(n4))))
     assert 12 < even < 13
-    with pytest.raises(FileKeyError, match="not render through light-field stores yet"):
-        parse_spec(_doc(run={"store": "always"}))
     assert use_store(parse_spec(_doc(run={"store": "never"}))) is False
+    assert use_store(parse_spec(_doc(run={"store": "always"}))) is True
 
 
 def test_cli_bad_spec_is_one_line_and_exit_2(tmp_path, capsys):
@@ -155,10 +152,24 @@ def test_cli_bad_spec_is_one_line_and_exit_2(tmp_path, capsys):
     assert "not valid TOML" in capsys.readouterr().err
 
 
-def test_auto_above_the_break_even_says_it_renders_directly():
-    cams = [{"name": f"c{i}", "mode": "reference"} for i in range(13)]
-    with pytest.warns(PacamWarning, match="break-even"):
-        assert use_store(parse_spec(_doc(cameras=cams))) is False
-    with warnings.catch_warnings():
-        warnings.simplefilter("error", PacamWarning)
-        use_store(parse_spec(_doc(cameras=cams[:12])))
+def test_auto_takes_stores_above_the_break_even_for_the_cameras_they_serve():
+    """13 cameras per scene is above the measured break-even (12.6): a store per scene; the
+    pinhole and Levin's moving camera are rendered directly (a store's rays cannot give them),
+    and the store's samples' keys differ from the direct ones'."""
+    cams = [{"name": f"c{i}", "mode": "coded"} for i in range(11)]
+    cams += [{"name": "pin", "mode": "reference"}, {"name": "lev", "mode": "levin"}]
+    assert use_store(parse_spec(_doc(cameras=cams))) is True
+    assert use_store(parse_spec(_doc(cameras=cams[:12]))) is False
+    plan = plan_dataset(parse_spec(_doc(cameras=cams)))
+    via = {r.camera: r.via for r in plan.renders}
+    assert via["pin"] == via["lev"] == "direct" and via["c0"] == "store"
+    direct = plan_dataset(parse_spec(_doc(cameras=cams, run={"store": "never"})))
+    keys = {s.id: s.key for s in direct.samples}
+    for s in plan.samples:
+        assert (keys[s.id] == s.key) == (s.camera in ("pin", "lev"))
+
+
+def test_the_store_ratio_interpolates_the_measured_points():
+    for n, r in STORE_RATIOS:
+        assert store_ratio(n) == pytest.approx(r)
+    assert store_ratio(8) == pytest.approx(math.sqrt(STORE_RATIOS[1][1] * STORE_RATIOS[2][1]))

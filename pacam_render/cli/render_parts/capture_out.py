@@ -6,9 +6,9 @@ import shutil
 import tempfile
 from pathlib import Path
 
-from ..capture.optics_error import summary_line
-from ..exposure.direct import write_capture
-from .common import user_words
+from ...capture.optics_error import summary_line
+from ...exposure.direct import write_capture
+from ..common import user_words
 
 
 def write_or_rescue(cap, out: Path, force: bool, error_layer: bool = False) -> list[Path]:

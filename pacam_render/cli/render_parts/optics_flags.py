@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import argparse
 
-from ..exposure.spec import CAMERA_OPTICS
+from ...exposure.spec import CAMERA_OPTICS
 
 
 def add_optics(p: argparse.ArgumentParser) -> None:
