@@ -186,10 +186,10 @@ def cell_basis(store: Store, spec, cells: int = DEFAULT_CELLS, progress: bool = 
     L = np.concatenate([v for _, v in parts], axis=1)
     del parts
     size = n * M * h * w
-    grid = np.empty((c, size), np.float32)
+    grid = np.empty((size, c), np.float32)  # contiguous (n, M, h, w, c): a matrix's view
     for ch in range(c):  # one float64 accumulator at a time
-        grid[ch] = np.bincount(bins, L[ch], minlength=size + 1)[:size] / passes
-    grid = np.moveaxis(grid.reshape(c, n, M, h, w), 0, -1)
+        grid[:, ch] = np.bincount(bins, L[ch], minlength=size + 1)[:size] / passes
+    grid = grid.reshape(n, M, h, w, c)
     return CellBasis(grid, grid.sum(axis=1, dtype=np.float64).astype(np.float32), G, ij, D,
                      pitch, params.get("lcos_contrast"), plan.spec, len(bins))  # fmt: skip
 

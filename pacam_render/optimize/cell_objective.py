@@ -1,0 +1,272 @@
+"""A differentiable rendered objective over cell codes: expected moving-object PSNR after a
+Wiener restoration with the code's own s = 0 kernel, and its gradient by hand (adjoint).
+
+For a code A[k, c] on a :class:`~pacam_render.lightfield.cell_basis.CellBasis` (weights
+w = (1 - 1/C) A + 1/C with an LCoS of contrast C, else A), everything is closed form:
+
+    y = sum_kc w_kc B_kc                       capture, linear in A (the basis)
+    L = sum_kc w_kc lambda_kc                  light factor: open area x time / (pi R_max^2 x T)
+    K = sum_c u_c Q_c / sum_c u_c mu_c         kernel at s = 0, u_c = sum_k w_kc dt_k: cell c's
+                                               square imaged at beta (X_c, Y_c) (Eq. 8), Q_c
+                                               its pixel-integrated PSF of mass mu_c
+    sigma^2(L) = (a + b l kappa L) / (kappa L)^2   the sensor's noise in white = 1 units
+                                               (EMVA linear model: var = a + b e-, kappa the
+                                               electrons of white through the full lens)
+    X = conj(K) Z / (|K|^2 + s^2 / S)          Wiener on z = y / L (reflect-padded), S = c g(f)
+                                               the 1/f^2 prior with c fitted once per store
+                                               from the prototype's capture (held fixed),
+                                               s^2 = sigma^2 + the store's render variance
+                                               (told, as the scorer tells its deconvolver)
+    E = ||M (x - sharp)||^2 + |M| sigma^2 mean_f |W|^2   expected squared error on the moving
+                                               objects M (at the best integer shift along x)
+
+and the score is -10 log10(E / |M|) (dB, white = 1), the mean over the stores. No oracle: the
+restoration is told the sensor's noise and the class prior, never the truth; the truth only
+scores. It is a model of :class:`~.rendered.CaptureScorer` (expected noise instead of drawn
+noise, one fixed prior level, one shift for all moving objects, periodic padding of a reflect-
+padded window); designs are finally scored by the scorer itself.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import ParameterError
+from ..lightfield.cell_basis import lens_pixels
+from ..psf.bitmap import bitmap_kernel
+from ..restore.capture_score import flat_sigma
+from ..restore.deconvolve import prior_spectrum
+from ..restore.flat_field import RI_LAYER
+from ..restore.object_score import moving_shapes
+from ..sensor.apply import clean_level
+from ..sensor.model import SensorModel
+
+SHIFT_PX = 3
+"""The restored image is compared with ``sharp`` at the best integer shift along x within
++-SHIFT_PX (the kernel's origin is the pinhole's; a moving object's restoration is offset)."""
+
+
+@dataclass
+class CellProblem:
+    """One store's fixed terms of the objective (module docstring), from :func:`cell_problem`."""
+
+    B: np.ndarray  # (n, M, H, W, C)
+    lam: np.ndarray  # (n, M) light factor per unit weight
+    dt: np.ndarray  # (n,) window durations / exposure
+    Qhat: np.ndarray  # (M, Hp, Wp) complex OTFs of the cells' PSFs (unit mass)
+    mu: np.ndarray  # (M,) each cell's open area, relative
+    S: np.ndarray  # (Hp, Wp) prior spectrum
+    sharp: np.ndarray  # (H, W, C)
+    mask: np.ndarray  # (H, W) moving objects away from the shift's edge columns
+    pad: int
+    noise: tuple  # (a, b, level, kappa)
+    render_var: float  # the store's Monte Carlo variance, white = 1 (told, as the scorer's)
+    contrast: float | None
+    cells_ij: np.ndarray
+    cells: int
+
+
+def _areas(basis) -> np.ndarray:
+    """Each cell's open area in the clear aperture, a fraction of pi R_max^2 (its LCoS pixels
+    that a mask may open, :func:`~pacam_render.lightfield.cell_basis.lens_pixels`)."""
+    D, G = basis.display_px, basis.cells
+    per = D // G
+    ok = lens_pixels(D, basis.pitch_mm).reshape(G, per, G, per).sum(axis=(1, 3))
+    return ok[basis.cells_ij[:, 0], basis.cells_ij[:, 1]] / (math.pi * (D / 2.0) ** 2)
+
+
+def _cell_otfs(basis, cam, shape) -> tuple[np.ndarray, int]:
+    """(M, Hp, Wp) OTFs of each cell's unit-mass s = 0 PSF (its square, imaged at beta times
+    its place: :func:`~pacam_render.psf.bitmap.bitmap_kernel`, pinhole origin), on the padded
+    grid of a (H, W) window, and the padding (px)."""
+    G, pitch = basis.cells, basis.display_px * basis.pitch_mm / basis.cells
+    size = bitmap_kernel(np.ones((1, G, G)), pitch, cam.beta_px_per_mm, cam.T_ms,
+                         origin="pinhole").shape[0]  # fmt: skip
+    pad = size // 2 + SHIFT_PX + 1
+    if pad >= min(shape):
+        raise ParameterError(f"the window {shape} is narrower than the kernel's reach {pad} px")
+    Hp, Wp = shape[0] + 2 * pad, shape[1] + 2 * pad
+    out = np.empty((len(basis.cells_ij), Hp, Wp), complex)
+    for m, (i, j) in enumerate(basis.cells_ij):
+        one = np.zeros((1, G, G))
+        one[0, i, j] = 1.0
+        k = bitmap_kernel(one, pitch, cam.beta_px_per_mm, cam.T_ms, size=size, origin="pinhole")
+        big = np.zeros((Hp, Wp))
+        big[:size, :size] = k
+        out[m] = np.fft.fft2(np.roll(big, (-(size // 2), -(size // 2)), axis=(0, 1)))
+    return out, pad
+
+
+def _noise_terms(template, sensor: str, light_level: float) -> tuple:
+    """(a, b, level, kappa): the sensor's variance a + b e- (EMVA linear model), the scene's
+    mean level (white = 1) and the electrons of white through the full lens (kappa L is a
+    design's, light factor L)."""
+    rec = template.record
+    model = SensorModel.from_preset(sensor)
+    a = float(model.temporal_noise_e(0.0, rec.exposure_ms)) ** 2
+    b = float(model.temporal_noise_e(1.0, rec.exposure_ms)) ** 2 - a
+    kappa = model.qe * light_level * rec.reference_exposure_ms
+    return a, b, clean_level(template), kappa
+
+
+def sigma2(noise, L: float) -> tuple[float, float]:
+    """The sensor's noise variance in white = 1 units at light factor L, and d/dL."""
+    a, b, level, kappa = noise
+    e = kappa * L
+    return (a + b * level * e) / e**2, (-2 * a / e**3 - b * level / e**2) * kappa
+
+
+def cell_problem(basis, template, plan, base_code, sensor: str, light_level: float,
+                 dtype=np.float32):  # fmt: skip
+    """The fixed terms (:class:`CellProblem`) of one store's objective: ``template`` the base
+    design's synthesised capture (truth, objects, exposure), ``plan`` its capture plan (camera,
+    windows), ``base_code`` (n, G, G) that design on the cells (the prior's kernel).
+    ``dtype`` of the capture's matrix products: float32 (the basis's own, 3x faster) or
+    float64 (for finite differences finer than float32's rounding)."""
+    layers, rec = template.extra_layers, template.record
+    if RI_LAYER in layers:
+        raise ParameterError("the cell objective assumes no relative illumination (cos4 off)")
+    moving = moving_shapes(layers, rec.objects or {})
+    ids = layers["object_id"]
+    mask = np.isin(ids, [int(k) for k, v in (rec.objects or {}).items() if v in moving])
+    mask[:, :SHIFT_PX] = mask[:, ids.shape[1] - SHIFT_PX :] = False
+    if not mask.any():
+        raise ParameterError("the window shows no moving object: the objective scores them")
+    dp = plan.aperture(plan.sensor_params())
+    dt = np.diff(dp.pattern_edges) / (dp.t_close - dp.t_open)
+    area = _areas(basis)
+    sharp = layers["sharp"]
+    sharp = sharp[..., None] if sharp.ndim == 2 else sharp
+    Qhat, pad = _cell_otfs(basis, plan.cam, sharp.shape[:2])
+    noise = _noise_terms(template, sensor, light_level)
+    render = flat_sigma(template, rec.render_error.mc_sigma_white_units) ** 2
+    B = np.asarray(basis.images, dtype)
+    p = CellProblem(B, dt[:, None] * area[None], dt, Qhat, area, None, sharp, mask,
+                    pad, noise, render, basis.contrast, basis.cells_ij, basis.cells)  # fmt: skip
+    u = np.asarray(base_code, float)[:, basis.cells_ij[:, 0], basis.cells_ij[:, 1]].T @ dt
+    p.S = _prior(p, template, rec.light_factor, u)
+    return p
+
+
+def _prior(p: CellProblem, template, light_factor: float, u: np.ndarray) -> np.ndarray:
+    """The 1/f^2 prior S = c g(f) on the padded grid, c fitted (:func:`~pacam_render.restore.
+    deconvolve.prior_spectrum`) to the base design's capture with one draw of its noise and
+    its kernel (cells open for times ``u``)."""
+    img = np.asarray(template.image, float)
+    img = img[..., None] if img.ndim == 2 else img
+    s2 = sigma2(p.noise, light_factor)[0]
+    z = img.mean(axis=-1) / light_factor
+    z = z + np.random.default_rng(0).normal(0, math.sqrt(s2), z.shape)
+    s2 += p.render_var
+    zp = np.pad(z, p.pad, mode="reflect")
+    Y = np.fft.rfft2(zp)
+    K = np.tensordot(u * p.mu, p.Qhat, axes=1) / float(u @ p.mu)
+    H2 = np.abs(K[:, : Y.shape[1]]) ** 2
+    S_r = prior_spectrum(Y, H2, zp.shape, math.sqrt(s2))
+    fy, fx = np.fft.fftfreq(zp.shape[0]), np.fft.fftfreq(zp.shape[1])
+    f0 = 1.0 / max(zp.shape)
+    g = 1.0 / (fy[:, None] ** 2 + fx[None, :] ** 2 + f0**2)
+    c = float(S_r[0, 1] * (fy[0] ** 2 + np.fft.rfftfreq(zp.shape[1])[1] ** 2 + f0**2))
+    return c * g  # per-pixel units: E|X|^2 = S under the unitary FFT
+
+
+def _flat(B: np.ndarray) -> np.ndarray:
+    """The basis as a (n M, H W C) matrix: a view of a contiguous basis (a matrix product,
+    not an einsum's copy)."""
+    return B.reshape(B.shape[0] * B.shape[1], -1)
+
+
+def _pad_index(shape, pad: int) -> np.ndarray:
+    """The flat window index of each padded pixel (reflect padding): forward ``z[idx]``,
+    adjoint a bincount over ``idx``."""
+    return np.pad(np.arange(shape[0] * shape[1]).reshape(shape), pad, mode="reflect")
+
+
+def objective(p: CellProblem, code, grad: bool = True):
+    """Expected moving-object PSNR (dB) of ``code`` (n, G, G) in [0, 1] on one store, and its
+    gradient d PSNR / d code (n, G, G) when ``grad`` (module docstring; adjoint by hand)."""
+    A = np.asarray(code, float)
+    C = p.contrast
+    scale = 1.0 if C is None else 1.0 - 1.0 / C
+    w = scale * A[:, p.cells_ij[:, 0], p.cells_ij[:, 1]] + (0.0 if C is None else 1.0 / C)
+    fwd = _forward(p, w)
+    if not grad:
+        return fwd["psnr"], None
+    gw = _backward(p, w, fwd)
+    out = np.zeros_like(A)
+    out[:, p.cells_ij[:, 0], p.cells_ij[:, 1]] = scale * gw
+    return fwd["psnr"], out
+
+
+def _forward(p: CellProblem, w: np.ndarray) -> dict:
+    """The objective's forward pass, keeping what the adjoint needs."""
+    H, W, Ch = p.sharp.shape
+    y = (w.ravel().astype(p.B.dtype) @ _flat(p.B)).reshape(H, W, Ch).astype(float)
+    L = float(np.sum(w * p.lam))
+    if L <= 0:
+        raise ParameterError("code: an all-black code collects no light")
+    s2, ds2 = sigma2(p.noise, L)
+    idx = _pad_index((H, W), p.pad)
+    zp = (y / L).reshape(H * W, Ch)[idx]  # (Hp, Wp, C)
+    Z = np.fft.fft2(zp, axes=(0, 1), norm="ortho")
+    u = w.T @ p.dt  # (M,) each cell's open time
+    mass = float(u @ p.mu)
+    Kh = np.tensordot(u * p.mu, p.Qhat, axes=1) / mass
+    D = np.abs(Kh) ** 2 + (s2 + p.render_var) / p.S
+    Wf = np.conj(Kh) / D
+    xp = np.fft.ifft2(Wf[..., None] * Z, axes=(0, 1), norm="ortho").real
+    best = None
+    for sh in range(-SHIFT_PX, SHIFT_PX + 1):
+        r = (xp[p.pad : p.pad + H, p.pad + sh : p.pad + sh + W] - p.sharp) * p.mask[..., None]
+        se = float(np.sum(r * r))
+        if best is None or se < best[0]:
+            best = (se, sh, r)
+    n_px = int(p.mask.sum()) * Ch
+    w2 = float(np.mean(np.abs(Wf) ** 2))
+    E = best[0] + n_px * s2 * w2
+    return dict(y=y, L=L, s2=s2, ds2=ds2, idx=idx, Z=Z, u=u, mass=mass, Kh=Kh, D=D, Wf=Wf,
+                shift=best[1], r=best[2], n_px=n_px, w2=w2, E=E,
+                psnr=-10.0 * math.log10(E / n_px))  # fmt: skip
+
+
+def _backward(p: CellProblem, w: np.ndarray, f: dict) -> np.ndarray:
+    """d PSNR / d w (n, M): the adjoint of :func:`_forward` (dE = Re sum conj(G) dX for
+    each complex intermediate X, unitary FFTs)."""
+    H, W, Ch = p.sharp.shape
+    gE = -10.0 / (math.log(10.0) * f["E"])
+    g_xp = np.zeros(f["Z"].shape)
+    sh = f["shift"]
+    g_xp[p.pad : p.pad + H, p.pad + sh : p.pad + sh + W] = 2.0 * f["r"]
+    G_X = np.fft.fft2(g_xp, axes=(0, 1), norm="ortho")
+    G_Z = np.conj(f["Wf"])[..., None] * G_X
+    G_W = (
+        np.sum(G_X * np.conj(f["Z"]), axis=-1) + 2.0 * f["n_px"] * f["s2"] / f["Wf"].size * f["Wf"]
+    )
+    g_s2 = f["n_px"] * f["w2"]
+    Kh, D = f["Kh"], f["D"]
+    G_K = np.conj(G_W) / D
+    q = np.real(np.conj(G_W) * np.conj(Kh)) / D**2
+    G_K = G_K - 2.0 * q * Kh
+    g_s2 += float(np.sum(-q / p.S))  # the regulariser's sensor share
+    # Kh = sum_m u_m mu_m Q_m / mass: dKh/du_m = mu_m (Q_m - Kh) / mass
+    proj = np.real(np.tensordot(p.Qhat.reshape(len(p.mu), -1), np.conj(G_K).ravel(), axes=1))
+    g_u = p.mu * (proj - float(np.real(np.sum(np.conj(G_K) * Kh)))) / f["mass"]
+    g_zp = np.fft.ifft2(G_Z, axes=(0, 1), norm="ortho").real
+    g_z = np.stack([np.bincount(f["idx"].ravel(), g_zp[..., c].ravel(), minlength=H * W)
+                    for c in range(Ch)], axis=-1).reshape(H, W, Ch)  # fmt: skip
+    L = f["L"]
+    g_y = g_z / L
+    g_L = -float(np.sum(g_z * f["y"])) / L**2 + g_s2 * f["ds2"]
+    g_w = (_flat(p.B) @ g_y.ravel().astype(p.B.dtype)).reshape(w.shape).astype(float)
+    g_w += g_L * p.lam + p.dt[:, None] * g_u[None, :]
+    return gE * g_w
+
+
+def mean_objective(problems, code, grad: bool = True):
+    """The mean over the stores of :func:`objective` (dB) and its gradient."""
+    vals = [objective(p, code, grad) for p in problems]
+    g = None if not grad else sum(v[1] for v in vals) / len(vals)
+    return float(np.mean([v[0] for v in vals])), g
