@@ -26,7 +26,7 @@ from ..model.camera import preset
 from .crossover_map import map_applies, map_section, write_map
 from .paired import paired_section
 from .results import RESULTS, read_csv
-from .small_multiples import curves_section, write_curves
+from .small_multiples import curves_section, mode_curves, write_curves
 from .spec import StudySpec
 
 NUMERIC = (
@@ -158,10 +158,13 @@ def write_report(spec: StudySpec, out: Path) -> list[str]:
     if ok and map_applies(ok):  # light level x speed with several cameras
         files.append(write_map(out, ok, title))
         text += map_section(ok)
-    if spec.report == "crossover" and ok:
+    if spec.report == "crossover" and ok and mode_curves(ok):
         files.append(write_curves(out, ok, title))
         text += curves_section(ok)
         text += _crossover_text(ok)
+    elif spec.report == "crossover" and ok:  # no moving object scored: no curves to draw
+        text += ["No point scored a moving object (too few visible pixels, or none moves): "
+                 "the crossover curves are not drawn.", ""]  # fmt: skip
     if spec.report == "speed" and ok:
         for y, name in (("psnr_moving_db", "speed"), ("psnr_moving_interior_db", "speed_interior")):
             data = curves_ci(ok, "speed_px_per_ms", y, LIGHT)

@@ -43,7 +43,7 @@ from ..restore.capture_deblur import MODEL_ERRORS
 from ..restore.deconvolve import METHODS, require_method
 from ..scenes.builtin import BUILTIN_SCENES
 from ..scenes.description import file_digest
-from ..scenes.family.spec import is_family_name, parse_family_name
+from ..scenes.family.spec import family_seeds, is_family_name, parse_family_name
 from ..sensor.model import SensorModel
 from ..sensor.presets import mono_preset
 from ..sensor.radiometry import DEFAULT_LIGHT_LEVEL, check_light_level
@@ -501,6 +501,11 @@ def _combinations(grid: dict, where: str) -> list[dict]:
     for key, values in grid.items():
         if not isinstance(values, list) or not values:
             raise ParameterError(f"{where} {key} must be a non-empty list, got {values!r}")
+    grid = dict(grid)
+    if "scene" in grid:  # family:NAME:FIRST-LAST lists its seeds
+        grid["scene"] = [
+            n for v in grid["scene"] for n in (family_seeds(v) if isinstance(v, str) else [v])
+        ]
     return [dict(zip(grid, vals)) for vals in itertools.product(*grid.values())]
 
 

@@ -403,3 +403,47 @@ def test_an_spp_without_a_noise_ratio_is_the_samples(tmp_path):
     assert both.render["noise_ratio"] == 0.2  # given with it, the spp is the pilot's
     default = _tiny(tmp_path, TINY.replace("spp = 4\nnoise_ratio = 0.2\n", ""))
     assert default.render["noise_ratio"] == 0.2
+
+
+def test_a_family_range_is_a_scene_axis_of_its_seeds():
+    """Issue 57 item 4: ``family:NAME:FIRST-LAST`` in the scene axis lists its seeds (one
+    render group per scene); a bad range or family is refused naming it."""
+    spec = parse_study({"grid": {"scene": ["family:occluders:3-5", "train"], "mode": ["coded"]}})
+    assert [p.scene for p in spec.points] == [
+        "family:occluders:3", "family:occluders:4", "family:occluders:5", "train"
+    ]  # fmt: skip
+    assert len(spec.groups()) == 4
+    with pytest.raises(ParameterError, match="FIRST <= LAST"):
+        parse_study({"grid": {"scene": ["family:occluders:5-3"]}})
+    with pytest.raises(ParameterError, match="occludrs"):
+        parse_study({"grid": {"scene": ["family:occludrs:1-2"]}})
+
+
+@pytest.mark.render
+def test_a_study_runs_over_family_seeds(tmp_path):
+    """Two seeds of the occluders family, each its own scene, scored on their moving
+    objects (a window of the family's where both seeds have some)."""
+    text = TINY.replace(
+        "width = 48\nheight = 36", "width = 1280\nheight = 960\ncrop = [640, 430, 96, 72]"
+    )
+    text = text.replace(
+        'mode = ["coded", "short"]', 'mode = ["coded"]\nscene = ["family:occluders:0-1"]'
+    )
+    text = text.replace("light_level = [30.0, 3000.0]", "light_level = [300.0]")
+    run_study(_tiny(tmp_path, text), tmp_path / "out", workers=0, progress=False)
+    rows = _rows(tmp_path / "out")
+    assert [r["scene"] for r in rows] == ["family:occluders:0", "family:occluders:1"]
+    assert all(r["status"] == "ok" and float(r["psnr_moving_db"]) > 0 for r in rows)
+
+
+@pytest.mark.render
+def test_a_crossover_study_without_a_scored_moving_object_reports_without_curves(tmp_path):
+    """At 48x36 the family's objects are a few pixels: no moving object is scored, and the
+    report says so instead of failing to draw empty small multiples."""
+    text = TINY.replace(
+        'mode = ["coded", "short"]', 'mode = ["coded"]\nscene = ["family:occluders:0"]'
+    )
+    text = text.replace("light_level = [30.0, 3000.0]", "light_level = [300.0]")
+    run_study(_tiny(tmp_path, text), tmp_path / "out", workers=0, progress=False)
+    assert _rows(tmp_path / "out")[0]["psnr_moving_db"] == "nan"
+    assert "crossover curves are not drawn" in (tmp_path / "out" / "report.md").read_text()

@@ -14,7 +14,7 @@ Importing this package does not import Mitsuba.
 """
 
 from .draw import SHAPES, FamilyObject
-from .spec import FAMILIES, FAMILY_VERSION, parse_family_name, resolve_params
+from .spec import FAMILIES, FAMILY_VERSION, family_seeds, parse_family_name, resolve_params
 from .textures import PHOTOS
 from .write import family_scene, generate_scene
 
@@ -26,6 +26,7 @@ __all__ = [
     "FamilyObject",
     "family_scene",
     "generate_scene",
+    "family_seeds",
     "parse_family_name",
     "resolve_params",
 ]

@@ -134,6 +134,35 @@ def parse_family_name(name: str) -> tuple[str, int]:
     return family, check_seed(parts[2])
 
 
+MAX_SEEDS_LISTED = 10_000
+"""The most seeds one ``family:NAME:FIRST-LAST`` range may list."""
+
+
+def family_seeds(name: str) -> list[str]:
+    """The scene names a ``family:NAME:FIRST-LAST`` range lists (inclusive), or ``[name]``.
+
+    Examples
+    --------
+    >>> family_seeds("family:occluders:3-5")
+    ['family:occluders:3', 'family:occluders:4', 'family:occluders:5']
+    >>> family_seeds("family:still:7")
+    ['family:still:7']
+    """
+    head, _, tail = name.rpartition(":")
+    if not is_family_name(name) or "-" not in tail:
+        return [name]
+    first, _, last = tail.partition("-")
+    if not (first.isdigit() and last.isdigit()) or int(last) < int(first):
+        raise ParameterError(
+            f"a family range is family:NAME:FIRST-LAST with integers FIRST <= LAST, got {name!r}"
+        )
+    if int(last) - int(first) + 1 > MAX_SEEDS_LISTED:
+        raise ParameterError(f"{name!r} lists more than {MAX_SEEDS_LISTED} seeds")
+    names = [f"{head}:{s}" for s in range(int(first), int(last) + 1)]
+    parse_family_name(names[0])  # the family itself is known
+    return names
+
+
 def is_family_name(name: object) -> bool:
     """Whether ``name`` is meant as a family scene (starts with ``family:``)."""
     return isinstance(name, str) and name.startswith(FAMILY_PREFIX)
