@@ -16,7 +16,7 @@ from pathlib import Path
 from ..errors import FileKeyError, ParameterError, did_you_mean
 from ..exposure.optics.diffraction import check_diffraction
 from ..exposure.spec import CaptureSpec, check_crop
-from ..io.toml_file import read_toml
+from ..io.toml_file import check_keys, read_toml, sub_table
 from ..model.modes import MODES
 from ..render.samplers import DEFAULT_SAMPLER, check_sampler
 from ..scenes.builtin import BUILTIN_SCENES
@@ -121,23 +121,23 @@ def parse_spec(doc: dict, base: Path | None = None) -> DatasetSpec:
 
 
 def _parse(doc: dict, base: Path) -> DatasetSpec:
-    _keys(doc, "the spec", TOP_KEYS)
+    check_keys(doc, "the spec", TOP_KEYS)
     seed = _int(doc.get("seed", 0), "seed", 0, MAX_SEED - 1)
     name = doc.get("name", "dataset")
     if not isinstance(name, str) or not name:
         raise ParameterError(f"`name` must be a non-empty string, got {name!r}")
     scenes, family, params = _scenes(doc.get("scenes"), base)
-    capture, sampling = _capture(_table(doc, "capture"))
-    sensor, levels = _sensor(_table(doc, "sensor"))
+    capture, sampling = _capture(sub_table(doc, "capture"))
+    sensor, levels = _sensor(sub_table(doc, "sensor"))
     model = SensorModel.from_preset(sensor)
     if model.bayer is None and model.shot_noise:  # a monochrome sensor sees one channel
         capture["grey"] = True  # as `pacam render --sensor` renders for it
     cameras = _cameras(doc.get("cameras"), base, capture)
-    psf = _table(doc, "psf")
-    _keys(psf, "[psf]", PSF_KEYS)
+    psf = sub_table(doc, "psf")
+    check_keys(psf, "[psf]", PSF_KEYS)
     v = _number(psf.get("velocity_px_per_ms", 0.0), "[psf] velocity_px_per_ms", -1e3, 1e3)
-    run = _table(doc, "run")
-    _keys(run, "[run]", RUN_KEYS)
+    run = sub_table(doc, "run")
+    check_keys(run, "[run]", RUN_KEYS)
     store = run.get("store", "auto")
     if store not in STORE_CHOICES:
         raise ParameterError(
@@ -160,7 +160,7 @@ def _scenes(value, base: Path) -> tuple[tuple[str, ...], str | None, dict | None
             "family and seeds"
         )
     if isinstance(value, dict):
-        _keys(value, "[scenes]", SCENE_KEYS)
+        check_keys(value, "[scenes]", SCENE_KEYS)
         if "list" in value:
             if set(value) - {"list"}:
                 raise ParameterError("[scenes] list cannot go with family, seeds or params")
@@ -224,7 +224,7 @@ def _family(table: dict) -> tuple[tuple[str, ...], str, dict | None]:
 
 def _capture(t: dict) -> tuple[dict, dict]:
     """The CaptureSpec fields every sample shares, and the sampling keys outside them."""
-    _keys(t, "[capture]", CAPTURE_KEYS)
+    check_keys(t, "[capture]", CAPTURE_KEYS)
     width = _int(t.get("width", 320), "[capture] width", 2, 100_000)
     height = _int(t.get("height", 240), "[capture] height", 2, 100_000)
     crop = t.get("crop")
@@ -265,7 +265,7 @@ def _capture(t: dict) -> tuple[dict, dict]:
 
 
 def _sensor(t: dict) -> tuple[str, tuple[float, ...]]:
-    _keys(t, "[sensor]", SENSOR_KEYS)
+    check_keys(t, "[sensor]", SENSOR_KEYS)
     preset = t.get("preset", "grasshopper-icx285")
     if not isinstance(preset, str):
         raise ParameterError(f"[sensor] preset must be a preset's name or file, got {preset!r}")
@@ -302,7 +302,7 @@ def _camera(c, i: int, base: Path) -> Camera:
     where = f"[[cameras]] #{i + 1}"
     if not isinstance(c, dict):
         raise ParameterError(f"{where} must be a table, got {c!r}")
-    _keys(c, where, CAMERA_KEYS)
+    check_keys(c, where, CAMERA_KEYS)
     mode = c.get("mode", "coded")
     if mode not in MODES:
         raise ParameterError(
@@ -324,22 +324,6 @@ def _camera(c, i: int, base: Path) -> Camera:
         if key in c:
             fields[spec_key] = _number(c[key], f"{where} {key}", 1e-9, 1e9)
     return Camera(name, fields)
-
-
-def _table(doc: dict, key: str) -> dict:
-    value = doc.get(key, {})
-    if not isinstance(value, dict):
-        raise ParameterError(f"[{key}] must be a table, got {type(value).__name__}")
-    return value
-
-
-def _keys(table: dict, where: str, valid: set) -> None:
-    unknown = sorted(set(table) - valid)
-    if unknown:
-        raise ParameterError(
-            f"{where}: unknown key {unknown[0]!r}{did_you_mean(unknown[0], valid)}; valid keys: "
-            f"{', '.join(sorted(valid))}"
-        )
 
 
 def _int(value, key: str, lo: int, hi: int) -> int:

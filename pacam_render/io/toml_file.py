@@ -7,7 +7,7 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-from ..errors import ParameterError
+from ..errors import ParameterError, did_you_mean
 
 BOM = "\ufeff"
 
@@ -55,3 +55,23 @@ def parse_toml(text: str, where: str) -> dict:
 def read_toml(path: str | os.PathLike, what: str = "file") -> dict:
     """:func:`read_text` then :func:`parse_toml`."""
     return parse_toml(read_text(path, what), f"{what} {str(path)!r}")
+
+
+def sub_table(doc: dict, key: str, where: str | None = None) -> dict:
+    """``doc[key]`` (empty when absent), refused unless it is a table; ``where`` names it in
+    the message (default ``[key]``)."""
+    value = doc.get(key, {})
+    if not isinstance(value, dict):
+        raise ParameterError(f"{where or f'[{key}]'} must be a table, got {type(value).__name__}")
+    return value
+
+
+def check_keys(table: dict, where: str, valid: set) -> None:
+    """Refuse a key of ``table`` not in ``valid``, naming it, the closest valid key and all
+    of them."""
+    unknown = sorted(set(table) - valid)
+    if unknown:
+        raise ParameterError(
+            f"{where}: unknown key {unknown[0]!r}{did_you_mean(unknown[0], valid)}; valid keys: "
+            f"{', '.join(sorted(valid))}"
+        )

@@ -32,7 +32,7 @@ from ..errors import FileKeyError, ParameterError, did_you_mean
 from ..exposure.camera import capture_design
 from ..exposure.optics.diffraction import check_diffraction
 from ..exposure.spec import CaptureSpec
-from ..io.toml_file import parse_toml, read_text
+from ..io.toml_file import check_keys, parse_toml, read_text, sub_table
 from ..limits import note
 from ..model.design_file import read_design
 from ..model.illumination import parse_relative_illumination
@@ -315,30 +315,30 @@ def parse_study(doc: dict, quick: bool = False, source: str = "", grey: bool = F
 
 
 def _parse(doc: dict, quick: bool, source: str, grey: bool = False) -> StudySpec:
-    _keys(doc, "the study file", {"study", "render", "grid", "points", "quick"})
-    head = _table(doc, "study")
-    _keys(head, "[study]", {"name", "report", "description", "decompose", "model_error"})
+    check_keys(doc, "the study file", {"study", "render", "grid", "points", "quick"})
+    head = sub_table(doc, "study")
+    check_keys(head, "[study]", {"name", "report", "description", "decompose", "model_error"})
     if not isinstance(head.get("decompose", False), bool):
         raise ParameterError(f"[study] decompose must be true or false, got {head['decompose']!r}")
     model_error = check_model_error(head.get("model_error", "none"))
     report = head.get("report", "table")
     if report not in REPORTS:
         raise ParameterError(f"[study] report must be one of {', '.join(REPORTS)}, got {report!r}")
-    given = _table(doc, "render")
+    given = sub_table(doc, "render")
     render = {**RENDER, **given}
     if "spp" in given and "noise_ratio" not in given:  # the samples asked for, not a default
         render["noise_ratio"] = None  # target's (which took over with no word)
     grid, points = doc.get("grid", {}), doc.get("points", [])
     if quick:
-        q = _table(doc, "quick")
-        _keys(q, "[quick]", {"render", "grid"})
-        render.update(_table(q, "render", "[quick] render") if q else QUICK_RENDER)
+        q = sub_table(doc, "quick")
+        check_keys(q, "[quick]", {"render", "grid"})
+        render.update(sub_table(q, "render", "[quick] render") if q else QUICK_RENDER)
         small = q.get("grid", {})
         both = isinstance(grid, dict) and isinstance(small, dict)
         grid = {**grid, **small} if both else small
     if grey:
         render["grey"] = True
-    _keys(
+    check_keys(
         render,
         "[render]",
         set(RENDER) | {"grey", DIFFRACTION_RENDER, RELATIVE_ILLUMINATION_RENDER, LIGHTFIELD_RENDER},
@@ -406,21 +406,6 @@ def _check_lightfield(render: dict, points) -> None:
         raise ParameterError(
             "[render] lightfield cannot serve mode 'levin': Levin's camera moves its body, so "
             "its rays are not the store's; leave it out of the grid, or render directly"
-        )
-
-
-def _table(doc: dict, key: str, where: str | None = None) -> dict:
-    value = doc.get(key, {})
-    if not isinstance(value, dict):
-        raise ParameterError(f"{where or key!r} must be a table, got {type(value).__name__}")
-    return value
-
-
-def _keys(table: dict, where: str, valid: set) -> None:
-    unknown = sorted(set(table) - valid)
-    if unknown:
-        raise ParameterError(
-            f"{where}: unknown key {unknown[0]!r}; valid keys: {', '.join(sorted(valid))}"
         )
 
 
@@ -497,7 +482,7 @@ def _grey_sensor(name):
 def _combinations(grid: dict, where: str) -> list[dict]:
     if not isinstance(grid, dict):
         raise ParameterError(f"{where} must be a table of axes, got {type(grid).__name__}")
-    _keys(grid, where, set(AXES))
+    check_keys(grid, where, set(AXES))
     for key, values in grid.items():
         if not isinstance(values, list) or not values:
             raise ParameterError(f"{where} {key} must be a non-empty list, got {values!r}")
@@ -522,7 +507,7 @@ def _expand(grid, points: list, render: dict) -> tuple[Point, ...]:
     if not isinstance(points, list) or not all(isinstance(p, dict) for p in points):
         raise ParameterError("[[points]] must be an array of tables")
     for k, p in enumerate(points):
-        _keys(p, f"[[points]] #{k + 1}", set(AXES))
+        check_keys(p, f"[[points]] #{k + 1}", set(AXES))
     out, seen = [], set()
     for combo in combos + points:
         values = {**AXES, "sensor": render["sensor"], "scene": render["scene"], **combo}
