@@ -6,7 +6,7 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
-NUMBER = re.compile(r"-?\d+(\.\d+)?(e[+-]?\d+)?")
+NUMBER = re.compile(r"[-+]?\d+(\.\d+)?(e[+-]?\d+)?")
 """A number in a printed line (masked before comparing: timings and noise vary)."""
 
 

@@ -3,6 +3,7 @@ aligned at 15 px for one seed and 0 px for another, its checker's period being a
 References: the parabola's vertex s^2 / (2 |a_i|) in closed form, and a textured object whose
 restoration is its truth shifted by that much."""
 
+import itertools
 import json
 from types import SimpleNamespace
 
@@ -20,26 +21,36 @@ A_I, T, R = -0.0398, 22.5, 2.0
 OPTICS = {"a_i_px_per_ms2": A_I, "T_ms": T, "r_px": R, "schedule_kind": "parabolic"}
 
 
-@pytest.mark.parametrize("s", [0.0, 0.3, 0.5, 0.896, -0.7])
+@pytest.mark.parametrize("s", [0.0, 0.3, 0.5, 0.89, -0.7])
 def test_inside_the_range_the_bound_is_the_vertex_plus_the_slack(s):
     want = int(np.ceil(s * s / (2 * abs(A_I)))) + SHIFT_SLACK_PX + int(np.ceil(R))
     assert physical_shift_px(s, "coded", OPTICS, 32) == want
 
 
-def test_beyond_the_range_it_grows_with_the_travel_and_is_capped():
-    edge = abs(A_I) * T
-    at, past = (
-        physical_shift_px(edge, "coded", OPTICS, 99),
-        physical_shift_px(1.4, "coded", OPTICS, 99),
-    )
-    assert past > at
-    assert past == int(np.ceil(1.4 * T - abs(A_I) * T * T / 2)) + SHIFT_SLACK_PX + 2
-    assert physical_shift_px(1.4, "coded", OPTICS, 8) == 8
+def test_beyond_the_range_it_is_the_paths_reach_and_is_capped():
+    """Beyond the range the restored object can sit anywhere along the relative path
+    s t + a_i t^2 / 2, t in [-T, T]: its largest |x| (brute force over t)."""
+    t = np.linspace(-T, T, 100_001)
+    reach = np.abs(1.4 * t + A_I * t * t / 2).max()
+    past = physical_shift_px(1.4, "coded", OPTICS, 99)
+    assert past == int(np.ceil(reach - 1e-9)) + SHIFT_SLACK_PX + 2
+    assert past > physical_shift_px(0.89, "coded", OPTICS, 99)
+    assert physical_shift_px(1.4, "coded", OPTICS, 32) == 32
 
 
-def test_a_still_opening_has_no_shift_and_a_designed_schedule_no_bound():
+def test_a_still_opening_has_no_shift_and_a_designed_schedule_its_paths_reach():
+    """Designed centres: |s| T + |beta| x the centres' span (the relative path's reach, brute
+    force over the patterns' positions); the flutter shutter: |s| T; no exposure: no bound."""
     assert physical_shift_px(1.0, "normal", OPTICS, 32) == SHIFT_SLACK_PX + 2
-    assert physical_shift_px(1.0, "coded", {**OPTICS, "schedule_kind": "centres"}, 32) == 32
+    centres = [[-1.0, 0.0], [2.5, 0.0], [float("nan"), float("nan")], [0.5, 0.0]]
+    design = {**OPTICS, "schedule_kind": "centres", "pattern_centres_xy_mm": centres,
+              "beta_px_per_mm": -1.009}  # fmt: skip
+    span = max(abs(-1.009 * (a - b)) for (a, _), (b, _) in itertools.product(
+        [c for c in centres if c[0] == c[0]], repeat=2))  # fmt: skip
+    want = int(np.ceil(0.5 * T + span)) + SHIFT_SLACK_PX + 2
+    assert physical_shift_px(0.5, "coded", design, 99) == want
+    assert physical_shift_px(0.5, "flutter", OPTICS, 99) == int(np.ceil(0.5 * T)) + 4
+    assert physical_shift_px(0.5, "coded", {**design, "T_ms": None}, 32) == 32
 
 
 def _capture(speed: float, est_shift: int):
