@@ -315,8 +315,20 @@ def _toml_value(v) -> str:
     raise TypeError(f"cannot write {v!r} to TOML")
 
 
+def as_read_back(cam: CameraDesign) -> CameraDesign:
+    """``cam`` as its design file reads back: a bitmap schedule's opening R is its masks'
+    equivalent radius (:func:`_opening`), whatever R the camera it was made from kept, so the
+    header's digest is the read camera's (else every read said the file was edited)."""
+    if cam.pattern_masks is None:
+        return cam
+    R = cam.pattern_masks.equivalent_radius_mm()
+    return cam if cam.R_mm == R else cam.with_(R_mm=R)
+
+
 def design_toml(cam: CameraDesign, masks_name: str | None = None) -> str:
-    """The text of a design file for ``cam`` (exact: floats are written with repr)."""
+    """The text of a design file for ``cam`` (exact: floats are written with repr); the
+    header's digest is that of the camera the file reads back as (:func:`as_read_back`)."""
+    cam = as_read_back(cam)
     d = design_to_dict(cam, masks_name)
     fig = cam.summary()
     a_i = fig["a_i_px_per_ms2"]

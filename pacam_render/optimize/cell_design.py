@@ -10,7 +10,7 @@ import numpy as np
 
 from ..errors import ParameterError
 from ..exposure.plan import plan_capture
-from ..model.design_file import write_design
+from ..model.design_file import as_read_back, write_design
 from ..model.masks import MaskStack
 
 
@@ -39,11 +39,12 @@ def disc_code(plan, cells: int) -> np.ndarray:
 
 def bitmap_design(plan, basis, code, name: str = "pacam optimize --space bitmap"):
     """The base design of ``plan`` at its full sensor size showing ``code`` on ``basis``'s
-    cells (:meth:`~pacam_render.lightfield.cell_basis.CellBasis.masks`)."""
+    cells (:meth:`~pacam_render.lightfield.cell_basis.CellBasis.masks`), its opening R the
+    masks' equivalent radius (the camera its design file reads back as)."""
     stack = MaskStack(basis.masks(code), basis.pitch_mm, name="cell code")
     d = plan.design.with_(width_px=plan.full.width_px, height_px=plan.full.height_px)
-    return d.with_(pattern_centres_mm=None, pattern_masks=stack, quoted_a_i_px_per_ms2=None,
-                   name=name)  # fmt: skip
+    return as_read_back(d.with_(pattern_centres_mm=None, pattern_masks=stack,
+                                quoted_a_i_px_per_ms2=None, name=name))  # fmt: skip
 
 
 def bitmap_design_spec(spec, basis, code, path):

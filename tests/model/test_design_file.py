@@ -250,3 +250,31 @@ def test_square_masks_open_squares_centred_where_the_design_frame_says():
     assert np.abs(stack.centroids_xy_mm() - centres).max() < 0.5 * stack.pitch_mm
     side = 2 * 0.5 / stack.pitch_mm  # LCoS px
     assert stack.open_areas_mm2() == pytest.approx(1.0, rel=2 / side)
+
+
+def test_a_bitmap_design_made_from_a_disc_design_reads_back_with_no_warning(tmp_path):
+    """A bitmap design that kept its disc design's R (as ``bitmap_design`` made it) read back
+    as "edited after pacam design wrote it": the file's R is the masks' equivalent radius, and
+    the header's digest was the unwritten R's. Now the header is the read camera's digest, a
+    hand edit is still noted."""
+    import re
+    import warnings
+
+    from pacam_render.limits import PacamWarning
+
+    disc = preset("prototype")
+    stack = _bitmap_design(tmp_path).pattern_masks
+    cam = disc.with_(pattern_masks=stack, n_patterns=stack.n_patterns, pattern_centres_mm=None)
+    assert cam.R_mm != stack.equivalent_radius_mm()  # the disc's R, kept
+    path = tmp_path / "kept_r.toml"
+    write_design(path, cam)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", PacamWarning)
+        back = read_design(path)
+    header = re.search(r"^# digest ([0-9a-f]{16});", path.read_text(), re.MULTILINE).group(1)
+    assert header == back.digest()
+    assert back.R_mm == stack.equivalent_radius_mm()
+    assert back.pattern_masks.digest == stack.digest
+    path.write_text(path.read_text().replace("exposure_ms = 45.0", "exposure_ms = 40.0"))
+    with pytest.warns(PacamWarning, match="was edited after pacam design wrote it"):
+        read_design(path)
