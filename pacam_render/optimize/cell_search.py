@@ -1,6 +1,19 @@
 """Gradient search over cell codes (:mod:`.cell_objective`): a binary LCoS code relaxed to
-[0, 1] by a sigmoid, A = 1 / (1 + exp(-theta)), climbed with Adam on the mean expected
-moving-object PSNR over the training stores, then projected to the LCoS's levels."""
+[0, 1], climbed with Adam on the mean expected moving-object PSNR over the training stores,
+then projected to the LCoS's levels.
+
+``light="free"``: the code is A = 1 / (1 + exp(-theta)), Adam in the logits theta; the total
+light (open area x time) is whatever the search finds, and more light is less sensor noise, so
+a design may win by collecting light alone.
+
+``light="fixed"``: the code keeps the total light L(A) = sum_kc lambda_kc A_kc (:func:`light`)
+equal to a reference's (the prototype's disc, rasterised). Projected Adam in A itself: after
+each step A is the Euclidean projection onto {0 <= A <= 1, L(A) = L_ref} (:func:`project_light`,
+exact: A = clip(A' - nu lambda, 0, 1) with nu found by bisection). A projection, not a penalty:
+the constraint is one linear equality in a box, its projection is exact and cheap, it holds at
+every step, and there is no penalty weight to tune that would trade light against PSNR. The
+binary code keeps it too (:func:`project_levels`: the highest cells opened until the light is
+nearest the reference, within one cell-window's light, 1 / (16 x ~800) of the lens's)."""
 
 from __future__ import annotations
 
@@ -31,12 +44,69 @@ class CellSearch:
     evaluations: int
 
 
+def _check_levels(levels) -> int:
+    if int(levels) != levels or levels < 2:
+        raise ParameterError(f"levels: an integer >= 2, got {levels!r}")
+    return int(levels)
+
+
 def project(code, levels: int = 2) -> np.ndarray:
     """``code`` rounded to ``levels`` equally spaced transmittances (2: binary, the
     prototype's ferroelectric LCoS)."""
-    if int(levels) != levels or levels < 2:
-        raise ParameterError(f"levels: an integer >= 2, got {levels!r}")
-    return np.round(np.asarray(code, float) * (levels - 1)) / (levels - 1)
+    n = _check_levels(levels) - 1
+    return np.round(np.asarray(code, float) * n) / n
+
+
+LIGHT_CHOICES = ("free", "fixed")
+
+
+def light_of(problem, code) -> float:
+    """The code's light factor L: open area x time over pi R_max^2 x T (the objective's,
+    :func:`~.cell_objective.sigma2`'s L, the LCoS's contrast floor left out)."""
+    a = np.asarray(code, float)[:, problem.cells_ij[:, 0], problem.cells_ij[:, 1]]
+    return float(np.sum(a * problem.lam))
+
+
+def _lam_grid(problem, shape) -> np.ndarray:
+    """lambda_kc on the (n, G, G) grid, 0 on cells no lens point reaches."""
+    out = np.zeros(shape)
+    out[:, problem.cells_ij[:, 0], problem.cells_ij[:, 1]] = problem.lam
+    return out
+
+
+def project_light(code, problem, target: float) -> np.ndarray:
+    """The Euclidean projection of ``code`` onto {0 <= A <= 1, L(A) = target}: A = clip(code -
+    nu lambda, 0, 1), nu by bisection (L falls with nu); off-lens cells 0."""
+    lam = _lam_grid(problem, np.shape(code))
+    a = np.where(lam > 0, np.asarray(code, float), 0.0)
+    if not 0.0 < target < lam.sum():
+        raise ParameterError(
+            f"light: a target in (0, {lam.sum():.4g}) (the whole lens), got {target!r}"
+        )
+    x = a / np.where(lam > 0, lam, 1.0)
+    lo, hi = float(np.min(x[lam > 0])) - 1.0 / lam[lam > 0].min(), float(np.max(x[lam > 0]))
+    for _ in range(100):  # L(nu) is monotone: 100 halvings reach float64's resolution
+        nu = 0.5 * (lo + hi)
+        lo, hi = (nu, hi) if np.sum(np.clip(a - nu * lam, 0, 1) * lam) > target else (lo, nu)
+    return np.where(lam > 0, np.clip(a - 0.5 * (lo + hi) * lam, 0.0, 1.0), 0.0)
+
+
+def project_levels(code, problem, target: float, levels: int = 2) -> np.ndarray:
+    """``code`` on ``levels`` equal transmittance steps at the light nearest ``target``: each
+    cell floored to a step, then the cells with the largest remainders raised one step each,
+    as many as bring L nearest the target."""
+    step = 1.0 / (_check_levels(levels) - 1)
+    lam = _lam_grid(problem, np.shape(code))
+    a = np.where(lam > 0, np.asarray(code, float), 0.0)
+    low = np.floor(a / step + 1e-12) * step
+    rest = np.where((lam > 0) & (low < 1.0), a - low, -np.inf).ravel()
+    order = np.argsort(-rest, kind="stable")
+    order = order[np.isfinite(rest[order])]
+    gained = np.concatenate([[0.0], np.cumsum(step * lam.ravel()[order])])
+    count = int(np.argmin(np.abs(float(np.sum(low * lam)) + gained - target)))
+    out = low.ravel().copy()
+    out[order[:count]] += step
+    return out.reshape(low.shape)
 
 
 def adam(problems, theta, iterations: int, step: float, rows: list, t0: float):
@@ -54,8 +124,38 @@ def adam(problems, theta, iterations: int, step: float, rows: list, t0: float):
     return theta
 
 
-def gradient_search(problems, starts: dict, iterations: int = 200, step: float = 0.1,
-                    levels: int = 2) -> CellSearch:  # fmt: skip
+def adam_fixed(problems, a, iterations: int, step: float, rows: list, t0: float,
+               target: float):  # fmt: skip
+    """Projected Adam ascent in the code ``a`` itself, kept at light ``target``
+    (:func:`project_light` after every step); appends to ``rows``."""
+    m, v = np.zeros_like(a), np.zeros_like(a)
+    b1, b2 = 0.9, 0.999
+    for i in range(1, iterations + 1):
+        val, g = mean_objective(problems, a)
+        m = b1 * m + (1 - b1) * g
+        v = b2 * v + (1 - b2) * g * g
+        a = a + step * (m / (1 - b1**i)) / (np.sqrt(v / (1 - b2**i)) + 1e-12)
+        a = project_light(a, problems[0], target)
+        rows.append((len(rows) + 1, time.perf_counter() - t0, val))
+    return a
+
+
+def _climb(problems, code, iterations, step, rows, t0, target):
+    """One start climbed: the relaxed code (free light: Adam in logits; fixed: projected)."""
+    c = np.clip(np.asarray(code, float), 0.0, 1.0)
+    if target is not None:
+        return adam_fixed(problems, project_light(c, problems[0], target), iterations, step,
+                          rows, t0, target)  # fmt: skip
+    theta = np.where(c >= 0.5, LOGIT_CLIP, -LOGIT_CLIP)  # a binary start
+    if np.any((c > 0) & (c < 1)):  # a grey start keeps its levels
+        theta = np.log(np.clip(c, 1e-3, 1 - 1e-3) / np.clip(1 - c, 1e-3, 1 - 1e-3))
+    theta = adam(problems, theta, iterations, step, rows, t0)
+    return 1.0 / (1.0 + np.exp(-theta))
+
+
+def gradient_search(problems, starts: dict, iterations: int = 200, step: float | None = None,
+                    levels: int = 2, light: str = "free",
+                    reference=None) -> CellSearch:  # fmt: skip
     """Climb from each named start code (n, G, G) in [0, 1]; keep the best projected code.
 
     Parameters
@@ -66,10 +166,15 @@ def gradient_search(problems, starts: dict, iterations: int = 200, step: float =
         Name to start code (e.g. the prototype rasterised, random codes).
     iterations : int
         Adam steps per start, each one objective evaluation with its gradient per store.
-    step : float
-        Adam's step in logits.
+    step : float, optional
+        Adam's step: in logits with free light (default 0.1), in transmittance with fixed
+        light (default 0.02).
     levels : int
         The LCoS's transmittance levels the result is projected to.
+    light : {"free", "fixed"}
+        Whether the code's total light is free or held at ``reference``'s (module docstring).
+    reference : ndarray, optional
+        With fixed light, the code whose light (:func:`light`) every code keeps.
 
     Returns
     -------
@@ -77,18 +182,21 @@ def gradient_search(problems, starts: dict, iterations: int = 200, step: float =
     """
     if int(iterations) != iterations or iterations < 1:
         raise ParameterError(f"iterations: an integer >= 1, got {iterations!r}")
+    if light not in LIGHT_CHOICES:
+        raise ParameterError(f"light: one of {', '.join(LIGHT_CHOICES)}, got {light!r}")
+    if light == "fixed" and reference is None:
+        raise ParameterError("reference: fixed light needs the code whose light it keeps")
+    _check_levels(levels)
     if not starts:
         raise ParameterError("starts: at least one start code")
+    target = None if light == "free" else light_of(problems[0], reference)
+    step = (0.1 if target is None else 0.02) if step is None else float(step)
     rows, out, best = [], [], None
     t0 = time.perf_counter()
     for name, code in starts.items():
-        c = np.clip(np.asarray(code, float), 0.0, 1.0)
-        theta = np.where(c >= 0.5, LOGIT_CLIP, -LOGIT_CLIP)  # a binary start
-        if np.any((c > 0) & (c < 1)):  # a grey start keeps its levels
-            theta = np.log(np.clip(c, 1e-3, 1 - 1e-3) / np.clip(1 - c, 1e-3, 1 - 1e-3))
-        theta = adam(problems, theta, int(iterations), step, rows, t0)
-        relaxed = 1.0 / (1.0 + np.exp(-theta))
-        proj = project(relaxed, levels)
+        relaxed = _climb(problems, code, int(iterations), step, rows, t0, target)
+        proj = project(relaxed, levels) if target is None else project_levels(
+            relaxed, problems[0], target, levels)  # fmt: skip
         if not proj.any():
             continue
         r_db = mean_objective(problems, relaxed, False)[0]
