@@ -10,6 +10,14 @@ from ..io.outputs import prepare_out_dir
 from ..limits import PacamWarning
 from ..model.camera import preset
 from ..model.design_file import resolve_design
+from ..optimize.cell_run import (
+    ITERATIONS,
+    STARTS,
+    BitmapProblem,
+    check_bitmap_problem,
+    run_bitmap_optimize,
+)
+from ..optimize.cell_search import LIGHT_CHOICES
 from ..optimize.rendered import DEFAULT_METHOD
 from ..optimize.rendered_run import (
     CHECK_SEEDS,
@@ -25,9 +33,13 @@ from ..optimize.search import DEFAULT_LIGHT_LEVEL, Problem, check_problem, refer
 from .common import add_outputs, add_preset, new_folder
 
 FOURIER_ONLY = ("depth_range", "n_patterns", "free_radius", "f_number", "r_px", "design",
-                "starts", "iterations", "quick", "max_velocity")  # fmt: skip
+                "quick", "max_velocity")  # fmt: skip
 """Flags of the Fourier objective that a search on stores does not take (its camera is the
 stores')."""
+SPACE_ONLY = {"centres": ("positions", "sweeps", "check_seeds"),
+              "bitmap": ("cells", "light", "starts", "iterations")}  # fmt: skip
+"""Flags that only one ``--space`` of a search on stores takes."""
+SPACES = ("centres", "bitmap")
 
 
 def add(sub) -> None:
@@ -62,12 +74,19 @@ def add(sub) -> None:
         help="design the schedule for this camera (a design file) instead of --preset",
     )
     p.add_argument("--seed", type=int, default=0, metavar="S", help="random starts (default 0)")
-    p.add_argument("--starts", type=int, metavar="K", help="local searches (default 6; quick 2)")
+    p.add_argument(
+        "--starts",
+        type=int,
+        metavar="K",
+        help=f"local searches (default 6; quick 2; --space bitmap: {STARTS}, the store's design "
+        "and random codes)",
+    )
     p.add_argument(
         "--iterations",
         type=int,
         metavar="I",
-        help="L-BFGS-B iterations per start (default 100; quick 30)",
+        help=f"L-BFGS-B iterations per start (default 100; quick 30; --space bitmap: Adam steps "
+        f"per start, default {ITERATIONS})",
     )
     p.add_argument("--quick", action="store_true", help="a coarse grid, 2 short starts")
     add_outputs(p)
@@ -84,16 +103,34 @@ def _add_lightfield(p) -> None:
         "--uniform-share 1), one per scene or speed; the worst case over them is maximised",
     )
     p.add_argument(
+        "--space",
+        default="centres",
+        help="with --lightfield: what is searched: centres (the openings' centres along x, "
+        "coordinate search; default) or bitmap (any binary LCoS bitmap on a grid of cells in "
+        "each pattern window, gradient search)",
+    )
+    p.add_argument(
+        "--cells",
+        type=int,
+        metavar="G",
+        help="with --space bitmap: G x G cells over the clear aperture, G dividing its 1024 "
+        "LCoS pixels (default 16)",
+    )
+    p.add_argument(
+        "--light",
+        metavar="RULE",
+        help="with --space bitmap: the code's total light (open area x time): fixed at the "
+        "store design's (default) or free",
+    )
+    p.add_argument(
         "--positions",
         type=int,
-        default=POSITIONS,
         metavar="J",
         help=f"with --lightfield: candidate centres over the lens (default {POSITIONS})",
     )
     p.add_argument(
         "--sweeps",
         type=int,
-        default=SWEEPS,
         metavar="S",
         help=f"with --lightfield: sweeps over the patterns at most (default {SWEEPS})",
     )
@@ -112,7 +149,6 @@ def _add_lightfield(p) -> None:
     p.add_argument(
         "--check-seeds",
         type=int,
-        default=CHECK_SEEDS,
         metavar="K",
         help=f"with --lightfield: fresh renders per store and design that check the result "
         f"(default {CHECK_SEEDS}; 0 skips the check)",
@@ -129,6 +165,12 @@ def _add_lightfield(p) -> None:
 def run(args: argparse.Namespace) -> int:
     if args.lightfield:
         return _run_lightfield(args)
+    for name in ("cells", "light", "positions", "sweeps", "check_seeds"):
+        if getattr(args, name) is not None:
+            raise ParameterError(f"--{name.replace('_', '-')}: only a search with --lightfield "
+                                 "takes it")  # fmt: skip
+    if args.space != "centres":
+        raise ParameterError("--space: only a search with --lightfield takes it")
     if args.max_velocity is None:
         raise ParameterError("--max-velocity is required (or search stores with --lightfield)")
 
@@ -203,11 +245,15 @@ def _run_lightfield(args: argparse.Namespace) -> int:
             )
     if not 0 <= args.seed < 2**32:
         raise ParameterError(f"--seed must be an integer in [0, 2^32), got {args.seed!r}")
+    space = _space_flags(args)
+    level = DEFAULT_LIGHT_LEVEL if args.light_level is None else args.light_level
+    if space == "bitmap":
+        return _run_bitmap(args, level)
     problem = RenderedProblem(
-        stores=tuple(args.lightfield), sensor=args.sensor,
-        light_level=DEFAULT_LIGHT_LEVEL if args.light_level is None else args.light_level,
-        positions=args.positions, sweeps=args.sweeps, noise_draws=args.noise_draws,
-        method=args.method, seed=args.seed, check_seeds=args.check_seeds,
+        stores=tuple(args.lightfield), sensor=args.sensor, light_level=level,
+        positions=_or(args.positions, POSITIONS), sweeps=_or(args.sweeps, SWEEPS),
+        noise_draws=args.noise_draws, method=args.method, seed=args.seed,
+        check_seeds=_or(args.check_seeds, CHECK_SEEDS),
     )  # fmt: skip
     open_stores(problem)  # refused before any output
     out = prepare_out_dir(args.out, args.force)
@@ -229,3 +275,42 @@ def _run_lightfield(args: argparse.Namespace) -> int:
     print(f"written: {out / 'design.toml'} (pacam render/psf/validate-psf --design), "
           "search.json, search.png, report.md")  # fmt: skip
     return 0 if doc else 1
+
+
+def _or(value, default):
+    return default if value is None else value
+
+
+def _space_flags(args: argparse.Namespace) -> str:
+    """``--space``, checked, with the flags only the other space takes refused."""
+    if args.space not in SPACES:
+        raise ParameterError(f"--space: one of {', '.join(SPACES)}, got {args.space!r}")
+    for other, names in SPACE_ONLY.items():
+        for name in names:
+            if other != args.space and getattr(args, name) is not None:
+                raise ParameterError(
+                    f"--{name.replace('_', '-')}: only a search with --space {other} takes it"
+                )
+    if args.space == "bitmap" and args.light is not None and args.light not in LIGHT_CHOICES:
+        raise ParameterError(f"--light: one of {', '.join(LIGHT_CHOICES)}, got {args.light!r}")
+    if args.space == "bitmap" and args.method != DEFAULT_METHOD:
+        raise ParameterError(f"--method: a bitmap search scores with {DEFAULT_METHOD} only")
+    return args.space
+
+
+def _run_bitmap(args: argparse.Namespace, level: float) -> int:
+    """``--space bitmap``: :func:`~..optimize.cell_run.run_bitmap_optimize`."""
+    problem = BitmapProblem(
+        stores=tuple(args.lightfield), sensor=args.sensor, light_level=level,
+        cells=_or(args.cells, 16), light=_or(args.light, "fixed"),
+        starts=_or(args.starts, STARTS), iterations=_or(args.iterations, ITERATIONS),
+        seed=args.seed, noise_draws=args.noise_draws,
+    )  # fmt: skip
+    check_bitmap_problem(problem)  # refused before any output
+    out = prepare_out_dir(args.out, args.force)
+    with new_folder(out), output_lock(out):
+        run_bitmap_optimize(problem, out, args.force, progress=not args.quiet)
+    print((out / "report.md").read_text())
+    print(f"written: {out / 'design.toml'} and design.masks.npz (pacam render --design), "
+          "report.json, report.md, report.png")  # fmt: skip
+    return 0

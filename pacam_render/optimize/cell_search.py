@@ -124,6 +124,13 @@ def adam(problems, theta, iterations: int, step: float, rows: list, t0: float):
     return theta
 
 
+def _target(problem, reference) -> float:
+    """The light a fixed-light search keeps: ``reference``'s, a code or a light factor."""
+    if np.ndim(reference) == 0:
+        return float(reference)
+    return light_of(problem, reference)
+
+
 def adam_fixed(problems, a, iterations: int, step: float, rows: list, t0: float,
                target: float):  # fmt: skip
     """Projected Adam ascent in the code ``a`` itself, kept at light ``target``
@@ -173,8 +180,10 @@ def gradient_search(problems, starts: dict, iterations: int = 200, step: float |
         The LCoS's transmittance levels the result is projected to.
     light : {"free", "fixed"}
         Whether the code's total light is free or held at ``reference``'s (module docstring).
-    reference : ndarray, optional
-        With fixed light, the code whose light (:func:`light`) every code keeps.
+    reference : ndarray or float, optional
+        With fixed light, the code whose light (:func:`light_of`) every code keeps, or that
+        light itself (e.g. the prototype's capture's ``record.light_factor``: its disc, not
+        the disc rasterised on the cells).
 
     Returns
     -------
@@ -189,7 +198,7 @@ def gradient_search(problems, starts: dict, iterations: int = 200, step: float |
     _check_levels(levels)
     if not starts:
         raise ParameterError("starts: at least one start code")
-    target = None if light == "free" else light_of(problems[0], reference)
+    target = None if light == "free" else _target(problems[0], reference)
     step = (0.1 if target is None else 0.02) if step is None else float(step)
     rows, out, best = [], [], None
     t0 = time.perf_counter()

@@ -1,0 +1,132 @@
+"""An honest report of designs scored with the real pipeline: each capture (synthesised from a
+store or rendered directly) through drawn sensor noise, the deconvolver a study uses (the
+design's own analytic kernel at s = 0, told the sensor's and the render's noise, as
+:class:`~.rendered.CaptureScorer`) and :func:`~pacam_render.restore.object_score.score_capture`:
+the moving objects', the still regions' and the whole window's PSNR, the fitted invariant
+range (``record.design_fit``) and the light collected relative to a reference capture."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..io.outputs import write_json, write_text
+from ..restore.capture_score import deconvolve_capture, flat_sigma, radiance
+from ..restore.object_score import moving_shapes, score_capture
+from ..sensor.apply import apply_sensor, clean_level, sensor_sigma
+from ..sensor.model import SensorModel
+from .outputs import save_figure
+from .rendered import DEFAULT_METHOD
+
+SCORES = ("psnr_moving_db", "psnr_static_db", "psnr_db")
+"""The three PSNRs (dB, white = 1): moving objects, still regions, whole window."""
+
+
+def _mean_db(values) -> float | None:
+    """The PSNR of the mean squared error of several PSNRs (dB); None where a draw has none
+    (no still pixel in the scored columns gives inf, no moving object nan)."""
+    if not all(math.isfinite(v) for v in values):
+        return None
+    return float(-10.0 * math.log10(np.mean([10.0 ** (-v / 10.0) for v in values])))
+
+
+def _mean(values) -> float | None:
+    got = [v for v in values if v is not None]
+    return float(np.mean(got)) if got else None
+
+
+def _db(v) -> str:
+    return "n/a" if v is None else f"{v:.2f}"
+
+
+def score_draws(cap, sensor: str, light_level, seeds, method: str = DEFAULT_METHOD) -> dict:
+    """The three PSNRs of ``cap`` restored after each sensor draw in ``seeds``, their squared
+    errors averaged over the draws (dB)."""
+    model = SensorModel.from_preset(sensor)
+    rec = cap.record
+    render = flat_sigma(cap, rec.render_error.mc_sigma_white_units)
+    per = {k: [] for k in SCORES}
+    for seed in seeds:
+        _, noisy, _ = apply_sensor(cap, model, light_level, seed)
+        sigma = flat_sigma(cap, sensor_sigma(rec, model, light_level, clean_level(cap)))
+        est = deconvolve_capture(cap, radiance(cap, noisy), math.hypot(sigma, render), method)
+        s = score_capture(est, cap.extra_layers, rec)
+        for k in SCORES:
+            per[k].append(float(s[k]))
+    return {k: _mean_db(v) for k, v in per.items()}
+
+
+def invariant_range(cap) -> float | None:
+    """The smallest fitted invariant range over the moving objects (px/ms, at each one's
+    depth; ``record.design_fit``), or None where the design has none (a bitmap, n/a)."""
+    fit = cap.record.design_fit or {}
+    moving = moving_shapes(cap.extra_layers, cap.record.objects or {})
+    got = [e["range_px_per_ms"] for k, e in fit.items() if k in moving and "range_px_per_ms" in e]
+    got = [g for g in got if g is not None and math.isfinite(g)]
+    return min(got) if got else None
+
+
+def design_row(design: str, where: str, cap, reference, sensor, light_level, seeds,
+               method: str = DEFAULT_METHOD) -> dict:  # fmt: skip
+    """One report row: ``cap`` of ``design`` on ``where`` (a store or a fresh render), its
+    three PSNRs, invariant range and light relative to ``reference``'s capture."""
+    return {
+        "design": design,
+        "where": where,
+        **score_draws(cap, sensor, light_level, seeds, method),
+        "range_px_per_ms": invariant_range(cap),
+        "light_rel": float(cap.record.light_factor / reference.record.light_factor),
+    }
+
+
+def summary(rows: list[dict]) -> list[dict]:
+    """Per design (in first-seen order) the mean over its rows of each score and its light."""
+    out = []
+    for name in dict.fromkeys(r["design"] for r in rows):
+        mine = [r for r in rows if r["design"] == name]
+        out.append({"design": name, "n": len(mine),
+                    **{k: _mean([r[k] for r in mine]) for k in SCORES},
+                    "range_px_per_ms": _mean([r["range_px_per_ms"] for r in mine]),
+                    "light_rel": float(np.mean([r["light_rel"] for r in mine]))})  # fmt: skip
+    return out
+
+
+def markdown(rows: list[dict], title: str) -> str:
+    """A table of :func:`summary`'s rows (n/a: a PSNR with no pixels, e.g. no still pixel
+    inside the scored columns, or a design with no fitted range)."""
+    lines = [f"## {title}", "",
+             "| design | n | moving (dB) | still (dB) | whole (dB) | invariant range (px/ms) "
+             "| light vs prototype |", "|---|---|---|---|---|---|---|"]  # fmt: skip
+    for r in summary(rows):
+        rng = "n/a" if r["range_px_per_ms"] is None else f"{r['range_px_per_ms']:.3f}"
+        lines.append(f"| {r['design']} | {r['n']} | {_db(r['psnr_moving_db'])} | "
+                     f"{_db(r['psnr_static_db'])} | {_db(r['psnr_db'])} | {rng} | "
+                     f"{r['light_rel']:.2f}x |")  # fmt: skip
+    return "\n".join(lines) + "\n"
+
+
+def write_report(out, doc: dict, force: bool, text: str) -> list:
+    """report.json (``doc``), report.md (``text``) and report.png (:func:`plot`)."""
+    return [write_json(out / "report.json", doc, force=force),
+            write_text(out / "report.md", text, force=force),
+            save_figure(out / "report.png", lambda fig: plot(fig, doc), force)]  # fmt: skip
+
+
+def plot(fig, doc: dict) -> None:
+    """The three PSNRs per design (bars, one panel per set of captures); the search curve."""
+    sets = [k for k in ("train", "fresh") if doc.get(k)]
+    axes = [fig.add_subplot(1, len(sets) + 1, i + 1) for i in range(len(sets) + 1)]
+    for ax, key in zip(axes, sets):
+        rows = summary(doc[key])
+        x = np.arange(len(rows))
+        for j, (k, label) in enumerate(zip(SCORES, ("moving", "still", "whole"))):
+            ax.bar(x + (j - 1) * 0.27, [np.nan if r[k] is None else r[k] for r in rows], 0.27,
+                   label=label)  # fmt: skip
+        ax.set_xticks(x, [r["design"] for r in rows], rotation=30, fontsize=7)
+        ax.set(ylabel="PSNR (dB)", title=f"{key} captures")
+        ax.legend(fontsize=7)
+    curve = np.array(doc.get("curve") or [[0, 0, np.nan]], float)
+    axes[-1].plot(curve[:, 0], curve[:, 2], lw=0.8)
+    axes[-1].set(xlabel="iteration (all starts)", ylabel="model objective (dB)",
+                 title="search (relaxed code)")  # fmt: skip

@@ -1,0 +1,166 @@
+"""``pacam optimize --lightfield STORE ... --space bitmap``: a whole-aperture LCoS bitmap
+searched by gradient on the stores' cell bases (:mod:`.cell_search`), written as a design file
+with its masks, and reported with the real pipeline (:mod:`.cell_report`) on each store's
+synthesis of the store's own design (the prototype) and of the found one.
+
+The objective is the mean over the stores of the model's moving-object PSNR
+(:mod:`.cell_objective`); the starts are the store's design rasterised on the cells and
+``starts - 1`` random binary codes (as open as the prototype, drawn from ``seed``). With
+``light="fixed"`` every code keeps the light factor of the store's design's capture (its disc,
+not the disc rasterised on the cells)."""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import ParameterError, check_integer
+from ..exposure.plan import plan_capture
+from ..lightfield.cell_basis import CELL_CHOICES, cell_basis, display_px, estimate_bytes, lens_cells
+from ..lightfield.synthesis import synthesize
+from ..limits import available_bytes, gib
+from ..model.design_file import write_design
+from .cell_design import bitmap_design, disc_code
+from .cell_objective import cell_problem
+from .cell_report import design_row, markdown, write_report
+from .cell_search import LIGHT_CHOICES, gradient_search, light_of
+from .rendered_run import RenderedProblem, base_spec, open_stores
+
+ITERATIONS = 200
+"""Adam steps per start (each one objective evaluation with its gradient per store)."""
+STARTS = 4
+"""Starts: the prototype and 3 random codes."""
+
+
+@dataclass(frozen=True)
+class BitmapProblem:
+    """What a bitmap search takes: the stores, the cell grid, the light rule and the budget."""
+
+    stores: tuple[str, ...]
+    sensor: str = "grasshopper-icx285"
+    light_level: float = 300.0
+    cells: int = 16
+    light: str = "fixed"
+    starts: int = STARTS
+    iterations: int = ITERATIONS
+    seed: int = 0
+    noise_draws: int = 2
+
+
+def check_bitmap_problem(p: BitmapProblem):
+    """The stores (one camera, :func:`~.rendered_run.open_stores`) and every setting checked,
+    with the bases' memory, before any work; returns the open stores."""
+    check_integer("--starts", p.starts, 1, None)
+    check_integer("--iterations", p.iterations, 1, None)
+    if p.light not in LIGHT_CHOICES:
+        raise ParameterError(f"--light: one of {', '.join(LIGHT_CHOICES)}, got {p.light!r}")
+    stores = open_stores(RenderedProblem(tuple(p.stores), p.sensor, p.light_level,
+                                         noise_draws=p.noise_draws, seed=p.seed,
+                                         check_seeds=0))  # fmt: skip
+    cam = plan_capture(base_spec(stores[0])).cam
+    try:
+        display_px(cam.R_max_mm, cam.lcos_pitch_mm, p.cells)
+    except ParameterError as exc:
+        raise ParameterError(f"--{exc}") from None
+    need = 0
+    for s in stores:
+        _, _, w, h = s.manifest.camera.window
+        need += estimate_bytes(cam.n_patterns, len(lens_cells(p.cells, cam.R_max_mm)), h, w,
+                               s.manifest.channels)  # fmt: skip
+    if need > available_bytes():
+        raise ParameterError(
+            f"--cells {p.cells}: the stores' bases need about {gib(need)}, {gib(available_bytes())}"
+            f" is available; take fewer cells (of {list(CELL_CHOICES)}) or fewer stores"
+        )
+    return stores
+
+
+def search_bitmap(p: BitmapProblem, stores, progress: bool = False) -> dict:
+    """The bases, the problems and the search (:func:`~.cell_search.gradient_search`).
+
+    Returns
+    -------
+    dict
+        ``specs``, ``plan``, ``bases``, ``templates``, ``base_code``, ``problems``, ``found``
+        (a CellSearch) and ``setup_s``.
+    """
+    t0 = time.perf_counter()
+    specs = [base_spec(s) for s in stores]
+    plan = plan_capture(specs[0])
+    base = disc_code(plan, p.cells)
+    bases = [cell_basis(s, spec, p.cells, progress) for s, spec in zip(stores, specs)]
+    templates = [synthesize(s, spec, progress=False) for s, spec in zip(stores, specs)]
+    problems = [cell_problem(b, t, plan, base, p.sensor, p.light_level)
+                for b, t in zip(bases, templates)]  # fmt: skip
+    setup_s = time.perf_counter() - t0
+    rng = np.random.default_rng(p.seed)
+    share = light_of(problems[0], base) / light_of(problems[0], np.ones_like(base))
+    starts = {"prototype": base}
+    for i in range(1, p.starts):
+        starts[f"random {i}"] = (rng.random(base.shape) < share).astype(float)
+    reference = templates[0].record.light_factor  # the store design's disc, not rasterised
+    found = gradient_search(problems, starts, p.iterations, light=p.light, reference=reference)
+    return dict(specs=specs, plan=plan, bases=bases, templates=templates, base_code=base,
+                problems=problems, found=found, setup_s=setup_s)  # fmt: skip
+
+
+def design_spec(spec, path: Path):
+    """``spec`` with the design file at ``path`` in place of its own schedule."""
+    return replace(spec, design=str(path), cover_px_per_ms=None, f_number=None, r_px=None,
+                   schedule=None)  # fmt: skip
+
+
+def run_bitmap_optimize(p: BitmapProblem, out: Path, force: bool, progress: bool) -> dict:
+    """Search, write ``out``/design.toml (masks beside it) and report.json/.md/.png: the
+    prototype and the found design synthesised from every store, scored with the real pipeline.
+
+    Returns
+    -------
+    dict
+        The report.json object.
+    """
+    stores = check_bitmap_problem(p)
+    r = search_bitmap(p, stores, progress)
+    path = out / "design.toml"
+    write_design(path, bitmap_design(r["plan"], r["bases"][0], r["found"].code), force)
+    draws = tuple(range(p.noise_draws))
+    rows = []
+    for folder, store, spec, tpl in zip(p.stores, stores, r["specs"], r["templates"]):
+        found = synthesize(store, design_spec(spec, path), progress=False)
+        for name, cap in (("prototype", tpl), ("found bitmap", found)):
+            rows.append(design_row(name, str(folder), cap, tpl, p.sensor, p.light_level, draws))
+    f = r["found"]
+    doc = {"problem": {**p.__dict__, "stores": list(p.stores)}, "train": rows,
+           "model_db": {"found": f.projected_db, "relaxed": f.relaxed_db,
+                        "starts": [list(s) for s in f.starts]},
+           "evaluations": f.evaluations, "setup_s": r["setup_s"],
+           "search_s": f.rows[-1][1], "curve": [list(x) for x in f.rows],
+           "light_model": {"prototype": light_of(r["problems"][0], r["base_code"]),
+                           "prototype_capture": r["templates"][0].record.light_factor,
+                           "found": light_of(r["problems"][0], f.code)}}  # fmt: skip
+    text = _text(p, doc)
+    write_report(out, doc, force, text)
+    return doc
+
+
+def _text(p: BitmapProblem, doc: dict) -> str:
+    """report.md."""
+    m = doc["model_db"]
+    return "\n".join([
+        f"# pacam optimize --lightfield --space bitmap ({p.cells}x{p.cells} cells, light "
+        f"{p.light})", "",
+        f"Model objective (mean over {len(p.stores)} store(s), moving objects): found "
+        f"{m['found']:.2f} dB; {doc['evaluations']} evaluations in {doc['search_s']:.1f} s "
+        f"after {doc['setup_s']:.1f} s of setup. Starts (name, relaxed dB, binary dB): "
+        + "; ".join(f"{s[0]} {s[1]:.2f}/{s[2]:.2f}" for s in m["starts"]) + ".", "",
+        markdown(doc["train"], "Scored with the real pipeline on the stores' syntheses"),
+        f"Each capture through {p.noise_draws} sensor draw(s) of {p.sensor} at "
+        f"{p.light_level:g} photons/px/ms, Wiener with the design's s = 0 kernel told the "
+        "sensor's and the render's noise, scored by score_capture. Invariant range: the "
+        "smallest fitted range over the moving objects (n/a: a bitmap has no parabola). "
+        "These are the training stores: check a design on scenes it has not seen "
+        "(benchmarks/bench_bitmap_design.py).",
+    ]) + "\n"  # fmt: skip

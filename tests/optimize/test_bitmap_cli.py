@@ -1,0 +1,72 @@
+"""``pacam optimize --lightfield STORE --space bitmap`` at a tiny size (issue 58, items 4 and
+7): the design file it writes reads back with no warning and keeps the prototype's light, its
+report's prototype row is the rendered objective's own score, and bad flags get one line and
+exit 2 before any folder is made."""
+
+from __future__ import annotations
+
+import json
+import warnings
+
+import numpy as np
+import pytest
+
+from pacam_render.cli import main
+from pacam_render.exposure.spec import CaptureSpec
+from pacam_render.lightfield import StoreSpec, render_lightfield, synthesize
+from pacam_render.limits import PacamWarning
+from pacam_render.model.design_file import read_design
+from pacam_render.optimize.rendered import CaptureScorer
+from pacam_render.optimize.rendered_run import base_spec
+
+SPEC = CaptureSpec.geometric(scene="train", width=1280, height=960, crop=(440, 400, 96, 64),
+                             mode="coded", spp=4, passes=2, seed=3)  # fmt: skip
+
+
+@pytest.fixture(scope="module")
+def store(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("lf") / "store"
+    return render_lightfield(StoreSpec(SPEC, alpha=1.0), folder, progress=False)
+
+
+def test_a_bitmap_search_from_the_command_line(store, tmp_path, capsys):
+    out = tmp_path / "opt"
+    args = ["optimize", "--lightfield", str(store.folder), "--space", "bitmap", "--cells", "8",
+            "--iterations", "3", "--starts", "2", "--noise-draws", "1", "--quiet",
+            "--out", str(out)]  # fmt: skip
+    assert main(args) == 0
+    assert "Scored with the real pipeline" in capsys.readouterr().out
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", PacamWarning)  # written, so not "edited after"
+        cam = read_design(out / "design.toml")
+    masks = cam.pattern_masks.array
+    assert cam.n_patterns == 16 and set(np.unique(masks)) <= {0.0, 1.0}
+    doc = json.loads((out / "report.json").read_text())
+    light = doc["light_model"]
+    assert light["found"] == pytest.approx(light["prototype_capture"], rel=2e-3)  # fixed light
+    proto, found = doc["train"]
+    assert found["light_rel"] == pytest.approx(1.0, abs=2e-3)  # the captures' light factors
+    assert found["range_px_per_ms"] is None  # a bitmap: no fitted parabola
+    template = synthesize(store, base_spec(store), progress=False)
+    own = CaptureScorer(template, "grasshopper-icx285", 300.0, (0,)).psnr_db(template)
+    assert proto["psnr_moving_db"] == pytest.approx(own, abs=1e-6)
+    assert (out / "report.png").stat().st_size > 0 and (out / "design.masks.npz").exists()
+
+
+@pytest.mark.parametrize(
+    "extra, words",
+    [
+        (["--space", "grid"], "--space: one of centres, bitmap"),
+        (["--space", "bitmap", "--cells", "48"], "--cells: a grid of G x G cells"),
+        (["--space", "bitmap", "--light", "more"], "--light: one of free, fixed"),
+        (["--space", "bitmap", "--iterations", "0"], "--iterations must be an integer >= 1"),
+        (["--space", "bitmap", "--positions", "5"], "--positions: only a search with --space"),
+        (["--cells", "16"], "--cells: only a search with --space bitmap"),
+    ],
+)
+def test_bad_bitmap_flags_are_one_line_before_any_work(store, tmp_path, capsys, extra, words):
+    args = ["optimize", "--lightfield", str(store.folder), *extra, "--out", str(tmp_path / "o")]
+    assert main(args) == 2
+    err = capsys.readouterr().err
+    assert words in err and err.count("\n") == 1, err
+    assert not (tmp_path / "o").exists()
