@@ -78,14 +78,14 @@ def check_bitmap_problem(p: BitmapProblem):
     return stores
 
 
-def search_bitmap(p: BitmapProblem, stores, progress: bool = False) -> dict:
-    """The bases, the problems and the search (:func:`~.cell_search.gradient_search`).
+def prepare_bitmap(p: BitmapProblem, stores, progress: bool = False) -> dict:
+    """The stores' bases, templates (their design's syntheses) and objective terms.
 
     Returns
     -------
     dict
-        ``specs``, ``plan``, ``bases``, ``templates``, ``base_code``, ``problems``, ``found``
-        (a CellSearch) and ``setup_s``.
+        ``specs``, ``plan``, ``bases``, ``templates``, ``base_code`` (the store's design
+        rasterised), ``problems`` and ``setup_s``.
     """
     t0 = time.perf_counter()
     specs = [base_spec(s) for s in stores]
@@ -95,16 +95,26 @@ def search_bitmap(p: BitmapProblem, stores, progress: bool = False) -> dict:
     templates = [synthesize(s, spec, progress=False) for s, spec in zip(stores, specs)]
     problems = [cell_problem(b, t, plan, base, p.sensor, p.light_level)
                 for b, t in zip(bases, templates)]  # fmt: skip
-    setup_s = time.perf_counter() - t0
+    return dict(specs=specs, plan=plan, bases=bases, templates=templates, base_code=base,
+                problems=problems, setup_s=time.perf_counter() - t0)  # fmt: skip
+
+
+def search_bitmap(p: BitmapProblem, prepared: dict):
+    """:func:`~.cell_search.gradient_search` from the prototype and ``p.starts - 1`` random
+    codes on :func:`prepare_bitmap`'s problems, ``p.light`` as the rule.
+
+    Returns
+    -------
+    CellSearch
+    """
+    problems, base = prepared["problems"], prepared["base_code"]
     rng = np.random.default_rng(p.seed)
     share = light_of(problems[0], base) / light_of(problems[0], np.ones_like(base))
     starts = {"prototype": base}
     for i in range(1, p.starts):
         starts[f"random {i}"] = (rng.random(base.shape) < share).astype(float)
-    reference = templates[0].record.light_factor  # the store design's disc, not rasterised
-    found = gradient_search(problems, starts, p.iterations, light=p.light, reference=reference)
-    return dict(specs=specs, plan=plan, bases=bases, templates=templates, base_code=base,
-                problems=problems, found=found, setup_s=setup_s)  # fmt: skip
+    reference = prepared["templates"][0].record.light_factor  # the disc's, not rasterised
+    return gradient_search(problems, starts, p.iterations, light=p.light, reference=reference)
 
 
 def design_spec(spec, path: Path):
@@ -123,7 +133,8 @@ def run_bitmap_optimize(p: BitmapProblem, out: Path, force: bool, progress: bool
         The report.json object.
     """
     stores = check_bitmap_problem(p)
-    r = search_bitmap(p, stores, progress)
+    r = prepare_bitmap(p, stores, progress)
+    r["found"] = search_bitmap(p, r)
     path = out / "design.toml"
     write_design(path, bitmap_design(r["plan"], r["bases"][0], r["found"].code), force)
     draws = tuple(range(p.noise_draws))
