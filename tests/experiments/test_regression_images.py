@@ -26,8 +26,9 @@ def test_detects_one_pixel_shift_and_two_percent_brightness(name):
 
 @pytest.mark.parametrize("name", ["train_coded", "psf_coded"])
 def test_noise_alone_passes_for_other_seeds(name):
-    """Statistically equal renders (other seeds) pass: the test is not a bit-exact compare."""
-    for seed in (3, 4, 5):
+    """Statistically equal renders (other seeds) pass: the test is not a bit-exact compare
+    (two seeds: the third added 14 s of the suite for the psf case)."""
+    for seed in (3, 4):
         assert R.check(name, *R.render_case_sigma(name, seed)).ok
 
 
