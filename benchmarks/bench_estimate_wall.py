@@ -24,6 +24,8 @@ from pathlib import Path
 
 from common import record
 
+from pacam_render.render.variant import activate_variant
+
 UNIT_S = {"s": 1.0, "min": 60.0, "h": 3600.0}
 
 CASES = [  # label, CaptureSpec fields, extra CLI flags
@@ -61,6 +63,7 @@ def _printed(text: str) -> tuple[float, float]:
 
 
 def main() -> None:
+    activate_variant()  # the renders' variant, for the machine line (they run in subprocesses)
     rows = []
     with tempfile.TemporaryDirectory() as d:
         env = {**os.environ, "PACAM_RENDER_TIMES": str(Path(d) / "empty.jsonl")}
