@@ -11,7 +11,7 @@ import numpy as np
 from ..errors import ParameterError
 from ..exposure.plan import plan_capture
 from ..model.design_file import as_read_back, write_design
-from ..model.masks import MaskStack
+from ..model.masks import DISPLAY_SHAPE, MaskStack, disc_masks
 
 
 def cell_centres_mm(cells: int, R_max_mm: float) -> tuple[np.ndarray, np.ndarray]:
@@ -45,6 +45,30 @@ def bitmap_design(plan, basis, code, name: str = "pacam optimize --space bitmap"
     d = plan.design.with_(width_px=plan.full.width_px, height_px=plan.full.height_px)
     return as_read_back(d.with_(pattern_centres_mm=None, pattern_masks=stack,
                                 quoted_a_i_px_per_ms2=None, name=name))  # fmt: skip
+
+
+def fine_disc_design_spec(spec, path):
+    """``spec`` with its design's discs as a bitmap design file at ``path``: each pattern the
+    LCoS pixels (its native :data:`~pacam_render.model.masks.DISPLAY_SHAPE`) whose centre lies
+    in the disc (:func:`~pacam_render.model.masks.disc_masks`, whose centres are in the
+    camera's frame: minus the design's), closed patterns dark; the
+    reference a cell grid's rasterisation is measured against (``bench_cell_grid.py``)."""
+    plan = plan_capture(spec)
+    cam = plan.cam
+    if cam.pattern_masks is not None:
+        raise ParameterError("fine_disc_design_spec rasterises a disc schedule; this is a bitmap")
+    if getattr(spec, "lcos_contrast", None) is not None:
+        raise ParameterError("fine_disc_design_spec: an ideal LCoS (lcos_contrast None) only")
+    local = -np.asarray(cam.pattern_centres_xy_mm(), float)  # disc_masks: the camera's frame
+    masks = disc_masks(local, cam.R_mm, DISPLAY_SHAPE, cam.lcos_pitch_mm)
+    masks *= np.asarray(plan.aperture(plan.sensor_params()).is_open, np.float32)[:, None, None]
+    stack = MaskStack(masks, cam.lcos_pitch_mm, name="fine disc")
+    d = plan.design.with_(width_px=plan.full.width_px, height_px=plan.full.height_px)
+    write_design(path, as_read_back(d.with_(pattern_centres_mm=None, pattern_masks=stack,
+                                            quoted_a_i_px_per_ms2=None,
+                                            name="the design's discs on the LCoS pixels")),
+                 force=True)  # fmt: skip
+    return dataclasses.replace(spec, design=str(path))
 
 
 def bitmap_design_spec(spec, basis, code, path):

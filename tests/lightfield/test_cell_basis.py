@@ -14,7 +14,9 @@ from pacam_render.exposure.plan import plan_capture
 from pacam_render.exposure.spec import CaptureSpec
 from pacam_render.lightfield import StoreSpec, render_lightfield, synthesize
 from pacam_render.lightfield.cell_basis import cell_basis, display_px, lens_cells
-from pacam_render.optimize.cell_design import bitmap_design_spec, disc_code
+from pacam_render.model.design_file import read_design, write_design
+from pacam_render.model.masks import DISPLAY_SHAPE, MaskStack, pixel_centres_mm
+from pacam_render.optimize.cell_design import bitmap_design_spec, disc_code, fine_disc_design_spec
 
 SPEC = CaptureSpec.geometric(scene="train", width=1280, height=960, crop=(440, 400, 48, 32),
                              mode="coded", spp=2, passes=2, seed=5)  # fmt: skip
@@ -51,6 +53,51 @@ def test_the_prototypes_disc_rasterised_on_the_cells_nears_its_synthesis(store):
         err[g] = np.sqrt(np.mean((basis.compose(code) - disc) ** 2))
         mirrored[g] = np.sqrt(np.mean((basis.compose(code[:, :, ::-1]) - disc) ** 2))
     assert err[32] < err[8] < 0.5 * mirrored[8], (err, mirrored)
+
+
+def _rms(a) -> float:
+    return float(np.sqrt(np.mean(np.square(a, dtype=np.float64))))
+
+
+def test_the_rasterisation_error_on_shared_samples_falls_with_the_grid(store, tmp_path):
+    """Against the disc on the LCoS's own pixels synthesised from the same samples (so the
+    difference is only the rim cells' samples, bench_cell_grid.py), finer cells come nearer;
+    and that fine bitmap is the disc (far nearer it than the coarsest grid is)."""
+    fine_spec = fine_disc_design_spec(SPEC, tmp_path / "fine.toml")
+    fine = synthesize(store, fine_spec, progress=False).image
+    disc = synthesize(store, SPEC, progress=False).image
+    plan = plan_capture(SPEC)
+    err = {g: _rms(cell_basis(store, SPEC, cells=g).compose(disc_code(plan, g)) - fine)
+           for g in (8, 16, 32)}  # fmt: skip
+    assert err[32] < err[16] < err[8], err
+    assert _rms(fine - disc) < 0.5 * err[8], (_rms(fine - disc), err)
+
+
+def test_a_native_bitmap_constant_on_the_cells_is_their_composition(store, tmp_path):
+    """An independent path: a random code drawn as a full-display (1024 x 1280) bitmap by hand,
+    each LCoS pixel inside the clear aperture showing its cell's value, read back from a design
+    file, synthesised from the store, equals the basis's composition to rounding."""
+    g = 8
+    basis = cell_basis(store, SPEC, cells=g)
+    rng = np.random.default_rng(4)
+    code = rng.integers(0, 3, (basis.n_patterns, g, g)) / 2.0  # grey too; compresses well
+    H, W = DISPLAY_SHAPE
+    x, y = pixel_centres_mm(DISPLAY_SHAPE, basis.pitch_mm)  # camera frame: x falls with column
+    R = basis.display_px * basis.pitch_mm / 2
+    col = np.floor((-x + R) / (2 * R) * g).astype(int)  # the design frame's x = -x
+    row = np.floor((-y + R) / (2 * R) * g).astype(int)
+    inside = (x[None, :] ** 2 + y[:, None] ** 2 <= R * R) & (col[None] >= 0) & (col[None] < g)
+    inside &= (row[:, None] >= 0) & (row[:, None] < g)
+    masks = code[:, np.clip(row, 0, g - 1)[:, None], np.clip(col, 0, g - 1)[None, :]] * inside
+    plan = plan_capture(SPEC)
+    d = plan.design.with_(width_px=plan.full.width_px, height_px=plan.full.height_px)
+    cam = d.with_(pattern_centres_mm=None, quoted_a_i_px_per_ms2=None, name="by hand",
+                  pattern_masks=MaskStack(masks.astype(np.float32), basis.pitch_mm))  # fmt: skip
+    write_design(tmp_path / "hand.toml", cam, force=True)
+    assert read_design(tmp_path / "hand.toml").pattern_masks.array.shape == (16, H, W)
+    spec = dataclasses.replace(SPEC, design=str(tmp_path / "hand.toml"))
+    direct = synthesize(store, spec, progress=False).image
+    assert np.abs(basis.compose(code) - direct).max() <= 1e-5 * np.abs(direct).max()
 
 
 def test_every_reachable_cell_is_listed():
