@@ -7,11 +7,13 @@ import argparse
 from ..errors import ParameterError
 from ..io.lock import output_lock
 from ..io.outputs import prepare_out_dir
+from ..lightfield.cell_basis import DEFAULT_CELLS
 from ..limits import PacamWarning
 from ..model.camera import preset
 from ..model.design_file import resolve_design
 from ..optimize.cell_run import (
     ITERATIONS,
+    MAX_LEVELS,
     STARTS,
     BitmapProblem,
     check_bitmap_problem,
@@ -37,7 +39,7 @@ FOURIER_ONLY = ("depth_range", "n_patterns", "free_radius", "f_number", "r_px", 
 """Flags of the Fourier objective that a search on stores does not take (its camera is the
 stores')."""
 SPACE_ONLY = {"centres": ("positions", "sweeps", "check_seeds"),
-              "bitmap": ("cells", "light", "starts", "iterations")}  # fmt: skip
+              "bitmap": ("cells", "light", "starts", "iterations", "levels")}  # fmt: skip
 """Flags that only one ``--space`` of a search on stores takes."""
 SPACES = ("centres", "bitmap")
 
@@ -114,7 +116,14 @@ def _add_lightfield(p) -> None:
         type=int,
         metavar="G",
         help="with --space bitmap: G x G cells over the clear aperture, G dividing its 1024 "
-        "LCoS pixels (default 16)",
+        f"LCoS pixels (default {DEFAULT_CELLS}, chosen by benchmarks/bench_cell_grid.py)",
+    )
+    p.add_argument(
+        "--levels",
+        type=int,
+        metavar="N",
+        help=f"with --space bitmap: transmittance levels per cell, 2 (binary, the prototype's "
+        f"ferroelectric LCoS; default) to {MAX_LEVELS} (an LCoS that shows grey)",
     )
     p.add_argument(
         "--light",
@@ -165,7 +174,7 @@ def _add_lightfield(p) -> None:
 def run(args: argparse.Namespace) -> int:
     if args.lightfield:
         return _run_lightfield(args)
-    for name in ("cells", "light", "positions", "sweeps", "check_seeds"):
+    for name in ("cells", "light", "levels", "positions", "sweeps", "check_seeds"):
         if getattr(args, name) is not None:
             raise ParameterError(f"--{name.replace('_', '-')}: only a search with --lightfield "
                                  "takes it")  # fmt: skip
@@ -302,7 +311,8 @@ def _run_bitmap(args: argparse.Namespace, level: float) -> int:
     """``--space bitmap``: :func:`~..optimize.cell_run.run_bitmap_optimize`."""
     problem = BitmapProblem(
         stores=tuple(args.lightfield), sensor=args.sensor, light_level=level,
-        cells=_or(args.cells, 16), light=_or(args.light, "fixed"),
+        cells=_or(args.cells, DEFAULT_CELLS), light=_or(args.light, "fixed"),
+        levels=_or(args.levels, 2),
         starts=_or(args.starts, STARTS), iterations=_or(args.iterations, ITERATIONS),
         seed=args.seed, noise_draws=args.noise_draws,
     )  # fmt: skip

@@ -19,7 +19,14 @@ import numpy as np
 
 from ..errors import ParameterError, check_integer
 from ..exposure.plan import plan_capture
-from ..lightfield.cell_basis import CELL_CHOICES, cell_basis, display_px, estimate_bytes, lens_cells
+from ..lightfield.cell_basis import (
+    CELL_CHOICES,
+    DEFAULT_CELLS,
+    cell_basis,
+    display_px,
+    estimate_bytes,
+    lens_cells,
+)
 from ..lightfield.synthesis import synthesize
 from ..limits import available_bytes, gib
 from ..model.design_file import write_design
@@ -33,6 +40,9 @@ ITERATIONS = 200
 """Adam steps per start (each one objective evaluation with its gradient per store)."""
 STARTS = 4
 """Starts: the prototype and 3 random codes."""
+MAX_LEVELS = 256
+"""The most transmittance levels per cell (an 8-bit grey LCoS); 2 is binary (the prototype's
+ferroelectric LCoS)."""
 
 
 @dataclass(frozen=True)
@@ -42,12 +52,13 @@ class BitmapProblem:
     stores: tuple[str, ...]
     sensor: str = "grasshopper-icx285"
     light_level: float = 300.0
-    cells: int = 16
+    cells: int = DEFAULT_CELLS
     light: str = "fixed"
     starts: int = STARTS
     iterations: int = ITERATIONS
     seed: int = 0
     noise_draws: int = 2
+    levels: int = 2
 
 
 def check_bitmap_problem(p: BitmapProblem):
@@ -55,6 +66,7 @@ def check_bitmap_problem(p: BitmapProblem):
     with the bases' memory, before any work; returns the open stores."""
     check_integer("--starts", p.starts, 1, None)
     check_integer("--iterations", p.iterations, 1, None)
+    check_integer("--levels", p.levels, 2, MAX_LEVELS)
     if p.light not in LIGHT_CHOICES:
         raise ParameterError(f"--light: one of {', '.join(LIGHT_CHOICES)}, got {p.light!r}")
     stores = open_stores(RenderedProblem(tuple(p.stores), p.sensor, p.light_level,
@@ -114,7 +126,8 @@ def search_bitmap(p: BitmapProblem, prepared: dict):
     for i in range(1, p.starts):
         starts[f"random {i}"] = (rng.random(base.shape) < share).astype(float)
     reference = prepared["templates"][0].record.light_factor  # the disc's, not rasterised
-    return gradient_search(problems, starts, p.iterations, light=p.light, reference=reference)
+    return gradient_search(problems, starts, p.iterations, levels=p.levels, light=p.light,
+                           reference=reference)  # fmt: skip
 
 
 def design_spec(spec, path: Path):

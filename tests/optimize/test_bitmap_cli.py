@@ -53,6 +53,21 @@ def test_a_bitmap_search_from_the_command_line(store, tmp_path, capsys):
     assert (out / "report.png").stat().st_size > 0 and (out / "design.masks.npz").exists()
 
 
+def test_grey_levels_from_the_command_line(store, tmp_path):
+    """--levels 4: the design file's masks carry the grey steps 0, 1/3, 2/3, 1 (an LCoS that
+    shows grey), read back as written; the default stays binary (the test above)."""
+    out = tmp_path / "grey"
+    args = ["optimize", "--lightfield", str(store.folder), "--space", "bitmap", "--cells", "8",
+            "--levels", "4", "--light", "free", "--iterations", "60", "--starts", "1",
+            "--noise-draws", "1", "--quiet", "--out", str(out)]  # fmt: skip
+    assert main(args) == 0
+    masks = read_design(out / "design.toml").pattern_masks.array
+    steps = np.unique(masks)
+    assert np.isclose(steps[:, None], np.arange(4) / 3, atol=1e-6).any(axis=1).all(), steps
+    assert ((steps > 0.1) & (steps < 0.9)).any(), steps  # grey, not only binary
+    assert json.loads((out / "report.json").read_text())["problem"]["levels"] == 4
+
+
 @pytest.mark.parametrize(
     "extra, words",
     [
@@ -62,6 +77,9 @@ def test_a_bitmap_search_from_the_command_line(store, tmp_path, capsys):
         (["--space", "bitmap", "--iterations", "0"], "--iterations must be an integer >= 1"),
         (["--space", "bitmap", "--positions", "5"], "--positions: only a search with --space"),
         (["--cells", "16"], "--cells: only a search with --space bitmap"),
+        (["--space", "bitmap", "--levels", "1"], "--levels must be an integer 2..256, got 1"),
+        (["--space", "bitmap", "--levels", "257"], "--levels must be an integer 2..256"),
+        (["--levels", "4"], "--levels: only a search with --space bitmap"),
     ],
 )
 def test_bad_bitmap_flags_are_one_line_before_any_work(store, tmp_path, capsys, extra, words):
