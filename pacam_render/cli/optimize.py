@@ -14,7 +14,9 @@ from ..model.design_file import resolve_design
 from ..optimize.cell_run import (
     ITERATIONS,
     MAX_LEVELS,
+    OBJECTIVES,
     STARTS,
+    STILL_WEIGHT,
     BitmapProblem,
     check_bitmap_problem,
     run_bitmap_optimize,
@@ -39,7 +41,8 @@ FOURIER_ONLY = ("depth_range", "n_patterns", "free_radius", "f_number", "r_px", 
 """Flags of the Fourier objective that a search on stores does not take (its camera is the
 stores')."""
 SPACE_ONLY = {"centres": ("positions", "sweeps", "check_seeds"),
-              "bitmap": ("cells", "light", "starts", "iterations", "levels")}  # fmt: skip
+              "bitmap": ("cells", "light", "starts", "iterations", "levels", "objective",
+                         "still_weight")}  # fmt: skip
 """Flags that only one ``--space`` of a search on stores takes."""
 SPACES = ("centres", "bitmap")
 
@@ -132,6 +135,19 @@ def _add_lightfield(p) -> None:
         "store design's (default) or free",
     )
     p.add_argument(
+        "--objective",
+        metavar="WHAT",
+        help=f"with --space bitmap: what the model scores: {' or '.join(OBJECTIVES)} (the "
+        "moving objects' PSNR, default; or its weighted mean in dB with the still pixels')",
+    )
+    p.add_argument(
+        "--still-weight",
+        type=float,
+        metavar="W",
+        help="with --objective moving+still: the still PSNR's weight w in (moving + w still) "
+        f"/ (1 + w), > 0 (default {STILL_WEIGHT:g})",
+    )
+    p.add_argument(
         "--positions",
         type=int,
         metavar="J",
@@ -174,7 +190,8 @@ def _add_lightfield(p) -> None:
 def run(args: argparse.Namespace) -> int:
     if args.lightfield:
         return _run_lightfield(args)
-    for name in ("cells", "light", "levels", "positions", "sweeps", "check_seeds"):
+    for name in ("cells", "light", "levels", "positions", "sweeps", "check_seeds", "objective",
+                 "still_weight"):  # fmt: skip
         if getattr(args, name) is not None:
             raise ParameterError(f"--{name.replace('_', '-')}: only a search with --lightfield "
                                  "takes it")  # fmt: skip
@@ -315,6 +332,7 @@ def _run_bitmap(args: argparse.Namespace, level: float) -> int:
         levels=_or(args.levels, 2),
         starts=_or(args.starts, STARTS), iterations=_or(args.iterations, ITERATIONS),
         seed=args.seed, noise_draws=args.noise_draws,
+        objective=_or(args.objective, "moving"), still_weight=args.still_weight,
     )  # fmt: skip
     check_bitmap_problem(problem)  # refused before any output
     out = prepare_out_dir(args.out, args.force)

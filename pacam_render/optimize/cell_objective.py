@@ -19,8 +19,16 @@ w = (1 - 1/C) A + 1/C with an LCoS of contrast C, else A), everything is closed 
                                                (told, as the scorer tells its deconvolver)
     E = ||M (x - sharp)||^2 + |M| sigma^2 mean_f |W|^2   expected squared error on the moving
                                                objects M (at the best integer shift along x)
+    E_s = ||N (x - sharp)||^2 + |N| sigma^2 mean_f |W|^2  the same on the still pixels N (every
+                                               pixel of no moving object, inside the scorer's
+                                               columns, unshifted: as score_capture's still)
 
-and the score is -10 log10(E / |M|) (dB, white = 1), the mean over the stores. No oracle: the
+and the score is P = -10 log10(E / |M|) (dB, white = 1), or with a still weight w > 0 the
+weighted mean (P + w P_s) / (1 + w), P_s = -10 log10(E_s / |N|); the mean over the stores.
+The weighted mean is taken in dB, not in squared error: -10 log10 (E E_s^w) / (1 + w) counts a
+relative change of either error alike (a design cannot ignore the still pixels because their
+error is smaller, nor the moving objects because they are fewer pixels), and w = 1 weighs one
+dB on the moving objects as one on the still regions. No oracle: the
 restoration is told the sensor's noise and the class prior, never the truth; the truth only
 scores. It is a model of :class:`~.rendered.CaptureScorer` (expected noise instead of drawn
 noise, one fixed prior level, one shift for all moving objects, periodic padding of a reflect-
@@ -40,6 +48,7 @@ from ..psf.bitmap import bitmap_kernel
 from ..restore.capture_score import flat_sigma
 from ..restore.deconvolve import prior_spectrum
 from ..restore.flat_field import RI_LAYER
+from ..restore.metrics import shift_search_px
 from ..restore.object_score import moving_shapes
 from ..sensor.apply import clean_level
 from ..sensor.model import SensorModel
@@ -61,6 +70,7 @@ class CellProblem:
     S: np.ndarray  # (Hp, Wp) prior spectrum
     sharp: np.ndarray  # (H, W, C)
     mask: np.ndarray  # (H, W) moving objects away from the shift's edge columns
+    still: np.ndarray  # (H, W) still pixels inside the scorer's columns (may be empty)
     pad: int
     noise: tuple  # (a, b, level, kappa)
     render_var: float  # the store's Monte Carlo variance, white = 1 (told, as the scorer's)
@@ -120,18 +130,25 @@ def sigma2(noise, L: float) -> tuple[float, float]:
 
 
 def cell_problem(basis, template, plan, base_code, sensor: str, light_level: float,
-                 dtype=np.float32):  # fmt: skip
+                 dtype=np.float32, still_edge_px: int | None = None):  # fmt: skip
     """The fixed terms (:class:`CellProblem`) of one store's objective: ``template`` the base
     design's synthesised capture (truth, objects, exposure), ``plan`` its capture plan (camera,
     windows), ``base_code`` (n, G, G) that design on the cells (the prior's kernel).
     ``dtype`` of the capture's matrix products: float32 (the basis's own, 3x faster) or
-    float64 (for finite differences finer than float32's rounding)."""
+    float64 (for finite differences finer than float32's rounding). ``still_edge_px``: the
+    columns left out of the still term at each side (default the scorer's, its shift search
+    at the capture's sensor width)."""
     layers, rec = template.extra_layers, template.record
     if RI_LAYER in layers:
         raise ParameterError("the cell objective assumes no relative illumination (cos4 off)")
     moving = moving_shapes(layers, rec.objects or {})
     ids = layers["object_id"]
     mask = np.isin(ids, [int(k) for k, v in (rec.objects or {}).items() if v in moving])
+    edge = _scorer_edge_px(rec) if still_edge_px is None else int(still_edge_px)
+    if edge < 0:
+        raise ParameterError(f"still_edge_px: an integer >= 0, got {still_edge_px!r}")
+    still = ~mask
+    still[:, :edge] = still[:, ids.shape[1] - edge :] = False
     mask[:, :SHIFT_PX] = mask[:, ids.shape[1] - SHIFT_PX :] = False
     if not mask.any():
         raise ParameterError("the window shows no moving object: the objective scores them")
@@ -144,11 +161,17 @@ def cell_problem(basis, template, plan, base_code, sensor: str, light_level: flo
     noise = _noise_terms(template, sensor, light_level)
     render = flat_sigma(template, rec.render_error.mc_sigma_white_units) ** 2
     B = np.asarray(basis.images, dtype)
-    p = CellProblem(B, dt[:, None] * area[None], dt, Qhat, area, None, sharp, mask,
+    p = CellProblem(B, dt[:, None] * area[None], dt, Qhat, area, None, sharp, mask, still,
                     pad, noise, render, basis.contrast, basis.cells_ij, basis.cells)  # fmt: skip
     u = np.asarray(base_code, float)[:, basis.cells_ij[:, 0], basis.cells_ij[:, 1]].T @ dt
     p.S = _prior(p, template, rec.light_factor, u)
     return p
+
+
+def _scorer_edge_px(record) -> int:
+    """The columns score_capture leaves out at each side: its shift search at the capture's
+    sensor width (:func:`~pacam_render.restore.metrics.shift_search_px`)."""
+    return int(shift_search_px(record.spec.get("width") or record.camera.get("width_px")))
 
 
 def _prior(p: CellProblem, template, light_factor: float, u: np.ndarray) -> np.ndarray:
@@ -185,23 +208,48 @@ def _pad_index(shape, pad: int) -> np.ndarray:
     return np.pad(np.arange(shape[0] * shape[1]).reshape(shape), pad, mode="reflect")
 
 
-def objective(p: CellProblem, code, grad: bool = True):
-    """Expected moving-object PSNR (dB) of ``code`` (n, G, G) in [0, 1] on one store, and its
-    gradient d PSNR / d code (n, G, G) when ``grad`` (module docstring; adjoint by hand)."""
+def check_still_weight(problems, still_weight: float) -> float:
+    """``still_weight`` checked: finite and >= 0, and with a weight every store has still
+    pixels to score."""
+    w = float(still_weight)
+    if not (math.isfinite(w) and w >= 0):
+        raise ParameterError(f"still_weight: a finite number >= 0, got {still_weight!r}")
+    if w > 0 and not all(p.still.any() for p in problems):
+        raise ParameterError("still_weight: a store's window shows no still pixel inside the "
+                             "scorer's columns; score moving objects only")  # fmt: skip
+    return w
+
+
+def objective(p: CellProblem, code, grad: bool = True, still_weight: float = 0.0):
+    """Expected PSNR (dB) of ``code`` (n, G, G) in [0, 1] on one store: the moving objects',
+    or with ``still_weight`` w > 0 the weighted mean (P + w P_s) / (1 + w) with the still
+    pixels' (module docstring); and its gradient d PSNR / d code (n, G, G) when ``grad``
+    (adjoint by hand)."""
     A = np.asarray(code, float)
-    C = p.contrast
-    scale = 1.0 if C is None else 1.0 - 1.0 / C
-    w = scale * A[:, p.cells_ij[:, 0], p.cells_ij[:, 1]] + (0.0 if C is None else 1.0 / C)
-    fwd = _forward(p, w)
+    scale = 1.0 if p.contrast is None else 1.0 - 1.0 / p.contrast
+    w = _weights(p, A)
+    fwd = _forward(p, w, float(still_weight))
     if not grad:
-        return fwd["psnr"], None
+        return fwd["value"], None
     gw = _backward(p, w, fwd)
     out = np.zeros_like(A)
     out[:, p.cells_ij[:, 0], p.cells_ij[:, 1]] = scale * gw
-    return fwd["psnr"], out
+    return fwd["value"], out
 
 
-def _forward(p: CellProblem, w: np.ndarray) -> dict:
+def _best_shift(p: CellProblem, xp: np.ndarray) -> tuple:
+    """(squared error, shift, masked residual) on the moving objects at the best shift."""
+    H, W, _ = p.sharp.shape
+    best = None
+    for sh in range(-SHIFT_PX, SHIFT_PX + 1):
+        r = (xp[p.pad : p.pad + H, p.pad + sh : p.pad + sh + W] - p.sharp) * p.mask[..., None]
+        se = float(np.sum(r * r))
+        if best is None or se < best[0]:
+            best = (se, sh, r)
+    return best
+
+
+def _forward(p: CellProblem, w: np.ndarray, still_weight: float = 0.0) -> dict:
     """The objective's forward pass, keeping what the adjoint needs."""
     H, W, Ch = p.sharp.shape
     y = (w.ravel().astype(p.B.dtype) @ _flat(p.B)).reshape(H, W, Ch).astype(float)
@@ -218,34 +266,44 @@ def _forward(p: CellProblem, w: np.ndarray) -> dict:
     D = np.abs(Kh) ** 2 + (s2 + p.render_var) / p.S
     Wf = np.conj(Kh) / D
     xp = np.fft.ifft2(Wf[..., None] * Z, axes=(0, 1), norm="ortho").real
-    best = None
-    for sh in range(-SHIFT_PX, SHIFT_PX + 1):
-        r = (xp[p.pad : p.pad + H, p.pad + sh : p.pad + sh + W] - p.sharp) * p.mask[..., None]
-        se = float(np.sum(r * r))
-        if best is None or se < best[0]:
-            best = (se, sh, r)
+    se, shift, r = _best_shift(p, xp)
     n_px = int(p.mask.sum()) * Ch
     w2 = float(np.mean(np.abs(Wf) ** 2))
-    E = best[0] + n_px * s2 * w2
-    return dict(y=y, L=L, s2=s2, ds2=ds2, idx=idx, Z=Z, u=u, mass=mass, Kh=Kh, D=D, Wf=Wf,
-                shift=best[1], r=best[2], n_px=n_px, w2=w2, E=E,
-                psnr=-10.0 * math.log10(E / n_px))  # fmt: skip
+    E = se + n_px * s2 * w2
+    f = dict(y=y, L=L, s2=s2, ds2=ds2, idx=idx, Z=Z, u=u, mass=mass, Kh=Kh, D=D, Wf=Wf,
+             shift=shift, r=r, n_px=n_px, w2=w2, E=E, psnr=-10.0 * math.log10(E / n_px),
+             weight=still_weight)  # fmt: skip
+    f["value"] = f["psnr"]
+    if still_weight > 0:
+        rs = (xp[p.pad : p.pad + H, p.pad : p.pad + W] - p.sharp) * p.still[..., None]
+        n_s = int(p.still.sum()) * Ch
+        if n_s == 0:
+            raise ParameterError("still_weight: the window shows no still pixel to score")
+        E_s = float(np.sum(rs * rs)) + n_s * s2 * w2
+        f.update(r_s=rs, n_s=n_s, E_s=E_s, psnr_still=-10.0 * math.log10(E_s / n_s))
+        f["value"] = (f["psnr"] + still_weight * f["psnr_still"]) / (1.0 + still_weight)
+    return f
 
 
 def _backward(p: CellProblem, w: np.ndarray, f: dict) -> np.ndarray:
-    """d PSNR / d w (n, M): the adjoint of :func:`_forward` (dE = Re sum conj(G) dX for
-    each complex intermediate X, unitary FFTs)."""
+    """d value / d w (n, M): the adjoint of :func:`_forward` (dE = Re sum conj(G) dX for
+    each complex intermediate X, unitary FFTs); the squared errors' weights cE, cS are
+    d value / d E and d value / d E_s."""
     H, W, Ch = p.sharp.shape
-    gE = -10.0 / (math.log(10.0) * f["E"])
+    ws = f["weight"]
+    cE = -10.0 / (math.log(10.0) * f["E"]) / (1.0 + ws)
     g_xp = np.zeros(f["Z"].shape)
     sh = f["shift"]
-    g_xp[p.pad : p.pad + H, p.pad + sh : p.pad + sh + W] = 2.0 * f["r"]
+    g_xp[p.pad : p.pad + H, p.pad + sh : p.pad + sh + W] = 2.0 * cE * f["r"]
+    n_eff = cE * f["n_px"]  # d value / d (s2 w2)
+    if ws > 0:
+        cS = -10.0 * ws / (math.log(10.0) * f["E_s"]) / (1.0 + ws)
+        g_xp[p.pad : p.pad + H, p.pad : p.pad + W] += 2.0 * cS * f["r_s"]
+        n_eff += cS * f["n_s"]
     G_X = np.fft.fft2(g_xp, axes=(0, 1), norm="ortho")
     G_Z = np.conj(f["Wf"])[..., None] * G_X
-    G_W = (
-        np.sum(G_X * np.conj(f["Z"]), axis=-1) + 2.0 * f["n_px"] * f["s2"] / f["Wf"].size * f["Wf"]
-    )
-    g_s2 = f["n_px"] * f["w2"]
+    G_W = np.sum(G_X * np.conj(f["Z"]), axis=-1) + 2.0 * n_eff * f["s2"] / f["Wf"].size * f["Wf"]
+    g_s2 = n_eff * f["w2"]
     Kh, D = f["Kh"], f["D"]
     G_K = np.conj(G_W) / D
     q = np.real(np.conj(G_W) * np.conj(Kh)) / D**2
@@ -261,12 +319,25 @@ def _backward(p: CellProblem, w: np.ndarray, f: dict) -> np.ndarray:
     g_y = g_z / L
     g_L = -float(np.sum(g_z * f["y"])) / L**2 + g_s2 * f["ds2"]
     g_w = (_flat(p.B) @ g_y.ravel().astype(p.B.dtype)).reshape(w.shape).astype(float)
-    g_w += g_L * p.lam + p.dt[:, None] * g_u[None, :]
-    return gE * g_w
+    return g_w + g_L * p.lam + p.dt[:, None] * g_u[None, :]
 
 
-def mean_objective(problems, code, grad: bool = True):
+def mean_objective(problems, code, grad: bool = True, still_weight: float = 0.0):
     """The mean over the stores of :func:`objective` (dB) and its gradient."""
-    vals = [objective(p, code, grad) for p in problems]
+    vals = [objective(p, code, grad, still_weight) for p in problems]
     g = None if not grad else sum(v[1] for v in vals) / len(vals)
     return float(np.mean([v[0] for v in vals])), g
+
+
+def parts(problems, code) -> tuple[float, float]:
+    """The mean over the stores of the model's moving and still PSNR (dB) of ``code``."""
+    got = [_forward(p, _weights(p, code), 1.0) for p in problems]
+    return float(np.mean([f["psnr"] for f in got])), float(np.mean([f["psnr_still"] for f in got]))
+
+
+def _weights(p: CellProblem, code) -> np.ndarray:
+    """The cells' weights w (n, M) of ``code``: its transmittance with the LCoS's floor."""
+    C = p.contrast
+    scale = 1.0 if C is None else 1.0 - 1.0 / C
+    a = np.asarray(code, float)[:, p.cells_ij[:, 0], p.cells_ij[:, 1]]
+    return scale * a + (0.0 if C is None else 1.0 / C)

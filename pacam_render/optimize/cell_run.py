@@ -3,7 +3,8 @@ searched by gradient on the stores' cell bases (:mod:`.cell_search`), written as
 with its masks, and reported with the real pipeline (:mod:`.cell_report`) on each store's
 synthesis of the store's own design (the prototype) and of the found one.
 
-The objective is the mean over the stores of the model's moving-object PSNR
+The objective is the mean over the stores of the model's moving-object PSNR, or with
+``objective="moving+still"`` its weighted mean in dB with the still pixels' PSNR
 (:mod:`.cell_objective`); the starts are the store's design rasterised on the cells and
 ``starts - 1`` random binary codes (as open as the prototype, drawn from ``seed``). With
 ``light="fixed"`` every code keeps the light factor of the store's design's capture (its disc,
@@ -11,6 +12,7 @@ not the disc rasterised on the cells)."""
 
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -43,6 +45,12 @@ STARTS = 4
 MAX_LEVELS = 256
 """The most transmittance levels per cell (an 8-bit grey LCoS); 2 is binary (the prototype's
 ferroelectric LCoS)."""
+OBJECTIVES = ("moving", "moving+still")
+"""What the model scores: the moving objects' PSNR, or its weighted mean in dB with the still
+pixels' (:mod:`.cell_objective`)."""
+STILL_WEIGHT = 1.0
+"""The still term's weight w in (P_moving + w P_still) / (1 + w) by default: a dB on the moving
+objects counts as one on the still regions."""
 
 
 @dataclass(frozen=True)
@@ -59,6 +67,15 @@ class BitmapProblem:
     seed: int = 0
     noise_draws: int = 2
     levels: int = 2
+    objective: str = "moving"
+    still_weight: float | None = None
+
+    @property
+    def weight(self) -> float:
+        """The still term's weight the search takes: 0 for ``moving``."""
+        if self.objective == "moving":
+            return 0.0
+        return STILL_WEIGHT if self.still_weight is None else float(self.still_weight)
 
 
 def check_bitmap_problem(p: BitmapProblem):
@@ -69,6 +86,7 @@ def check_bitmap_problem(p: BitmapProblem):
     check_integer("--levels", p.levels, 2, MAX_LEVELS)
     if p.light not in LIGHT_CHOICES:
         raise ParameterError(f"--light: one of {', '.join(LIGHT_CHOICES)}, got {p.light!r}")
+    check_objective(p.objective, p.still_weight)
     stores = open_stores(RenderedProblem(tuple(p.stores), p.sensor, p.light_level,
                                          noise_draws=p.noise_draws, seed=p.seed,
                                          check_seeds=0))  # fmt: skip
@@ -88,6 +106,20 @@ def check_bitmap_problem(p: BitmapProblem):
             f" is available; take fewer cells (of {list(CELL_CHOICES)}) or fewer stores"
         )
     return stores
+
+
+def check_objective(objective: str, still_weight: float | None) -> None:
+    """``--objective`` one of :data:`OBJECTIVES`; ``--still-weight`` only with moving+still,
+    finite and > 0."""
+    if objective not in OBJECTIVES:
+        raise ParameterError(f"--objective: one of {', '.join(OBJECTIVES)}, got {objective!r}")
+    if still_weight is None:
+        return
+    if objective == "moving":
+        raise ParameterError("--still-weight: only --objective moving+still takes it")
+    w = float(still_weight)
+    if not (math.isfinite(w) and w > 0):
+        raise ParameterError(f"--still-weight: a finite number > 0, got {still_weight!r}")
 
 
 def prepare_bitmap(p: BitmapProblem, stores, progress: bool = False) -> dict:
@@ -113,7 +145,8 @@ def prepare_bitmap(p: BitmapProblem, stores, progress: bool = False) -> dict:
 
 def search_bitmap(p: BitmapProblem, prepared: dict):
     """:func:`~.cell_search.gradient_search` from the prototype and ``p.starts - 1`` random
-    codes on :func:`prepare_bitmap`'s problems, ``p.light`` as the rule.
+    codes on :func:`prepare_bitmap`'s problems, ``p.light`` as the rule, ``p.objective``
+    what is scored.
 
     Returns
     -------
@@ -127,7 +160,7 @@ def search_bitmap(p: BitmapProblem, prepared: dict):
         starts[f"random {i}"] = (rng.random(base.shape) < share).astype(float)
     reference = prepared["templates"][0].record.light_factor  # the disc's, not rasterised
     return gradient_search(problems, starts, p.iterations, levels=p.levels, light=p.light,
-                           reference=reference)  # fmt: skip
+                           reference=reference, still_weight=p.weight)  # fmt: skip
 
 
 def design_spec(spec, path: Path):
@@ -170,13 +203,20 @@ def run_bitmap_optimize(p: BitmapProblem, out: Path, force: bool, progress: bool
     return doc
 
 
+def _what(p: BitmapProblem) -> str:
+    """The objective in words."""
+    if p.objective == "moving":
+        return "moving objects' PSNR"
+    return f"(moving PSNR + {p.weight:g} still PSNR) / {1 + p.weight:g}"
+
+
 def _text(p: BitmapProblem, doc: dict) -> str:
     """report.md."""
     m = doc["model_db"]
     return "\n".join([
         f"# pacam optimize --lightfield --space bitmap ({p.cells}x{p.cells} cells, light "
         f"{p.light})", "",
-        f"Model objective (mean over {len(p.stores)} store(s), moving objects): found "
+        f"Model objective (mean over {len(p.stores)} store(s), {_what(p)}): found "
         f"{m['found']:.2f} dB; {doc['evaluations']} evaluations in {doc['search_s']:.1f} s "
         f"after {doc['setup_s']:.1f} s of setup. Starts (name, relaxed dB, binary dB): "
         + "; ".join(f"{s[0]} {s[1]:.2f}/{s[2]:.2f}" for s in m["starts"]) + ".", "",

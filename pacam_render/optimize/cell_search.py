@@ -1,6 +1,7 @@
 """Gradient search over cell codes (:mod:`.cell_objective`): a binary LCoS code relaxed to
-[0, 1], climbed with Adam on the mean expected moving-object PSNR over the training stores,
-then projected to the LCoS's levels.
+[0, 1], climbed with Adam on the mean expected moving-object PSNR over the training stores
+(or its weighted mean with the still pixels', ``still_weight``), then projected to the
+LCoS's levels.
 
 ``light="free"``: the code is A = 1 / (1 + exp(-theta)), Adam in the logits theta; the total
 light (open area x time) is whatever the search finds, and more light is less sensor noise, so
@@ -23,7 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import ParameterError
-from .cell_objective import mean_objective
+from .cell_objective import check_still_weight, mean_objective
 
 LOGIT_CLIP = 4.0
 """A start's logits: a code's 0 and 1 become -4 and +4 (A = 0.018, 0.982), so that a
@@ -109,13 +110,14 @@ def project_levels(code, problem, target: float, levels: int = 2) -> np.ndarray:
     return out.reshape(low.shape)
 
 
-def adam(problems, theta, iterations: int, step: float, rows: list, t0: float):
+def adam(problems, theta, iterations: int, step: float, rows: list, t0: float,
+         still_weight: float = 0.0):  # fmt: skip
     """Adam ascent of the mean objective in logits ``theta``; appends to ``rows``."""
     m, v = np.zeros_like(theta), np.zeros_like(theta)
     b1, b2 = 0.9, 0.999
     for i in range(1, iterations + 1):
         a = 1.0 / (1.0 + np.exp(-theta))
-        val, g = mean_objective(problems, a)
+        val, g = mean_objective(problems, a, True, still_weight)
         g = g * a * (1.0 - a)  # d A / d theta
         m = b1 * m + (1 - b1) * g
         v = b2 * v + (1 - b2) * g * g
@@ -132,13 +134,13 @@ def _target(problem, reference) -> float:
 
 
 def adam_fixed(problems, a, iterations: int, step: float, rows: list, t0: float,
-               target: float):  # fmt: skip
+               target: float, still_weight: float = 0.0):  # fmt: skip
     """Projected Adam ascent in the code ``a`` itself, kept at light ``target``
     (:func:`project_light` after every step); appends to ``rows``."""
     m, v = np.zeros_like(a), np.zeros_like(a)
     b1, b2 = 0.9, 0.999
     for i in range(1, iterations + 1):
-        val, g = mean_objective(problems, a)
+        val, g = mean_objective(problems, a, True, still_weight)
         m = b1 * m + (1 - b1) * g
         v = b2 * v + (1 - b2) * g * g
         a = a + step * (m / (1 - b1**i)) / (np.sqrt(v / (1 - b2**i)) + 1e-12)
@@ -147,22 +149,22 @@ def adam_fixed(problems, a, iterations: int, step: float, rows: list, t0: float,
     return a
 
 
-def _climb(problems, code, iterations, step, rows, t0, target):
+def _climb(problems, code, iterations, step, rows, t0, target, still_weight):
     """One start climbed: the relaxed code (free light: Adam in logits; fixed: projected)."""
     c = np.clip(np.asarray(code, float), 0.0, 1.0)
     if target is not None:
         return adam_fixed(problems, project_light(c, problems[0], target), iterations, step,
-                          rows, t0, target)  # fmt: skip
+                          rows, t0, target, still_weight)  # fmt: skip
     theta = np.where(c >= 0.5, LOGIT_CLIP, -LOGIT_CLIP)  # a binary start
     if np.any((c > 0) & (c < 1)):  # a grey start keeps its levels
         theta = np.log(np.clip(c, 1e-3, 1 - 1e-3) / np.clip(1 - c, 1e-3, 1 - 1e-3))
-    theta = adam(problems, theta, iterations, step, rows, t0)
+    theta = adam(problems, theta, iterations, step, rows, t0, still_weight)
     return 1.0 / (1.0 + np.exp(-theta))
 
 
 def gradient_search(problems, starts: dict, iterations: int = 200, step: float | None = None,
-                    levels: int = 2, light: str = "free",
-                    reference=None) -> CellSearch:  # fmt: skip
+                    levels: int = 2, light: str = "free", reference=None,
+                    still_weight: float = 0.0) -> CellSearch:  # fmt: skip
     """Climb from each named start code (n, G, G) in [0, 1]; keep the best projected code.
 
     Parameters
@@ -184,6 +186,9 @@ def gradient_search(problems, starts: dict, iterations: int = 200, step: float |
         With fixed light, the code whose light (:func:`light_of`) every code keeps, or that
         light itself (e.g. the prototype's capture's ``record.light_factor``: its disc, not
         the disc rasterised on the cells).
+    still_weight : float
+        0: the moving objects' PSNR alone; w > 0: the weighted mean (P + w P_s) / (1 + w) with
+        the still pixels' (:func:`~.cell_objective.objective`).
 
     Returns
     -------
@@ -196,6 +201,7 @@ def gradient_search(problems, starts: dict, iterations: int = 200, step: float |
     if light == "fixed" and reference is None:
         raise ParameterError("reference: fixed light needs the code whose light it keeps")
     _check_levels(levels)
+    sw = check_still_weight(problems, still_weight)
     if not starts:
         raise ParameterError("starts: at least one start code")
     target = None if light == "free" else _target(problems[0], reference)
@@ -203,13 +209,13 @@ def gradient_search(problems, starts: dict, iterations: int = 200, step: float |
     rows, out, best = [], [], None
     t0 = time.perf_counter()
     for name, code in starts.items():
-        relaxed = _climb(problems, code, int(iterations), step, rows, t0, target)
+        relaxed = _climb(problems, code, int(iterations), step, rows, t0, target, sw)
         proj = project(relaxed, levels) if target is None else project_levels(
             relaxed, problems[0], target, levels)  # fmt: skip
         if not proj.any():
             continue
-        r_db = mean_objective(problems, relaxed, False)[0]
-        p_db = mean_objective(problems, proj, False)[0]
+        r_db = mean_objective(problems, relaxed, False, sw)[0]
+        p_db = mean_objective(problems, proj, False, sw)[0]
         out.append((name, r_db, p_db))
         if best is None or p_db > best[0]:
             best = (p_db, r_db, proj)

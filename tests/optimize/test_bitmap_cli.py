@@ -33,9 +33,11 @@ def test_a_bitmap_search_from_the_command_line(store, tmp_path, capsys):
     out = tmp_path / "opt"
     args = ["optimize", "--lightfield", str(store.folder), "--space", "bitmap", "--cells", "8",
             "--iterations", "3", "--starts", "2", "--noise-draws", "1", "--quiet",
-            "--out", str(out)]  # fmt: skip
+            "--objective", "moving+still", "--still-weight", "0.5", "--out", str(out)]  # fmt: skip
     assert main(args) == 0
-    assert "Scored with the real pipeline" in capsys.readouterr().out
+    text = capsys.readouterr().out
+    assert "Scored with the real pipeline" in text
+    assert "(moving PSNR + 0.5 still PSNR) / 1.5" in text
     with warnings.catch_warnings():
         warnings.simplefilter("error", PacamWarning)  # written, so not "edited after"
         cam = read_design(out / "design.toml")
@@ -80,6 +82,13 @@ def test_grey_levels_from_the_command_line(store, tmp_path):
         (["--space", "bitmap", "--levels", "1"], "--levels must be an integer 2..256, got 1"),
         (["--space", "bitmap", "--levels", "257"], "--levels must be an integer 2..256"),
         (["--levels", "4"], "--levels: only a search with --space bitmap"),
+        (["--space", "bitmap", "--objective", "all"], "--objective: one of moving, moving+still"),
+        (["--space", "bitmap", "--still-weight", "2"], "--still-weight: only --objective"),
+        (
+            ["--space", "bitmap", "--objective", "moving+still", "--still-weight", "-1"],
+            "--still-weight: a finite number > 0",
+        ),
+        (["--objective", "moving"], "--objective: only a search with --space bitmap"),
     ],
 )
 def test_bad_bitmap_flags_are_one_line_before_any_work(store, tmp_path, capsys, extra, words):

@@ -15,7 +15,7 @@ from pacam_render.lightfield import StoreSpec, render_lightfield, synthesize
 from pacam_render.lightfield.cell_basis import cell_basis
 from pacam_render.model.design_file import read_design
 from pacam_render.optimize.cell_design import bitmap_design_spec, disc_code
-from pacam_render.optimize.cell_objective import cell_problem, objective
+from pacam_render.optimize.cell_objective import cell_problem, objective, parts
 from pacam_render.optimize.cell_search import gradient_search, project
 
 SPEC = CaptureSpec.geometric(scene="train", width=1280, height=960, crop=(440, 400, 48, 32),
@@ -31,7 +31,9 @@ def setup(tmp_path_factory):
     basis = cell_basis(store, SPEC, cells=G)
     base = disc_code(plan, G)
     template = synthesize(store, SPEC, progress=False)
-    problem = cell_problem(basis, template, plan, base, "grasshopper-icx285", 300.0, np.float64)
+    # still_edge_px 3: the scorer's 32 columns would leave none of this 48 px window
+    problem = cell_problem(basis, template, plan, base, "grasshopper-icx285", 300.0, np.float64,
+                           still_edge_px=3)  # fmt: skip
     return store, basis, base, problem
 
 
@@ -86,3 +88,47 @@ def test_bad_search_input_is_refused(setup):
         project(base, 1)
     with pytest.raises(ParameterError, match="all-black"):
         objective(problem, np.zeros_like(base))
+
+
+def test_the_still_term_and_its_gradient_are_central_finite_differences(setup):
+    _, basis, _, problem = setup
+    assert problem.still.any() and problem.mask.any()
+    rng = np.random.default_rng(5)
+    code = rng.uniform(0.05, 0.95, (basis.n_patterns, G, G))
+    w = 0.7
+    value, grad = objective(problem, code, True, w)
+    moving, still = parts([problem], code)
+    assert value == pytest.approx((moving + w * still) / (1 + w))
+    assert moving == pytest.approx(objective(problem, code, False)[0])
+    h = 1e-5
+    for _ in range(3):
+        d = rng.normal(size=code.shape) * 0.1
+        fd = (objective(problem, code + h * d, False, w)[0]
+              - objective(problem, code - h * d, False, w)[0]) / (2 * h)  # fmt: skip
+        assert abs(np.sum(grad * d) - fd) <= 1e-3 * abs(fd), (np.sum(grad * d), fd)
+
+
+def test_the_still_psnr_is_the_closed_form_of_a_flat_residual(setup):
+    """An independent check of E_s: with sharp replaced so that the restored image minus
+    sharp is a known constant c on the still pixels, the noise-free part is c^2 |N|."""
+    _, basis, base, problem = setup
+    from dataclasses import replace as dc_replace
+
+    from pacam_render.optimize.cell_objective import _forward, _weights
+
+    f = _forward(problem, _weights(problem, base), 1.0)
+    restored = f["r_s"] + problem.sharp * problem.still[..., None]
+    shifted = dc_replace(problem, sharp=np.where(problem.still[..., None], restored - 0.1,
+                                                 problem.sharp))  # fmt: skip
+    g = _forward(shifted, _weights(problem, base), 1.0)
+    n_s = int(problem.still.sum()) * problem.sharp.shape[2]
+    noise = n_s * f["s2"] * f["w2"]
+    assert g["E_s"] == pytest.approx(0.01 * n_s + noise, rel=1e-9)
+
+
+def test_a_bad_still_weight_is_refused(setup):
+    _, _, base, problem = setup
+    with pytest.raises(ParameterError, match="still_weight"):
+        gradient_search([problem], {"prototype": base}, iterations=1, still_weight=-1.0)
+    with pytest.raises(ParameterError, match="still_weight"):
+        gradient_search([problem], {"prototype": base}, iterations=1, still_weight=float("nan"))
