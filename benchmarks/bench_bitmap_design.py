@@ -3,12 +3,17 @@
 Train: light-field stores of ``family:occluders`` seeds TRAIN (a WINDOW_PX window about each
 scene's largest occlusion event, from its card). Search: binary bitmaps on CELLS x CELLS cells
 per pattern window by gradient (``pacam optimize --space bitmap``'s own functions), with the
-light fixed at the prototype's and free; the best centres design by the coordinate search
-(``--space centres``, the worst case over the stores). Check: held-out seeds HELD, FRESH
-DIRECT renders of every design (new render seeds) and new sensor draws, scored with the real
-pipeline (:mod:`pacam_render.optimize.cell_report`), paired 95 % intervals of the moving-object
-PSNR difference against the prototype per (scene, render seed). Levin's camera is focused
-once for the class, at the family's middle depth (650 mm), as every design here is.
+light fixed at the prototype's, for each objective (moving objects' PSNR alone; its weighted
+mean in dB with the still pixels', weight STILL_WEIGHT); the best centres design by the
+coordinate search (``--space centres``, the worst case over the stores); the Fourier-model
+design (``pacam optimize --max-velocity``, the non-rendered objective) for the same camera
+(sensor, lens, LCoS, exposure: the prototype's written as a design file) at the family's
+fastest speed and the middle depth; it chooses its own focus, one of its variables. Check:
+held-out seeds HELD, FRESH DIRECT renders of every design (new render seeds) and new sensor
+draws, scored with the real pipeline (:mod:`pacam_render.optimize.cell_report`), paired 95 %
+intervals of the moving-object and still-region PSNR differences against the prototype per
+(scene, render seed). Levin's camera is focused once for the class, at the family's middle
+depth (650 mm), as every design here but the Fourier model's is.
 
     python benchmarks/bench_bitmap_design.py [--quick]
 """
@@ -30,10 +35,12 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from common import record  # noqa: E402
 
 from pacam_render.exposure.direct import render_capture  # noqa: E402
+from pacam_render.exposure.plan import plan_capture  # noqa: E402
 from pacam_render.exposure.spec import CaptureSpec  # noqa: E402
 from pacam_render.lightfield import Store, StoreSpec, render_lightfield, synthesize  # noqa: E402
 from pacam_render.model.design_file import write_design  # noqa: E402
 from pacam_render.optimize.cell_design import bitmap_design  # noqa: E402
+from pacam_render.optimize.cell_objective import parts  # noqa: E402
 from pacam_render.optimize.cell_report import design_row, summary  # noqa: E402
 from pacam_render.optimize.cell_run import (  # noqa: E402
     BitmapProblem,
@@ -43,15 +50,22 @@ from pacam_render.optimize.cell_run import (  # noqa: E402
     search_bitmap,
 )
 from pacam_render.optimize.rendered_run import RenderedProblem, run_rendered_optimize  # noqa: E402
+from pacam_render.optimize.run import run_optimize  # noqa: E402
+from pacam_render.optimize.search import Problem  # noqa: E402
 from pacam_render.scenes.family import family_scene  # noqa: E402
 
-TRAIN, HELD = (0, 1, 2), (10, 11, 12)
+TRAIN, HELD = (0, 1, 2), (10, 11, 12, 13, 14, 15)
 WINDOW_PX = (128, 64)
 """128 x 64, not 96 x 64: score_capture leaves out +-32 px columns (its shift search at a
 1280 px sensor), so a 96 px window scores 32 columns and rarely any still pixel."""
 MIDDLE_DEPTH_MM = 650.0
 """The family's depths are 400-900 mm: every camera is focused once for the class here."""
 SENSOR, LEVEL = "grasshopper-icx285", 300.0
+STILL_WEIGHT = 1.0
+"""The still term's weight in (moving + w still) / (1 + w), dB: cell_run's default."""
+MAX_SPEED_PX_PER_MS = 1.4
+"""The family's fastest image speed (its speed range 0.2-1.4 px/ms): the Fourier model's
+--max-velocity."""
 
 
 def window(seed: int) -> tuple[int, int, int, int]:
@@ -84,25 +98,44 @@ def stores(root: Path, spp: int) -> list[str]:
     return out
 
 
-def designs(root: Path, folders, cells: int, iterations: int, starts: int) -> dict:
-    """Design name -> (design file, seconds, model dB): bitmaps (fixed, free) and centres."""
+def designs(root: Path, folders, cells: int, iterations: int, starts: int, quick: bool):
+    """Design name -> (design file, seconds, model dB): bitmaps (fixed light, each objective),
+    centres and the Fourier model's."""
     found, p = {}, BitmapProblem(tuple(folders), SENSOR, LEVEL, cells, "fixed", starts,
                                  iterations, noise_draws=2)  # fmt: skip
     prepared = prepare_bitmap(p, check_bitmap_problem(p))
-    for rule in ("fixed", "free"):
+    for name, q in (("bitmap moving", p),
+                    ("bitmap moving+still", replace(p, objective="moving+still",
+                                                    still_weight=STILL_WEIGHT))):  # fmt: skip
         t0 = time.perf_counter()
-        s = search_bitmap(replace(p, light=rule), prepared)
-        path = root / f"bitmap_{rule}.toml"
+        s = search_bitmap(q, prepared)
+        path = root / f"{name.replace(' ', '_').replace('+', '_')}.toml"
         write_design(path, bitmap_design(prepared["plan"], prepared["bases"][0], s.code), True)
-        found[f"bitmap {rule} light"] = (path, time.perf_counter() - t0, s.projected_db)
-        print(f"bitmap {rule}: model {s.projected_db:.2f} dB, starts {s.starts}", flush=True)
+        found[name] = (path, time.perf_counter() - t0, s.projected_db)
+        moving, still = parts(prepared["problems"], s.code)
+        print(f"{name}: model {s.projected_db:.2f} dB (moving {moving:.2f}, still {still:.2f}),"
+              f" starts {s.starts}", flush=True)  # fmt: skip
     t0 = time.perf_counter()
     rp = RenderedProblem(tuple(folders), SENSOR, LEVEL, positions=9, sweeps=1, noise_draws=1,
                          check_seeds=0)  # fmt: skip
     doc = run_rendered_optimize(rp, root / "centres", True, progress=False)
     found["centres (worst case)"] = (root / "centres" / "design.toml",
                                      time.perf_counter() - t0, doc["found_worst_db"])  # fmt: skip
+    found["fourier model"] = fourier(root, prepared["specs"][0], quick)
     return found, prepared
+
+
+def fourier(root: Path, base, quick: bool):
+    """The Fourier-model design (``pacam optimize --max-velocity``) for ``base``'s camera
+    (written as a design file: its sensor, lens, LCoS and exposure), speeds up to
+    MAX_SPEED_PX_PER_MS at the middle depth: (design file, seconds, worst-case objective)."""
+    t0 = time.perf_counter()
+    camera = root / "camera.toml"
+    write_design(camera, plan_capture(base).cam, True)
+    p = Problem(MAX_SPEED_PX_PER_MS, (MIDDLE_DEPTH_MM, MIDDLE_DEPTH_MM), 16, SENSOR, LEVEL,
+                design=str(camera))  # fmt: skip
+    doc = run_optimize(p, root / "fourier", quick=quick, seed=0, force=True, progress=False)
+    return root / "fourier" / "design.toml", time.perf_counter() - t0, doc["objective_worst"]
 
 
 def captures(seed: int, spp: int, rseed: int, found: dict):
@@ -114,16 +147,17 @@ def captures(seed: int, spp: int, rseed: int, found: dict):
     return out
 
 
-def paired(rows: list[dict], ref: str = "prototype") -> dict:
-    """Per design, the moving-PSNR differences against ``ref`` per (scene, render seed):
-    mean and 95 % Student-t interval."""
+def paired(rows: list[dict], score: str = "psnr_moving_db", ref: str = "prototype") -> dict:
+    """Per design, the ``score`` differences against ``ref`` per (scene, render seed):
+    mean and 95 % Student-t interval (rows without the score left out)."""
     from scipy.stats import t as student
 
     key = lambda r: r["where"]  # noqa: E731
-    refs = {key(r): r["psnr_moving_db"] for r in rows if r["design"] == ref}
+    refs = {key(r): r[score] for r in rows if r["design"] == ref}
     out = {}
     for name in dict.fromkeys(r["design"] for r in rows if r["design"] != ref):
-        d = np.array([r["psnr_moving_db"] - refs[key(r)] for r in rows if r["design"] == name])
+        d = np.array([r[score] - refs[key(r)] for r in rows if r["design"] == name
+                      and r[score] is not None and refs[key(r)] is not None])  # fmt: skip
         half = student.ppf(0.975, len(d) - 1) * d.std(ddof=1) / np.sqrt(len(d))
         out[name] = (float(d.mean()), float(d.mean() - half), float(d.mean() + half), len(d))
     return out
@@ -143,7 +177,7 @@ def main() -> None:
     t0 = time.perf_counter()
     folders = stores(root, store_spp)
     t_store = time.perf_counter() - t0
-    found, prepared = designs(root, folders, cells, iters, starts)
+    found, prepared = designs(root, folders, cells, iters, starts, a.quick)
     train = []
     for folder, tpl, sp in zip(folders, prepared["templates"], prepared["specs"]):
         st = Store.open(folder)
@@ -163,35 +197,45 @@ def main() -> None:
                 held.append(design_row(name, f"{seed}/{rs}", cap, ref, SENSOR, LEVEL, draws))
             print(f"held-out seed {seed} render {j}: done", flush=True)
     diffs = paired(held)
+    still = paired(held, "psnr_static_db")
     tr = {r["design"]: r for r in summary(train)}
     rows = []
     for r in summary(held):
-        d = diffs.get(r["design"])
+        d, e = diffs.get(r["design"]), still.get(r["design"])
         t = tr.get(r["design"])
         f = lambda v: "n/a" if v is None else f"{v:.2f}"  # noqa: E731
+        ci = lambda d: "-" if d is None else f"{d[0]:+.2f} [{d[1]:+.2f}, {d[2]:+.2f}] n={d[3]}"  # noqa: E731
         rows.append({
             "design": r["design"],
             "train moving (synth, dB)": f(t and t["psnr_moving_db"]),
             "held moving (dB)": f(r["psnr_moving_db"]), "held still (dB)": f(r["psnr_static_db"]),
             "held whole (dB)": f(r["psnr_db"]),
-            "moving vs prototype (95 %)": "-" if d is None else
-            f"{d[0]:+.2f} [{d[1]:+.2f}, {d[2]:+.2f}] n={d[3]}",
+            "moving vs prototype (95 %)": ci(d), "still vs prototype (95 %)": ci(e),
             "range (px/ms)": f(r["range_px_per_ms"]), "light": f"{r['light_rel']:.2f}x",
         })  # fmt: skip
     (root / "bench.json").write_text(json.dumps({"train": train, "held": held}, indent=1))
+    fmt = lambda v: f"{v:.2f}"  # noqa: E731
     notes = (f"train seeds {TRAIN}, held-out {HELD}, {WINDOW_PX[0]}x{WINDOW_PX[1]} windows at "
              f"each scene's largest occlusion; stores spp {store_spp} x 2 passes "
              f"({t_store:.0f} s); bitmaps {cells}x{cells} cells, {starts} starts x {iters} Adam "
-             f"steps; centres 9 positions, 1 sweep; held-out: fresh direct renders spp "
+             f"steps, fixed light, objectives moving and (moving + {STILL_WEIGHT:g} still) / "
+             f"{1 + STILL_WEIGHT:g} in dB; centres 9 positions, 1 sweep; Fourier model at "
+             f"{MAX_SPEED_PX_PER_MS:g} px/ms, {MIDDLE_DEPTH_MM:g} mm, the prototype's camera, "
+             "its own focus; model dB (each its own objective): "
+             + ", ".join(f"{k} {fmt(v[2])}" for k, v in found.items())
+             + f"; held-out: fresh direct renders spp "
              f"{direct_spp} x 2 passes, {rseeds} render seeds per scene, 2 new sensor draws, "
-             f"{SENSOR} at {LEVEL:g} photons/px/ms, Wiener; all cameras focused for "
-             f"{MIDDLE_DEPTH_MM:g} mm; search s: "
+             f"{SENSOR} at {LEVEL:g} photons/px/ms, Wiener; all cameras but the Fourier model's "
+             "focused for "
+             f"{MIDDLE_DEPTH_MM:g} mm; still intervals over the renders whose scored columns "
+             "hold still pixels; search s: "
              + ", ".join(f"{k} {v[1]:.0f}" for k, v in found.items())
              + (" (QUICK smoke sizes)" if a.quick else ""))  # fmt: skip
     if a.quick:
         print(rows, notes)
         return
-    record("Whole-aperture bitmaps: train on 3 family scenes, check on 3 held-out", rows, notes)
+    record(f"Whole-aperture bitmaps: train on 3 family scenes, check on {len(HELD)} held-out",
+           rows, notes)  # fmt: skip
 
 
 if __name__ == "__main__":
