@@ -20,7 +20,7 @@ RENDER_MODULES = {
     "test_regression_images",
     "test_tutorial",
 }
-RENDER_FIXTURES = {"quick_dir", "renderer", "mi"}  # fixtures of tests that render
+RENDER_FIXTURES = {"quick_dir", "renderer", "mi", "store"}  # fixtures of tests that render
 
 
 def pytest_configure(config):

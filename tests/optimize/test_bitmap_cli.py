@@ -12,21 +12,11 @@ import numpy as np
 import pytest
 
 from pacam_render.cli import main
-from pacam_render.exposure.spec import CaptureSpec
-from pacam_render.lightfield import StoreSpec, render_lightfield, synthesize
+from pacam_render.lightfield import synthesize
 from pacam_render.limits import PacamWarning
 from pacam_render.model.design_file import read_design
 from pacam_render.optimize.rendered import CaptureScorer
 from pacam_render.optimize.rendered_run import base_spec
-
-SPEC = CaptureSpec.geometric(scene="train", width=1280, height=960, crop=(440, 400, 96, 64),
-                             mode="coded", spp=4, passes=2, seed=3)  # fmt: skip
-
-
-@pytest.fixture(scope="module")
-def store(tmp_path_factory):
-    folder = tmp_path_factory.mktemp("lf") / "store"
-    return render_lightfield(StoreSpec(SPEC, alpha=1.0), folder, progress=False)
 
 
 def test_a_bitmap_search_from_the_command_line(store, tmp_path, capsys):

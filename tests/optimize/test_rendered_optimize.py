@@ -13,22 +13,13 @@ import pytest
 from pacam_render.cli import main
 from pacam_render.errors import ParameterError
 from pacam_render.exposure.plan import plan_capture
-from pacam_render.exposure.spec import CaptureSpec
 from pacam_render.lightfield import StoreSpec, render_lightfield, synthesize
 from pacam_render.lightfield.centre_basis import centre_basis
 from pacam_render.model.design_file import read_design, write_design
 from pacam_render.optimize.rendered import CaptureScorer, StoreObjective, coordinate_search
 from pacam_render.optimize.rendered_run import candidate_positions, found_design
 from pacam_render.restore.object_score import moving_shapes, psnr_moving_db, score
-
-SPEC = CaptureSpec.geometric(scene="train", width=1280, height=960, crop=(440, 400, 96, 64),
-                             mode="coded", spp=4, passes=2, seed=3)  # fmt: skip
-
-
-@pytest.fixture(scope="module")
-def store(tmp_path_factory):
-    folder = tmp_path_factory.mktemp("lf") / "store"
-    return render_lightfield(StoreSpec(SPEC, alpha=1.0), folder, progress=False)
+from tests.optimize.small_store import SPEC  # the store fixture: conftest.py
 
 
 def _design_spec(spec, centres, path):
