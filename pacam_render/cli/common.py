@@ -94,6 +94,11 @@ FLAGS = {
     "wall_depth_mm": "--wall-depth",
     "textures": "--textures",
     "window": "--window",
+    "cells": "--cells",
+    "levels": "--levels",
+    "light": "--light",
+    "objective": "--objective",
+    "still_weight": "--still-weight",
 }
 """Parameter names in library messages, and the flags a CLI user typed instead: the one
 mapping (a file's keys, :class:`~pacam_render.errors.FileKeyError`, are left as they are)."""

@@ -124,11 +124,11 @@ def _check_folder(out: Path, spec: DatasetSpec, force: bool) -> None:
         if old.get("key") != spec.key() and not force:
             raise ParameterError(
                 f"`out` {out} holds a dataset of another spec ({old.get('name')!r}, key "
-                f"{old.get('key')}); pass --force to render this spec there (samples of the "
+                f"{old.get('key')}); pass `force=True` to render this spec there (samples of the "
                 "same key are kept), or choose another folder"
             )
     elif out.is_dir() and any(p.name != ".pacam.lock" for p in out.iterdir()) and not force:
-        raise ParameterError(f"`out` {out} holds other files; choose a new folder, or --force")
+        raise ParameterError(f"`out` {out} holds other files; choose a new folder, or `force=True`")
 
 
 def scene_files(spec: DatasetSpec, out: Path) -> dict[str, str]:

@@ -117,7 +117,7 @@ def display_px(R_max_mm: float, pitch_mm: float, cells: int) -> int:
     if int(cells) != cells or cells < 1 or cells > D or D % int(cells):
         ok = [g for g in CELL_CHOICES if g <= D and D % g == 0]
         raise ParameterError(
-            f"cells: a grid of G x G cells with G dividing the {D} LCoS pixels across the clear "
+            f"`cells`: a grid of G x G cells with G dividing the {D} LCoS pixels across the clear "
             f"aperture (no finer than the LCoS), e.g. {ok}; got {cells!r}"
         )
     return D

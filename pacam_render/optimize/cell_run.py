@@ -81,11 +81,11 @@ class BitmapProblem:
 def check_bitmap_problem(p: BitmapProblem):
     """The stores (one camera, :func:`~.rendered_run.open_stores`) and every setting checked,
     with the bases' memory, before any work; returns the open stores."""
-    check_integer("--starts", p.starts, 1, None)
-    check_integer("--iterations", p.iterations, 1, None)
-    check_integer("--levels", p.levels, 2, MAX_LEVELS)
+    check_integer("`starts`", p.starts, 1, None)
+    check_integer("`iterations`", p.iterations, 1, None)
+    check_integer("`levels`", p.levels, 2, MAX_LEVELS)
     if p.light not in LIGHT_CHOICES:
-        raise ParameterError(f"--light: one of {', '.join(LIGHT_CHOICES)}, got {p.light!r}")
+        raise ParameterError(f"`light`: one of {', '.join(LIGHT_CHOICES)}, got {p.light!r}")
     check_objective(p.objective, p.still_weight)
     stores = open_stores(RenderedProblem(tuple(p.stores), p.sensor, p.light_level,
                                          noise_draws=p.noise_draws, seed=p.seed,
@@ -94,7 +94,7 @@ def check_bitmap_problem(p: BitmapProblem):
     try:
         display_px(cam.R_max_mm, cam.lcos_pitch_mm, p.cells)
     except ParameterError as exc:
-        raise ParameterError(f"--{exc}") from None
+        raise ParameterError(str(exc)) from None
     need = 0
     for s in stores:
         _, _, w, h = s.manifest.camera.window
@@ -102,24 +102,24 @@ def check_bitmap_problem(p: BitmapProblem):
                                s.manifest.channels)  # fmt: skip
     if need > available_bytes():
         raise ParameterError(
-            f"--cells {p.cells}: the stores' bases need about {gib(need)}, {gib(available_bytes())}"
+            f"`cells` {p.cells}: the stores' bases need about {gib(need)}, {gib(available_bytes())}"
             f" is available; take fewer cells (of {list(CELL_CHOICES)}) or fewer stores"
         )
     return stores
 
 
 def check_objective(objective: str, still_weight: float | None) -> None:
-    """``--objective`` one of :data:`OBJECTIVES`; ``--still-weight`` only with moving+still,
+    """``objective`` one of :data:`OBJECTIVES`; ``still_weight`` only with moving+still,
     finite and > 0."""
     if objective not in OBJECTIVES:
-        raise ParameterError(f"--objective: one of {', '.join(OBJECTIVES)}, got {objective!r}")
+        raise ParameterError(f"`objective`: one of {', '.join(OBJECTIVES)}, got {objective!r}")
     if still_weight is None:
         return
     if objective == "moving":
-        raise ParameterError("--still-weight: only --objective moving+still takes it")
+        raise ParameterError("still_weight: only `objective` moving+still takes it")
     w = float(still_weight)
     if not (math.isfinite(w) and w > 0):
-        raise ParameterError(f"--still-weight: a finite number > 0, got {still_weight!r}")
+        raise ParameterError(f"still_weight: a finite number > 0, got {still_weight!r}")
 
 
 def prepare_bitmap(p: BitmapProblem, stores, progress: bool = False) -> dict:
