@@ -114,6 +114,31 @@ def _add_lightfield(p) -> None:
         "coordinate search; default) or bitmap (any binary LCoS bitmap on a grid of cells in "
         "each pattern window, gradient search)",
     )
+    _add_bitmap(p)
+    _add_centres(p)
+    p.add_argument(
+        "--noise-draws",
+        type=int,
+        default=NOISE_DRAWS,
+        metavar="D",
+        help=f"with --lightfield: sensor noise draws per evaluation (default {NOISE_DRAWS})",
+    )
+    p.add_argument(
+        "--method",
+        default=DEFAULT_METHOD,
+        help=f"with --lightfield: the deconvolver scored (default {DEFAULT_METHOD})",
+    )
+    p.add_argument("--depth-range", metavar="NEAR,FAR", help="mm (default: the preset's depth)")
+    p.add_argument(
+        "--light-level",
+        type=float,
+        metavar="L",
+        help="photons/px/ms of white through the full lens (default 300, the demo's)",
+    )
+
+
+def _add_bitmap(p) -> None:
+    """The flags of ``--space bitmap`` (:mod:`~..optimize.cell_run`)."""
     p.add_argument(
         "--cells",
         type=int,
@@ -147,6 +172,10 @@ def _add_lightfield(p) -> None:
         help="with --objective moving+still: the still PSNR's weight w in (moving + w still) "
         f"/ (1 + w), > 0 (default {STILL_WEIGHT:g})",
     )
+
+
+def _add_centres(p) -> None:
+    """The flags of ``--space centres`` (:mod:`~..optimize.rendered_run`)."""
     p.add_argument(
         "--positions",
         type=int,
@@ -160,30 +189,11 @@ def _add_lightfield(p) -> None:
         help=f"with --lightfield: sweeps over the patterns at most (default {SWEEPS})",
     )
     p.add_argument(
-        "--noise-draws",
-        type=int,
-        default=NOISE_DRAWS,
-        metavar="D",
-        help=f"with --lightfield: sensor noise draws per evaluation (default {NOISE_DRAWS})",
-    )
-    p.add_argument(
-        "--method",
-        default=DEFAULT_METHOD,
-        help=f"with --lightfield: the deconvolver scored (default {DEFAULT_METHOD})",
-    )
-    p.add_argument(
         "--check-seeds",
         type=int,
         metavar="K",
         help=f"with --lightfield: fresh renders per store and design that check the result "
         f"(default {CHECK_SEEDS}; 0 skips the check)",
-    )
-    p.add_argument("--depth-range", metavar="NEAR,FAR", help="mm (default: the preset's depth)")
-    p.add_argument(
-        "--light-level",
-        type=float,
-        metavar="L",
-        help="photons/px/ms of white through the full lens (default 300, the demo's)",
     )
 
 

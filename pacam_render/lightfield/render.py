@@ -260,17 +260,22 @@ def render_lightfield(
         if truth and not (out / "truth.npz").exists():
             _render_truth(cap, plan, cam, desc, out)
         remember(key, work, time.perf_counter() - t_start)
-        manifest.update(complete=True, digest=store_digest(spec.key(), digests))
-        if planned is not None:
-            manifest["noise_target"] = planned
-        manifest["shard_digests"] = digests
-        manifest["truth_digest"] = (
-            shard_digest(*load_shard(out / "truth.npz")) if (out / "truth.npz").exists() else None
-        )
-        manifest["seconds"] = round(manifest.get("seconds", 0.0), 3)
-        manifest["manifest_digest"] = manifest_digest(manifest)
-        write_manifest(out, manifest)
+        _complete(manifest, spec, out, digests, planned)
     return Store.open(out)
+
+
+def _complete(manifest: dict, spec: StoreSpec, out: Path, digests, planned) -> None:
+    """Write the finished store's manifest: complete, the store's and every shard's digest,
+    the truth layers' digest, the noise target's plan, and the manifest's own digest."""
+    manifest.update(complete=True, digest=store_digest(spec.key(), digests))
+    if planned is not None:
+        manifest["noise_target"] = planned
+    manifest["shard_digests"] = digests
+    truth = out / "truth.npz"
+    manifest["truth_digest"] = shard_digest(*load_shard(truth)) if truth.exists() else None
+    manifest["seconds"] = round(manifest.get("seconds", 0.0), 3)
+    manifest["manifest_digest"] = manifest_digest(manifest)
+    write_manifest(out, manifest)
 
 
 def _manifest(spec: StoreSpec, plan, cam: dict, steps, out: Path, scene_digest: str) -> dict:
