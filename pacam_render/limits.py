@@ -8,7 +8,9 @@ are :class:`PacamWarning`: the CLI prints each as one ``note:`` line.
 from __future__ import annotations
 
 import os
+import shutil
 import warnings
+from pathlib import Path
 
 from .errors import ParameterError
 
@@ -64,6 +66,15 @@ def available_bytes() -> int:
     MemoryError) and what its control group leaves (cgroup v2 ``memory.max``, v1
     ``memory.limit_in_bytes``, less the usage that cannot be reclaimed)."""
     return max(0, int(min(_machine_bytes(), _rlimit_bytes(), _cgroup_bytes())))
+
+
+def free_disk(path) -> tuple[Path, int]:
+    """The free disk for ``path``, which may not exist yet: (its nearest existing folder,
+    free bytes there)."""
+    probe = Path(path)
+    while not probe.exists() and probe.parent != probe:
+        probe = probe.parent
+    return probe, int(shutil.disk_usage(probe).free)
 
 
 def _machine_bytes() -> float:

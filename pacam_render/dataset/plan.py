@@ -17,7 +17,6 @@ from __future__ import annotations
 import hashlib
 import json
 import math
-import shutil
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -26,7 +25,7 @@ from ..exposure.direct import check_budget
 from ..exposure.plan import plan_capture
 from ..exposure.spec import CaptureSpec
 from ..lightfield.codes import SERVED
-from ..limits import DEFAULT_MAX_SAMPLES, gib
+from ..limits import DEFAULT_MAX_SAMPLES, free_disk, gib
 from ..model.modes import MODES, MODES_WITH_PSF
 from ..psf.analytic import least_lost_fraction
 from .spec import DatasetSpec
@@ -224,10 +223,7 @@ def check_disk(nbytes: int, max_disk_gib: float, out: Path | None) -> None:
         )
     if out is None:
         return
-    where = Path(out)
-    while not where.exists() and where.parent != where:
-        where = where.parent
-    free = shutil.disk_usage(where).free
+    where, free = free_disk(out)
     if nbytes > free:
         raise ParameterError(
             f"the samples need about {gib(nbytes)} of disk, and {gib(free)} is free at {where}"

@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import hashlib
 import json
-import shutil
 import stat
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -29,7 +28,7 @@ from ..errors import ParameterError, check_positive
 from ..exposure.spec import CaptureSpec
 from ..io.arrays import read_json
 from ..io.outputs import atomic_save, write_json
-from ..limits import available_bytes, gib
+from ..limits import available_bytes, free_disk, gib
 from .trace import CHUNK_LANES
 
 FORMAT = "pacam-lightfield/1"
@@ -121,8 +120,7 @@ def check_budget(samples: int, largest: int, per: int, out: Path, max_disk: int)
             f"one step of the store needs about {gib(peak)} of memory and "
             f"{gib(available_bytes())} is available; lower `spp` or the window (`crop`)"
         )
-    probe = next(p for p in (out, *out.parents) if p.exists())  # the folder may not exist yet
-    free = shutil.disk_usage(probe).free
+    probe, free = free_disk(out)  # the folder may not exist yet
     if nbytes > free:
         raise ParameterError(
             f"the store needs {gib(nbytes)} on disk and {gib(free)} is free at {probe}; lower "
