@@ -119,11 +119,9 @@ class StoreObjective:
         image = self.basis.compose(index)
         image = image[..., 0] if self.template.image.ndim == 2 else image
         centres = tuple((float(x), 0.0) for x in self.basis.positions_mm[np.asarray(index)])
-        camera = self.cam.with_(pattern_centres_mm=centres).inputs()
-        optics = {**(self.template.record.optics or {}), "schedule_kind": "centres",
-                  "pattern_centres_xy_mm": self.cam.with_(pattern_centres_mm=centres)
-                  .pattern_centres_xy_mm().tolist()}  # fmt: skip
-        record = replace(self.template.record, camera=camera, optics=optics)  # as a design's
+        cam = self.cam.with_(pattern_centres_mm=centres)
+        # the camera and its optics whole, as the capture assembly records a design's
+        record = replace(self.template.record, camera=cam.inputs(), optics=cam.summary())
         return Capture(image, {}, record, dict(self.template.extra_layers))
 
     def psnr_db(self, index) -> float:
