@@ -15,6 +15,7 @@ from __future__ import annotations
 import csv
 from pathlib import Path
 
+from ..errors import ParameterError
 from ..io.outputs import csv_text, write_text
 
 INDEX = "index.csv"
@@ -42,8 +43,14 @@ def read_index(folder) -> list[dict]:
     path = Path(folder) / INDEX
     if not path.is_file():
         return []
-    with open(path, newline="", encoding="utf-8") as f:
-        return list(csv.DictReader(f))
+    try:
+        with open(path, newline="", encoding="utf-8") as f:
+            rows = list(csv.DictReader(f))
+    except (OSError, UnicodeDecodeError, csv.Error) as exc:
+        raise ParameterError(f"{path} cannot be read as the dataset's index: {exc}") from None
+    if rows and not {"id", "key", "status"} <= set(rows[0]):
+        raise ParameterError(f"{path} is not a dataset's index (no id, key and status columns)")
+    return rows
 
 
 def write_index(folder, rows: list[dict]) -> Path:

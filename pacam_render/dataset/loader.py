@@ -11,16 +11,16 @@ Images are (H, W, 3), or (H, W) for grey captures and one-channel layers.
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import ParameterError
+from ..io.arrays import read_json
 from ..io.exr import read_exr
 from .index import INDEX, read_index
-from .sample import SAMPLE_JSON, SAMPLES
+from .sample import SAMPLE_JSON, SAMPLES, layers_digest
 
 LAYERS = ("capture", "noisy", "raw", "sharp", "depth", "velocity", "object_id")
 """The layers of capture.exr a :class:`Sample` holds."""
@@ -102,15 +102,25 @@ def load_sample(folder, row: dict) -> Sample:
     where = Path(folder) / SAMPLES / row["id"]
     if row["status"] != "ok":
         raise ParameterError(f"sample {row['id']} failed: {row.get('error', '')}")
-    meta = json.loads((where / SAMPLE_JSON).read_text())
-    if meta["key"] != row["key"]:
-        raise ParameterError(f"{where} holds another sample (key {meta['key']} != {row['key']})")
+    meta = read_json(where / SAMPLE_JSON, "the sample's")
+    if meta.get("key") != row["key"]:
+        raise ParameterError(
+            f"{where} holds another sample (key {meta.get('key')} != {row['key']})"
+        )
     layers = read_exr(where / "capture.exr")
-    record = json.loads((where / "capture.json").read_text())
+    record = read_json(where / "capture.json", "the capture's")
     record["sample"] = meta
     psf = None
     if (where / "psf_analytic.exr").is_file():
         psf = read_exr(where / "psf_analytic.exr")["psf"]
-        record["psf"] = json.loads((where / "psf.json").read_text())
+        record["psf"] = read_json(where / "psf.json", "the PSF's")
+    if layers_digest(layers, psf) != meta.get("digest"):  # an edited or damaged file
+        raise ParameterError(
+            f"{where}: its arrays' digest is not the one sample.json recorded when it was written "
+            f"({meta.get('digest')}): a file was edited or damaged; render it again"
+        )
+    missing = [name for name in LAYERS if name not in layers]
+    if missing:
+        raise ParameterError(f"{where / 'capture.exr'} has no layer {missing[0]!r}")
     arrays = {name: layers[name] for name in LAYERS}
     return Sample(id=row["id"], psf=psf, record=record, row=row, **arrays)

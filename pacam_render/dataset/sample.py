@@ -219,8 +219,13 @@ def write_psf(cap, folder: Path, velocity: float) -> np.ndarray | None:
 
 def sample_digest(cap, kernel: np.ndarray | None) -> str:
     """A digest of a sample's arrays as written (float32): every layer, and the PSF."""
+    return layers_digest({"capture": cap.image, **cap.extra_layers}, kernel)
+
+
+def layers_digest(layers: dict, kernel: np.ndarray | None) -> str:
+    """:func:`sample_digest` of layers by name (as capture.exr holds them) and the PSF."""
     h = hashlib.sha256()
-    layers = {"capture": cap.image, **cap.extra_layers}
+    layers = dict(layers)
     if kernel is not None:
         layers["psf"] = kernel
     for name in sorted(layers):

@@ -6,6 +6,7 @@ family's scene cards in the data card."""
 from __future__ import annotations
 
 import json
+import shutil
 from dataclasses import replace
 from pathlib import Path
 
@@ -19,7 +20,7 @@ from pacam_render.dataset.index import read_index
 from pacam_render.dataset.plan import plan_dataset
 from pacam_render.errors import ParameterError
 from pacam_render.exposure.direct import render_capture
-from pacam_render.io.exr import read_exr
+from pacam_render.io.exr import read_exr, write_exr
 from tests.patching import patch_everywhere
 
 pytestmark = pytest.mark.render
@@ -78,6 +79,26 @@ def test_loader_returns_the_files_arrays(tiny):
     assert s.psf.ndim == 2 and s.psf.sum() == pytest.approx(1.0, rel=1e-3)
     assert s.record["sample"]["key"] == s.row["key"] and s.record["mode"] == s.row["camera"]
     assert s.record["sensor"]["light_level_photons_per_px_per_ms"] == 300
+
+
+def test_an_edited_sample_or_index_is_refused_in_one_line(tiny, tmp_path):
+    """A sample's arrays are checked against the digest sample.json recorded when it was
+    written (one changed pixel of capture.exr is refused, naming the folder); an index that is
+    not a dataset's is refused naming it."""
+    _, out, _ = tiny
+    copy = tmp_path / "copy"
+    shutil.copytree(out, copy)
+    sid = open_dataset(copy)[0].id
+    exr = copy / "samples" / sid / "capture.exr"
+    layers = read_exr(exr)
+    layers["noisy"][0, 0, 0] += 0.5
+    write_exr(exr, layers, force=True)
+    with pytest.raises(ParameterError, match=f"{sid}: its arrays' digest"):
+        open_dataset(copy)[0]
+    assert open_dataset(copy)[1].id != sid  # the others still read
+    (copy / "index.csv").write_bytes(b"\xff\xfe\x00garbage")
+    with pytest.raises(ParameterError, match="index.csv"):
+        open_dataset(copy)
 
 
 def _no_render(*args, **kwargs):
