@@ -99,6 +99,8 @@ FLAGS = {
     "light": "--light",
     "objective": "--objective",
     "still_weight": "--still-weight",
+    "held_out": "--held-out",
+    "space": "--space",
 }
 """Parameter names in library messages, and the flags a CLI user typed instead: the one
 mapping (a file's keys, :class:`~pacam_render.errors.FileKeyError`, are left as they are)."""

@@ -40,11 +40,11 @@ FOURIER_ONLY = ("depth_range", "n_patterns", "free_radius", "f_number", "r_px", 
                 "quick", "max_velocity")  # fmt: skip
 """Flags of the Fourier objective that a search on stores does not take (its camera is the
 stores')."""
-SPACE_ONLY = {"centres": ("positions", "sweeps", "check_seeds"),
-              "bitmap": ("cells", "light", "starts", "iterations", "levels", "objective",
-                         "still_weight")}  # fmt: skip
-"""Flags that only one ``--space`` of a search on stores takes."""
-SPACES = ("centres", "bitmap")
+CELLS_FLAGS = ("cells", "light", "starts", "iterations", "objective", "still_weight", "held_out")
+SPACE_FLAGS = {"centres": ("positions", "sweeps", "check_seeds"),
+               "bitmap": CELLS_FLAGS + ("levels",), "discs": CELLS_FLAGS}  # fmt: skip
+"""Flags that only some ``--space`` of a search on stores takes: the ones each space takes."""
+SPACES = tuple(SPACE_FLAGS)
 
 
 def add(sub) -> None:
@@ -111,10 +111,12 @@ def _add_lightfield(p) -> None:
         "--space",
         default="centres",
         help="with --lightfield: what is searched: centres (the openings' centres along x, "
-        "coordinate search; default) or bitmap (any binary LCoS bitmap on a grid of cells in "
-        "each pattern window, gradient search)",
+        "coordinate search; default), bitmap (any binary LCoS bitmap on a grid of cells in "
+        "each pattern window, gradient search) or discs (one disc per window, its centre in x "
+        "and y, one radius, gradient search)",
     )
     _add_bitmap(p)
+    _add_held_out(p)
     _add_centres(p)
     p.add_argument(
         "--noise-draws",
@@ -143,8 +145,8 @@ def _add_bitmap(p) -> None:
         "--cells",
         type=int,
         metavar="G",
-        help="with --space bitmap: G x G cells over the clear aperture, G dividing its 1024 "
-        f"LCoS pixels (default {DEFAULT_CELLS}, chosen by benchmarks/bench_cell_grid.py)",
+        help="with --space bitmap or discs: G x G cells over the clear aperture, G dividing "
+        f"its 1024 LCoS pixels (default {DEFAULT_CELLS}, chosen by benchmarks/bench_cell_grid.py)",
     )
     p.add_argument(
         "--levels",
@@ -156,13 +158,13 @@ def _add_bitmap(p) -> None:
     p.add_argument(
         "--light",
         metavar="RULE",
-        help="with --space bitmap: the code's total light (open area x time): fixed at the "
-        "store design's (default) or free",
+        help="with --space bitmap or discs: the code's total light (open area x time): fixed at "
+        "the store design's (default) or free (discs: the radius moves)",
     )
     p.add_argument(
         "--objective",
         metavar="WHAT",
-        help=f"with --space bitmap: what the model scores: {' or '.join(OBJECTIVES)} (the "
+        help=f"with --space bitmap or discs: what the model scores: {' or '.join(OBJECTIVES)} (the "
         "moving objects' PSNR, default; or its weighted mean in dB with the still pixels')",
     )
     p.add_argument(
@@ -171,6 +173,18 @@ def _add_bitmap(p) -> None:
         metavar="W",
         help="with --objective moving+still: the still PSNR's weight w in (moving + w still) "
         f"/ (1 + w), > 0 (default {STILL_WEIGHT:g})",
+    )
+
+
+def _add_held_out(p) -> None:
+    """``--held-out``: stores of scenes the search never sees, scored in the report."""
+    p.add_argument(
+        "--held-out",
+        nargs="+",
+        metavar="STORE",
+        help="with --space bitmap or discs: light-field stores of other scenes (the same "
+        "camera), never searched on; the report scores the prototype and the found design on "
+        "them with paired 95 %% intervals (at least 2)",
     )
 
 
@@ -283,7 +297,7 @@ def _run_lightfield(args: argparse.Namespace) -> int:
         raise ParameterError(f"--seed must be an integer in [0, 2^32), got {args.seed!r}")
     space = _space_flags(args)
     level = DEFAULT_LIGHT_LEVEL if args.light_level is None else args.light_level
-    if space == "bitmap":
+    if space != "centres":
         return _run_bitmap(args, level)
     problem = RenderedProblem(
         stores=tuple(args.lightfield), sensor=args.sensor, light_level=level,
@@ -321,21 +335,23 @@ def _space_flags(args: argparse.Namespace) -> str:
     """``--space``, checked, with the flags only the other space takes refused."""
     if args.space not in SPACES:
         raise ParameterError(f"--space: one of {', '.join(SPACES)}, got {args.space!r}")
-    for other, names in SPACE_ONLY.items():
-        for name in names:
-            if other != args.space and getattr(args, name) is not None:
-                raise ParameterError(
-                    f"--{name.replace('_', '-')}: only a search with --space {other} takes it"
-                )
-    if args.space == "bitmap" and args.light is not None and args.light not in LIGHT_CHOICES:
+    for name in dict.fromkeys(n for names in SPACE_FLAGS.values() for n in names):
+        takes = [sp for sp, names in SPACE_FLAGS.items() if name in names]
+        if args.space not in takes and getattr(args, name) is not None:
+            raise ParameterError(
+                f"--{name.replace('_', '-')}: only a search with --space {' or '.join(takes)} "
+                "takes it"
+            )
+    cells = args.space != "centres"
+    if cells and args.light is not None and args.light not in LIGHT_CHOICES:
         raise ParameterError(f"--light: one of {', '.join(LIGHT_CHOICES)}, got {args.light!r}")
-    if args.space == "bitmap" and args.method != DEFAULT_METHOD:
-        raise ParameterError(f"--method: a bitmap search scores with {DEFAULT_METHOD} only")
+    if cells and args.method != DEFAULT_METHOD:
+        raise ParameterError(f"--method: a {args.space} search scores with {DEFAULT_METHOD} only")
     return args.space
 
 
 def _run_bitmap(args: argparse.Namespace, level: float) -> int:
-    """``--space bitmap``: :func:`~..optimize.cell_run.run_bitmap_optimize`."""
+    """``--space bitmap`` or ``discs``: :func:`~..optimize.cell_run.run_bitmap_optimize`."""
     problem = BitmapProblem(
         stores=tuple(args.lightfield), sensor=args.sensor, light_level=level,
         cells=_or(args.cells, DEFAULT_CELLS), light=_or(args.light, "fixed"),
@@ -343,12 +359,14 @@ def _run_bitmap(args: argparse.Namespace, level: float) -> int:
         starts=_or(args.starts, STARTS), iterations=_or(args.iterations, ITERATIONS),
         seed=args.seed, noise_draws=args.noise_draws,
         objective=_or(args.objective, "moving"), still_weight=args.still_weight,
+        space=args.space, held_out=tuple(args.held_out or ()),
     )  # fmt: skip
     check_bitmap_problem(problem)  # refused before any output
     out = prepare_out_dir(args.out, args.force)
     with new_folder(out), output_lock(out):
         run_bitmap_optimize(problem, out, args.force, progress=not args.quiet)
     print((out / "report.md").read_text())
-    print(f"written: {out / 'design.toml'} and design.masks.npz (pacam render --design), "
-          "report.json, report.md, report.png")  # fmt: skip
+    masks = " and design.masks.npz" if args.space == "bitmap" else ""
+    print(f"written: {out / 'design.toml'}{masks} (pacam render --design), report.json, "
+          "report.md, report.png, patterns.png")  # fmt: skip
     return 0

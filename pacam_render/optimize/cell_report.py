@@ -92,6 +92,26 @@ def summary(rows: list[dict]) -> list[dict]:
     return out
 
 
+def paired(rows: list[dict], score: str = "psnr_moving_db", ref: str = "prototype") -> dict:
+    """Per design but ``ref``, its ``score`` minus ``ref``'s on the same capture place
+    (``where``: a store, or a scene and render seed), paired: (mean, 95 % Student-t interval
+    low, high, n); None where fewer than 2 places score both (a place with no still pixel in
+    the scored columns has no still score)."""
+    from scipy.stats import t as student
+
+    refs = {r["where"]: r[score] for r in rows if r["design"] == ref}
+    out = {}
+    for name in dict.fromkeys(r["design"] for r in rows if r["design"] != ref):
+        d = np.array([r[score] - refs[r["where"]] for r in rows if r["design"] == name
+                      and r[score] is not None and refs.get(r["where"]) is not None])  # fmt: skip
+        if len(d) < 2:
+            out[name] = None
+            continue
+        half = student.ppf(0.975, len(d) - 1) * d.std(ddof=1) / np.sqrt(len(d))
+        out[name] = (float(d.mean()), float(d.mean() - half), float(d.mean() + half), len(d))
+    return out
+
+
 def markdown(rows: list[dict], title: str) -> str:
     """A table of :func:`summary`'s rows (n/a: a PSNR with no pixels, e.g. no still pixel
     inside the scored columns, or a design with no fitted range)."""
@@ -113,9 +133,34 @@ def write_report(out, doc: dict, force: bool, text: str) -> list:
             save_figure(out / "report.png", lambda fig: plot(fig, doc), force)]  # fmt: skip
 
 
+def write_patterns(path, code, title: str, force: bool):
+    """patterns.png: each pattern window's code on the cells (transmittance, white open), in
+    exposure order, the lens's rim drawn."""
+
+    def draw(fig):
+        from matplotlib.patches import Circle  # matplotlib loads only where a figure is drawn
+
+        fig.set_size_inches(8, 8.4)
+        n = len(code)
+        cols = int(np.ceil(np.sqrt(n)))
+        rows = int(np.ceil(n / cols))
+        for k in range(n):
+            ax = fig.add_subplot(rows, cols, k + 1)
+            ax.imshow(code[k], cmap="gray", vmin=0, vmax=1, interpolation="nearest")
+            g = code.shape[-1]
+            ax.add_patch(Circle(((g - 1) / 2, (g - 1) / 2), g / 2, fill=False, color="tab:red",
+                                lw=0.6))  # fmt: skip
+            ax.set_axis_off()
+            ax.set_title(f"window {k}", fontsize=7)
+        fig.suptitle(f"{title}: the LCoS patterns on {code.shape[-1]}x{code.shape[-1]} cells "
+                     "(x right, y down; red: the clear aperture)", fontsize=9)  # fmt: skip
+
+    return save_figure(path, draw, force)
+
+
 def plot(fig, doc: dict) -> None:
     """The three PSNRs per design (bars, one panel per set of captures); the search curve."""
-    sets = [k for k in ("train", "fresh") if doc.get(k)]
+    sets = [k for k in ("train", "fresh", "held_out") if doc.get(k)]
     axes = [fig.add_subplot(1, len(sets) + 1, i + 1) for i in range(len(sets) + 1)]
     for ax, key in zip(axes, sets):
         rows = summary(doc[key])

@@ -1,7 +1,9 @@
-"""``pacam optimize --lightfield STORE ... --space bitmap``: a whole-aperture LCoS bitmap
-searched by gradient on the stores' cell bases (:mod:`.cell_search`), written as a design file
-with its masks, and reported with the real pipeline (:mod:`.cell_report`) on each store's
-synthesis of the store's own design (the prototype) and of the found one.
+"""``pacam optimize --lightfield STORE ... --space bitmap|discs``: a whole-aperture LCoS
+bitmap (:mod:`.cell_search`), or one disc per pattern window moving in 2-D with a radius
+(:mod:`.disc_space`), searched by gradient on the stores' cell bases, written as a design file
+(a bitmap's masks beside it), and reported with the real pipeline (:mod:`.cell_report`) on each
+store's synthesis of the store's own design (the prototype) and of the found one, and on
+held-out stores (scenes the search never saw) with paired 95 % intervals.
 
 The objective is the mean over the stores of the model's moving-object PSNR, or with
 ``objective="moving+still"`` its weighted mean in dB with the still pixels' PSNR
@@ -29,13 +31,15 @@ from ..lightfield.cell_basis import (
     estimate_bytes,
     lens_cells,
 )
+from ..lightfield.store import Store
 from ..lightfield.synthesis import synthesize
 from ..limits import available_bytes, gib
 from ..model.design_file import write_design
 from .cell_design import bitmap_design, disc_code
 from .cell_objective import cell_problem
-from .cell_report import design_row, markdown, write_report
+from .cell_report import SCORES, design_row, markdown, paired, write_patterns, write_report
 from .cell_search import LIGHT_CHOICES, gradient_search, light_of
+from .disc_space import DiscGrid, disc_design, disc_search, plan_discs, random_discs, soft_code
 from .rendered_run import RenderedProblem, base_spec, open_stores
 
 ITERATIONS = 200
@@ -48,6 +52,10 @@ ferroelectric LCoS)."""
 OBJECTIVES = ("moving", "moving+still")
 """What the model scores: the moving objects' PSNR, or its weighted mean in dB with the still
 pixels' (:mod:`.cell_objective`)."""
+CELL_SPACES = ("bitmap", "discs")
+"""The spaces searched on the cells' basis: any bitmap per window, or one disc per window."""
+MIN_HELD_OUT = 2
+"""Held-out stores a paired interval needs (one difference per store)."""
 STILL_WEIGHT = 1.0
 """The still term's weight w in (P_moving + w P_still) / (1 + w) by default: a dB on the moving
 objects counts as one on the still regions."""
@@ -69,6 +77,8 @@ class BitmapProblem:
     levels: int = 2
     objective: str = "moving"
     still_weight: float | None = None
+    space: str = "bitmap"
+    held_out: tuple[str, ...] = ()
 
     @property
     def weight(self) -> float:
@@ -84,12 +94,22 @@ def check_bitmap_problem(p: BitmapProblem):
     check_integer("`starts`", p.starts, 1, None)
     check_integer("`iterations`", p.iterations, 1, None)
     check_integer("`levels`", p.levels, 2, MAX_LEVELS)
+    if p.space not in CELL_SPACES:
+        raise ParameterError(f"`space`: one of {', '.join(CELL_SPACES)}, got {p.space!r}")
+    if p.space == "discs" and p.levels != 2:
+        raise ParameterError("`levels`: only the bitmap space takes it (a disc is open or shut)")
+    if p.held_out and len(p.held_out) < MIN_HELD_OUT:
+        raise ParameterError(f"`held_out`: at least {MIN_HELD_OUT} stores for a paired interval"
+                             f" (one difference per store), got {len(p.held_out)}")  # fmt: skip
+    if set(map(str, p.held_out)) & set(map(str, p.stores)):
+        raise ParameterError("`held_out`: a store the search trains on is not held out")
     if p.light not in LIGHT_CHOICES:
         raise ParameterError(f"`light`: one of {', '.join(LIGHT_CHOICES)}, got {p.light!r}")
     check_objective(p.objective, p.still_weight)
-    stores = open_stores(RenderedProblem(tuple(p.stores), p.sensor, p.light_level,
-                                         noise_draws=p.noise_draws, seed=p.seed,
-                                         check_seeds=0))  # fmt: skip
+    every = open_stores(RenderedProblem(tuple(p.stores) + tuple(p.held_out), p.sensor,
+                                        p.light_level, noise_draws=p.noise_draws, seed=p.seed,
+                                        check_seeds=0))  # fmt: skip
+    stores = every[: len(p.stores)]
     cam = plan_capture(base_spec(stores[0])).cam
     try:
         display_px(cam.R_max_mm, cam.lcos_pitch_mm, p.cells)
@@ -169,9 +189,62 @@ def design_spec(spec, path: Path):
                    schedule=None)  # fmt: skip
 
 
+def search_discs(p: BitmapProblem, prepared: dict):
+    """:func:`~.disc_space.disc_search` from the store design's discs and ``p.starts - 1``
+    random centres (its radius) on :func:`prepare_bitmap`'s problems.
+
+    Returns
+    -------
+    DiscSearch
+    """
+    plan, cam = prepared["plan"], prepared["plan"].cam
+    grid = DiscGrid(p.cells, cam.R_max_mm, cam.lcos_pitch_mm)
+    base = plan_discs(plan)
+    rng = np.random.default_rng(p.seed)
+    starts = {"prototype": base}
+    for i in range(1, p.starts):
+        starts[f"random {i}"] = random_discs(rng, base, grid)
+    return disc_search(prepared["problems"], starts, grid, p.iterations, p.light, p.weight)
+
+
+def found_design(p: BitmapProblem, prepared: dict) -> dict:
+    """The search of ``p.space`` on :func:`prepare_bitmap`'s problems: ``design`` (to write),
+    ``code`` (n, G, G: the patterns on the cells), the model's dB (``model_db``: ``found``,
+    ``relaxed``, ``starts``), the ``curve`` and the ``evaluations``."""
+    if p.space == "discs":
+        s = search_discs(p, prepared)
+        cam = prepared["plan"].cam
+        code = soft_code(s.discs, DiscGrid(p.cells, cam.R_max_mm, cam.lcos_pitch_mm))[0]
+        model = {"found": s.model_db, "relaxed": s.model_db, "starts": [list(x) for x in s.starts],
+                 "R_mm": s.discs.R_mm, "centres_mm": s.discs.centres_mm.tolist()}  # fmt: skip
+        design = disc_design(prepared["plan"], s.discs)
+    else:
+        s = search_bitmap(p, prepared)
+        code = s.code
+        model = {"found": s.projected_db, "relaxed": s.relaxed_db,
+                 "starts": [list(x) for x in s.starts]}  # fmt: skip
+        design = bitmap_design(prepared["plan"], prepared["bases"][0], code)
+    return dict(design=design, code=code, model_db=model, curve=[list(x) for x in s.rows],
+                evaluations=s.evaluations)  # fmt: skip
+
+
+def _rows(p: BitmapProblem, folders, stores, path: Path, refs=None) -> list[dict]:
+    """Report rows of the prototype and the found design (the file at ``path``) synthesised
+    from each store; ``refs`` the stores' own designs' captures (synthesised where None)."""
+    draws, rows = tuple(range(p.noise_draws)), []
+    for i, (folder, store) in enumerate(zip(folders, stores)):
+        spec = base_spec(store)
+        tpl = synthesize(store, spec, progress=False) if refs is None else refs[i]
+        found = synthesize(store, design_spec(spec, path), progress=False)
+        for name, cap in (("prototype", tpl), (f"found {p.space}", found)):
+            rows.append(design_row(name, str(folder), cap, tpl, p.sensor, p.light_level, draws))
+    return rows
+
+
 def run_bitmap_optimize(p: BitmapProblem, out: Path, force: bool, progress: bool) -> dict:
-    """Search, write ``out``/design.toml (masks beside it) and report.json/.md/.png: the
-    prototype and the found design synthesised from every store, scored with the real pipeline.
+    """Search, write ``out``/design.toml (a bitmap's masks beside it) and report.json/.md/.png
+    and patterns.png: the prototype and the found design synthesised from every training store
+    and every held-out store, scored with the real pipeline, paired intervals on the held-out.
 
     Returns
     -------
@@ -180,26 +253,22 @@ def run_bitmap_optimize(p: BitmapProblem, out: Path, force: bool, progress: bool
     """
     stores = check_bitmap_problem(p)
     r = prepare_bitmap(p, stores, progress)
-    r["found"] = search_bitmap(p, r)
+    f = found_design(p, r)
     path = out / "design.toml"
-    write_design(path, bitmap_design(r["plan"], r["bases"][0], r["found"].code), force)
-    draws = tuple(range(p.noise_draws))
-    rows = []
-    for folder, store, spec, tpl in zip(p.stores, stores, r["specs"], r["templates"]):
-        found = synthesize(store, design_spec(spec, path), progress=False)
-        for name, cap in (("prototype", tpl), ("found bitmap", found)):
-            rows.append(design_row(name, str(folder), cap, tpl, p.sensor, p.light_level, draws))
-    f = r["found"]
-    doc = {"problem": {**p.__dict__, "stores": list(p.stores)}, "train": rows,
-           "model_db": {"found": f.projected_db, "relaxed": f.relaxed_db,
-                        "starts": [list(s) for s in f.starts]},
-           "evaluations": f.evaluations, "setup_s": r["setup_s"],
-           "search_s": f.rows[-1][1], "curve": [list(x) for x in f.rows],
+    write_design(path, f["design"], force)
+    rows = _rows(p, p.stores, stores, path, r["templates"])
+    held = _rows(p, p.held_out, [Store.open(s) for s in p.held_out], path)
+    doc = {"problem": {**p.__dict__, "stores": list(p.stores), "held_out": list(p.held_out)},
+           "train": rows, "held_out": held, "model_db": f["model_db"],
+           "held_out_vs_prototype": ({k: paired(held, k).get(f"found {p.space}") for k in SCORES}
+                                     if held else None),
+           "evaluations": f["evaluations"], "setup_s": r["setup_s"],
+           "search_s": f["curve"][-1][1], "curve": f["curve"],
            "light_model": {"prototype": light_of(r["problems"][0], r["base_code"]),
                            "prototype_capture": r["templates"][0].record.light_factor,
-                           "found": light_of(r["problems"][0], f.code)}}  # fmt: skip
-    text = _text(p, doc)
-    write_report(out, doc, force, text)
+                           "found": light_of(r["problems"][0], f["code"])}}  # fmt: skip
+    write_report(out, doc, force, _text(p, doc))
+    write_patterns(out / "patterns.png", f["code"], f"found {p.space}", force)
     return doc
 
 
@@ -210,21 +279,49 @@ def _what(p: BitmapProblem) -> str:
     return f"(moving PSNR + {p.weight:g} still PSNR) / {1 + p.weight:g}"
 
 
+def _starts(p: BitmapProblem, m: dict) -> str:
+    """The starts' model dB in words."""
+    if p.space == "discs":
+        return ("Starts (name, dB): " + "; ".join(f"{s[0]} {s[1]:.2f}" for s in m["starts"])
+                + f". Found R = {m['R_mm']:.4g} mm.")  # fmt: skip
+    return ("Starts (name, relaxed dB, binary dB): "
+            + "; ".join(f"{s[0]} {s[1]:.2f}/{s[2]:.2f}" for s in m["starts"]) + ".")  # fmt: skip
+
+
+def _held_text(doc: dict) -> list[str]:
+    """The held-out table and the paired intervals, or where to check a design."""
+    if not doc["held_out"]:
+        return ["These are the training stores: check a design on scenes it has not seen "
+                "(--held-out, or fresh renders: benchmarks/bench_bitmap_design.py)."]  # fmt: skip
+    out = [markdown(doc["held_out"], "Held-out stores (scenes the search never saw)"),
+           "Found design minus the prototype, paired per held-out store, mean [95 % "
+           "Student-t interval] (n: the stores with pixels of that kind):", ""]  # fmt: skip
+    for k, label in zip(SCORES, ("moving", "still", "whole")):
+        d = doc["held_out_vs_prototype"][k]
+        out.append(
+            f"- {label}: "
+            + (
+                "n/a (fewer than 2 stores score it)"
+                if d is None
+                else f"{d[0]:+.2f} dB [{d[1]:+.2f}, {d[2]:+.2f}], n = {d[3]}"
+            )
+        )
+    return out
+
+
 def _text(p: BitmapProblem, doc: dict) -> str:
     """report.md."""
     m = doc["model_db"]
     return "\n".join([
-        f"# pacam optimize --lightfield --space bitmap ({p.cells}x{p.cells} cells, light "
+        f"# pacam optimize --lightfield --space {p.space} ({p.cells}x{p.cells} cells, light "
         f"{p.light})", "",
         f"Model objective (mean over {len(p.stores)} store(s), {_what(p)}): found "
         f"{m['found']:.2f} dB; {doc['evaluations']} evaluations in {doc['search_s']:.1f} s "
-        f"after {doc['setup_s']:.1f} s of setup. Starts (name, relaxed dB, binary dB): "
-        + "; ".join(f"{s[0]} {s[1]:.2f}/{s[2]:.2f}" for s in m["starts"]) + ".", "",
+        f"after {doc['setup_s']:.1f} s of setup. " + _starts(p, m), "",
         markdown(doc["train"], "Scored with the real pipeline on the stores' syntheses"),
         f"Each capture through {p.noise_draws} sensor draw(s) of {p.sensor} at "
         f"{p.light_level:g} photons/px/ms, Wiener with the design's s = 0 kernel told the "
         "sensor's and the render's noise, scored by score_capture. Invariant range: the "
-        "smallest fitted range over the moving objects (n/a: a bitmap has no parabola). "
-        "These are the training stores: check a design on scenes it has not seen "
-        "(benchmarks/bench_bitmap_design.py).",
+        "smallest fitted range over the moving objects (n/a: a design with no parabola).", "",
+        *_held_text(doc),
     ]) + "\n"  # fmt: skip

@@ -1,0 +1,154 @@
+"""The discs design space (issue 58, item 2): one disc per pattern window moving in x and y,
+one radius, searched by gradient on the cells' basis. The chain rule through the soft
+rasterisation against central finite differences; the soft code's area against pi R^2 and its
+half-level set against the design file's own rasterisation (:func:`disc_code` of the written
+design, read back); every disc kept inside the lens; a search that climbs; and the command's
+design file, patterns picture and held-out report."""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from pacam_render.cli import main
+from pacam_render.exposure.plan import plan_capture
+from pacam_render.lightfield import StoreSpec, render_lightfield, synthesize
+from pacam_render.lightfield.cell_basis import cell_basis
+from pacam_render.model.design_file import read_design, write_design
+from pacam_render.optimize.cell_design import disc_code
+from pacam_render.optimize.cell_objective import cell_problem
+from pacam_render.optimize.cell_run import design_spec
+from pacam_render.optimize.disc_space import (
+    DiscGrid,
+    Discs,
+    disc_design,
+    disc_objective,
+    disc_search,
+    plan_discs,
+    project_inside,
+    soft_code,
+)
+from tests.optimize.small_store import SPEC
+
+G = 8
+
+
+@pytest.fixture(scope="module")
+def setup(store):
+    plan = plan_capture(SPEC)
+    basis = cell_basis(store, SPEC, cells=G)
+    template = synthesize(store, SPEC, progress=False)
+    problem = cell_problem(basis, template, plan, disc_code(plan, G), "grasshopper-icx285",
+                           300.0, np.float64, still_edge_px=3)  # fmt: skip
+    cam = plan.cam
+    return plan, problem, DiscGrid(G, cam.R_max_mm, cam.lcos_pitch_mm)
+
+
+def _moved(plan, grid) -> Discs:
+    """The prototype's discs moved off the x axis (y != 0), still inside the lens."""
+    d = plan_discs(plan)
+    rng = np.random.default_rng(5)
+    c = d.centres_mm + rng.normal(0, 0.8, d.centres_mm.shape)
+    return project_inside(Discs(c, d.R_mm * 1.1, d.is_open), grid, True)
+
+
+def test_the_chain_rule_is_central_finite_differences(setup):
+    plan, problem, grid = setup
+    d = _moved(plan, grid)
+    _, (gc, gR) = disc_objective([problem], d, grid, True, 0.0)
+    h = 1e-6
+    rng = np.random.default_rng(1)
+    for _ in range(3):
+        dc = rng.normal(size=d.centres_mm.shape) * d.is_open[:, None]
+        dR = float(rng.normal())
+        hi = disc_objective([problem], Discs(d.centres_mm + h * dc, d.R_mm + h * dR, d.is_open),
+                            grid, False)[0]  # fmt: skip
+        lo = disc_objective([problem], Discs(d.centres_mm - h * dc, d.R_mm - h * dR, d.is_open),
+                            grid, False)[0]  # fmt: skip
+        fd = (hi - lo) / (2 * h)
+        assert np.sum(gc * dc) + gR * dR == pytest.approx(fd, rel=1e-3, abs=1e-7)
+
+
+def test_the_soft_code_is_the_disc_the_design_file_rasterises(setup, tmp_path):
+    """Its area is pi R^2 (to the edge's linear ramp), and its half-level set is the disc the
+    written design, read back, rasterises on the cells: one frame (x right, y down)."""
+    plan, _, _ = setup
+    cam = plan.cam
+    grid = DiscGrid(32, cam.R_max_mm, cam.lcos_pitch_mm)
+    d = _moved(plan, grid)
+    code, _ = soft_code(d, grid)
+    area = code.sum(axis=(1, 2)) * grid.pitch_mm**2
+    assert np.allclose(area[d.is_open], math.pi * d.R_mm**2, rtol=0.02)
+    write_design(tmp_path / "d.toml", disc_design(plan, d), force=True)
+    back = read_design(tmp_path / "d.toml")
+    assert np.allclose(back.pattern_centres_xy_mm(), d.centres_mm) and back.R_mm == d.R_mm
+    hard = disc_code(plan_capture(design_spec(SPEC, tmp_path / "d.toml")), 32)
+    assert np.mean((code >= 0.5) != (hard > 0)) < 0.01  # cells whose centre is on the rim
+    assert not np.array_equal(hard, hard[:, ::-1, :])  # y matters: not symmetric
+
+
+def test_every_disc_stays_inside_the_lens(setup):
+    plan, _, grid = setup
+    d = plan_discs(plan)
+    far = Discs(d.centres_mm * 0 + [[9.0, -9.0]], 20.0, d.is_open)
+    got = project_inside(far, grid, True)
+    assert got.R_mm == grid.R_max_mm
+    assert np.all(np.hypot(*got.centres_mm.T) + got.R_mm <= grid.R_max_mm + 1e-12)
+    kept = project_inside(d, grid, False)  # the prototype is inside: untouched
+    assert np.allclose(kept.centres_mm[d.is_open], d.centres_mm[d.is_open])
+    small = project_inside(Discs(d.centres_mm, 0.0, d.is_open), grid, True)
+    assert small.R_mm == pytest.approx(grid.R_min_mm)  # one LCoS pixel
+
+
+def test_the_search_climbs_and_fixed_light_keeps_the_radius(setup):
+    plan, problem, grid = setup
+    d = plan_discs(plan)
+    fixed = disc_search([problem], {"prototype": d}, grid, iterations=6)
+    assert fixed.rows[-1][2] > fixed.rows[0][2] and fixed.discs.R_mm == d.R_mm
+    free = disc_search([problem], {"prototype": d}, grid, iterations=6, light="free")
+    assert free.discs.R_mm != d.R_mm and free.evaluations == 6
+
+
+def test_a_discs_search_with_held_out_stores_from_the_command_line(store, tmp_path, capsys):
+    held = [render_lightfield(StoreSpec(replace(SPEC, seed=s), alpha=1.0),
+                              tmp_path / f"held{s}", progress=False) for s in (11, 12)]  # fmt: skip
+    out = tmp_path / "opt"
+    args = ["optimize", "--lightfield", str(store.folder), "--space", "discs", "--cells", "8",
+            "--iterations", "3", "--starts", "2", "--noise-draws", "1", "--quiet",
+            "--held-out", *[str(h.folder) for h in held], "--out", str(out)]  # fmt: skip
+    assert main(args) == 0
+    text = capsys.readouterr().out
+    assert "Held-out stores" in text and "paired per held-out store" in text
+    cam = read_design(out / "design.toml")
+    assert cam.schedule_kind == "centres" and cam.pattern_masks is None
+    doc = json.loads((out / "report.json").read_text())
+    assert [r["where"] for r in doc["held_out"]] == [str(h.folder) for h in held for _ in (0, 1)]
+    moving = doc["held_out_vs_prototype"]["psnr_moving_db"]
+    found = [r["psnr_moving_db"] for r in doc["held_out"] if r["design"] == "found discs"]
+    proto = [r["psnr_moving_db"] for r in doc["held_out"] if r["design"] == "prototype"]
+    assert moving[0] == pytest.approx(np.mean(np.subtract(found, proto))) and moving[3] == 2
+    assert doc["train"][1]["light_rel"] == pytest.approx(1.0, abs=1e-9)  # fixed light: same R
+    assert (out / "patterns.png").stat().st_size > 0
+
+
+@pytest.mark.parametrize("extra, says", [
+    (["--space", "discs", "--levels", "4"], "--levels: only a search with --space bitmap"),
+    (["--space", "discs", "--held-out", "HELD1"], "--held-out: at least 2 stores"),
+    (["--space", "discs", "--held-out", "STORE", "HELD1"], "--held-out: a store the search"),
+    (["--space", "centres", "--held-out", "HELD1"], "--held-out: only a search with --space"),
+])  # fmt: skip
+def test_bad_discs_flags_get_one_line(store, tmp_path, capsys, extra, says):
+    held = tmp_path / "held1"
+    if any("HELD1" in e for e in extra):
+        render_lightfield(StoreSpec(replace(SPEC, seed=21), alpha=1.0), held, progress=False)
+    extra = [str(held) if e == "HELD1" else str(store.folder) if e == "STORE" else e
+             for e in extra]  # fmt: skip
+    out = tmp_path / "opt"
+    assert main(["optimize", "--lightfield", str(store.folder), *extra, "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert says in err and len(err.splitlines()) == 1, err
+    assert not out.exists()
