@@ -1,10 +1,12 @@
 """Whole-aperture bitmaps found on train scenes, checked on held-out scenes (issue 58, item 5).
 
-Train: light-field stores of ``family:occluders`` seeds TRAIN (a WINDOW_PX window about each
-scene's largest occlusion event, from its card). Search: binary bitmaps on CELLS x CELLS cells
-per pattern window by gradient (``pacam optimize --space bitmap``'s own functions), with the
-light fixed at the prototype's, for each objective (moving objects' PSNR alone; its weighted
-mean in dB with the still pixels', weight STILL_WEIGHT); the best centres design by the
+Train: grey light-field stores of ``family:occluders`` seeds TRAIN (a WINDOW_PX window about
+each scene's largest occlusion event, from its card; grey: the designs' question needs no RGB).
+Search, with the light fixed at the prototype's: binary bitmaps on CELLS x CELLS cells per
+pattern window by gradient (``pacam optimize --space bitmap``'s own functions), scoring the
+moving objects' PSNR; one disc per window moving in x and y (``--space discs`` on
+DISC_CELLS x DISC_CELLS cells), for each objective (moving alone; its weighted mean in dB with
+the still pixels', weight STILL_WEIGHT); the best centres design by the
 coordinate search (``--space centres``, the worst case over the stores); the Fourier-model
 design (``pacam optimize --max-velocity``, the non-rendered objective) for the same camera
 (sensor, lens, LCoS, exposure: the prototype's written as a design file) at the family's
@@ -39,28 +41,29 @@ from pacam_render.exposure.plan import plan_capture  # noqa: E402
 from pacam_render.exposure.spec import CaptureSpec  # noqa: E402
 from pacam_render.lightfield import Store, StoreSpec, render_lightfield, synthesize  # noqa: E402
 from pacam_render.model.design_file import write_design  # noqa: E402
-from pacam_render.optimize.cell_design import bitmap_design  # noqa: E402
 from pacam_render.optimize.cell_objective import parts  # noqa: E402
-from pacam_render.optimize.cell_report import design_row, summary  # noqa: E402
+from pacam_render.optimize.cell_report import design_row, paired, summary  # noqa: E402
 from pacam_render.optimize.cell_run import (  # noqa: E402
     BitmapProblem,
     check_bitmap_problem,
     design_spec,
+    found_design,
     prepare_bitmap,
-    search_bitmap,
 )
 from pacam_render.optimize.rendered_run import RenderedProblem, run_rendered_optimize  # noqa: E402
 from pacam_render.optimize.run import run_optimize  # noqa: E402
 from pacam_render.optimize.search import Problem  # noqa: E402
 from pacam_render.scenes.family import family_scene  # noqa: E402
 
-TRAIN, HELD = (0, 1, 2), (10, 11, 12, 13, 14, 15)
+TRAIN, HELD = tuple(range(8)), tuple(range(10, 20))
+DISC_CELLS = 32
+"""The discs' soft rasterisation needs the finer grid: the prototype's R is 2.3 cells at 16."""
 WINDOW_PX = (128, 64)
 """128 x 64, not 96 x 64: score_capture leaves out +-32 px columns (its shift search at a
 1280 px sensor), so a 96 px window scores 32 columns and rarely any still pixel."""
 MIDDLE_DEPTH_MM = 650.0
 """The family's depths are 400-900 mm: every camera is focused once for the class here."""
-SENSOR, LEVEL = "grasshopper-icx285", 300.0
+SENSOR, LEVEL = "grasshopper-icx285-mono", 300.0
 STILL_WEIGHT = 1.0
 """The still term's weight in (moving + w still) / (1 + w), dB: cell_run's default."""
 MAX_SPEED_PX_PER_MS = 1.4
@@ -83,7 +86,8 @@ def window(seed: int) -> tuple[int, int, int, int]:
 def spec(seed: int, spp: int, render_seed: int) -> CaptureSpec:
     return CaptureSpec.geometric(scene=f"family:occluders:{seed}", width=1280, height=960,
                                  crop=window(seed), mode="coded", spp=spp, passes=2,
-                                 seed=render_seed, object_depth_mm=MIDDLE_DEPTH_MM)  # fmt: skip
+                                 seed=render_seed, object_depth_mm=MIDDLE_DEPTH_MM,
+                                 grey=True)  # fmt: skip
 
 
 def stores(root: Path, spp: int) -> list[str]:
@@ -98,23 +102,36 @@ def stores(root: Path, spp: int) -> list[str]:
     return out
 
 
+def _search(root: Path, name: str, q: BitmapProblem, prepared: dict, found: dict) -> None:
+    """One cell-basis search (``q.space``) written as a design file into ``found``."""
+    t0 = time.perf_counter()
+    f = found_design(q, prepared)
+    path = root / f"{name.replace(' ', '_').replace('+', '_')}.toml"
+    write_design(path, f["design"], True)
+    found[name] = (path, time.perf_counter() - t0, f["model_db"]["found"])
+    moving, still = parts(prepared["problems"], f["code"])
+    print(f"{name}: model {f['model_db']['found']:.2f} dB (moving {moving:.2f}, still "
+          f"{still:.2f}), starts {f['model_db']['starts']}", flush=True)  # fmt: skip
+
+
 def designs(root: Path, folders, cells: int, iterations: int, starts: int, quick: bool):
-    """Design name -> (design file, seconds, model dB): bitmaps (fixed light, each objective),
-    centres and the Fourier model's."""
+    """Design name -> (design file, seconds, model dB): a bitmap and discs (fixed light; discs
+    for each objective), centres and the Fourier model's."""
     found, p = {}, BitmapProblem(tuple(folders), SENSOR, LEVEL, cells, "fixed", starts,
                                  iterations, noise_draws=2)  # fmt: skip
     prepared = prepare_bitmap(p, check_bitmap_problem(p))
-    for name, q in (("bitmap moving", p),
-                    ("bitmap moving+still", replace(p, objective="moving+still",
-                                                    still_weight=STILL_WEIGHT))):  # fmt: skip
-        t0 = time.perf_counter()
-        s = search_bitmap(q, prepared)
-        path = root / f"{name.replace(' ', '_').replace('+', '_')}.toml"
-        write_design(path, bitmap_design(prepared["plan"], prepared["bases"][0], s.code), True)
-        found[name] = (path, time.perf_counter() - t0, s.projected_db)
-        moving, still = parts(prepared["problems"], s.code)
-        print(f"{name}: model {s.projected_db:.2f} dB (moving {moving:.2f}, still {still:.2f}),"
-              f" starts {s.starts}", flush=True)  # fmt: skip
+    _search(root, "bitmap moving", p, prepared, found)
+    d = replace(p, space="discs", cells=cells if quick else DISC_CELLS)
+    del prepared["bases"], prepared["problems"]  # one grid's bases in memory at a time
+    prepared = prepare_bitmap(d, check_bitmap_problem(d))
+    _search(root, "discs moving", d, prepared, found)
+    _search(
+        root,
+        "discs moving+still",
+        replace(d, objective="moving+still", still_weight=STILL_WEIGHT),
+        prepared,
+        found,
+    )
     t0 = time.perf_counter()
     rp = RenderedProblem(tuple(folders), SENSOR, LEVEL, positions=9, sweeps=1, noise_draws=1,
                          check_seeds=0)  # fmt: skip
@@ -144,22 +161,6 @@ def captures(seed: int, spp: int, rseed: int, found: dict):
     out = [("prototype", base)]
     out += [(name, design_spec(base, path)) for name, (path, _, _) in found.items()]
     out.append(("levin (650 mm)", replace(base, mode="levin")))
-    return out
-
-
-def paired(rows: list[dict], score: str = "psnr_moving_db", ref: str = "prototype") -> dict:
-    """Per design, the ``score`` differences against ``ref`` per (scene, render seed):
-    mean and 95 % Student-t interval (rows without the score left out)."""
-    from scipy.stats import t as student
-
-    key = lambda r: r["where"]  # noqa: E731
-    refs = {key(r): r[score] for r in rows if r["design"] == ref}
-    out = {}
-    for name in dict.fromkeys(r["design"] for r in rows if r["design"] != ref):
-        d = np.array([r[score] - refs[key(r)] for r in rows if r["design"] == name
-                      and r[score] is not None and refs[key(r)] is not None])  # fmt: skip
-        half = student.ppf(0.975, len(d) - 1) * d.std(ddof=1) / np.sqrt(len(d))
-        out[name] = (float(d.mean()), float(d.mean() - half), float(d.mean() + half), len(d))
     return out
 
 
@@ -217,9 +218,11 @@ def main() -> None:
     fmt = lambda v: f"{v:.2f}"  # noqa: E731
     notes = (f"train seeds {TRAIN}, held-out {HELD}, {WINDOW_PX[0]}x{WINDOW_PX[1]} windows at "
              f"each scene's largest occlusion; stores spp {store_spp} x 2 passes "
-             f"({t_store:.0f} s); bitmaps {cells}x{cells} cells, {starts} starts x {iters} Adam "
-             f"steps, fixed light, objectives moving and (moving + {STILL_WEIGHT:g} still) / "
-             f"{1 + STILL_WEIGHT:g} in dB; centres 9 positions, 1 sweep; Fourier model at "
+             f"({t_store:.0f} s), grey; bitmap {cells}x{cells} cells, discs {DISC_CELLS}x"
+             f"{DISC_CELLS} cells, {starts} starts x {iters} Adam steps each, fixed light, "
+             f"objectives moving and (moving + {STILL_WEIGHT:g} still) / {1 + STILL_WEIGHT:g} in "
+             "dB; Wiener's prior fitted where |H|^2 >= 0.2; centres 9 positions, 1 sweep; "
+             "Fourier model at "
              f"{MAX_SPEED_PX_PER_MS:g} px/ms, {MIDDLE_DEPTH_MM:g} mm, the prototype's camera, "
              "its own focus; model dB (each its own objective): "
              + ", ".join(f"{k} {fmt(v[2])}" for k, v in found.items())
@@ -234,8 +237,8 @@ def main() -> None:
     if a.quick:
         print(rows, notes)
         return
-    record(f"Whole-aperture bitmaps: train on 3 family scenes, check on {len(HELD)} held-out",
-           rows, notes)  # fmt: skip
+    record(f"Whole-aperture designs: train on {len(TRAIN)} family scenes, check on {len(HELD)} "
+           "held-out", rows, notes)  # fmt: skip
 
 
 if __name__ == "__main__":

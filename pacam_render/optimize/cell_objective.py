@@ -209,13 +209,13 @@ def _pad_index(shape, pad: int) -> np.ndarray:
 
 
 def check_still_weight(problems, still_weight: float) -> float:
-    """``still_weight`` checked: finite and >= 0, and with a weight every store has still
-    pixels to score."""
+    """``still_weight`` checked: finite and >= 0, and with a weight some store has still
+    pixels to score (a store with none scores its moving objects only)."""
     w = float(still_weight)
     if not (math.isfinite(w) and w >= 0):
         raise ParameterError(f"still_weight: a finite number >= 0, got {still_weight!r}")
-    if w > 0 and not all(p.still.any() for p in problems):
-        raise ParameterError("still_weight: a store's window shows no still pixel inside the "
+    if w > 0 and not any(p.still.any() for p in problems):
+        raise ParameterError("still_weight: no store's window shows a still pixel inside the "
                              "scorer's columns; score moving objects only")  # fmt: skip
     return w
 
@@ -223,8 +223,9 @@ def check_still_weight(problems, still_weight: float) -> float:
 def objective(p: CellProblem, code, grad: bool = True, still_weight: float = 0.0):
     """Expected PSNR (dB) of ``code`` (n, G, G) in [0, 1] on one store: the moving objects',
     or with ``still_weight`` w > 0 the weighted mean (P + w P_s) / (1 + w) with the still
-    pixels' (module docstring); and its gradient d PSNR / d code (n, G, G) when ``grad``
-    (adjoint by hand)."""
+    pixels' (module docstring; P alone where the store's scored columns hold no still pixel);
+    and its gradient d PSNR / d code (n, G, G) when ``grad`` (adjoint by hand)."""
+    still_weight = still_weight if p.still.any() else 0.0
     A = np.asarray(code, float)
     scale = 1.0 if p.contrast is None else 1.0 - 1.0 / p.contrast
     w = _weights(p, A)
@@ -330,9 +331,11 @@ def mean_objective(problems, code, grad: bool = True, still_weight: float = 0.0)
 
 
 def parts(problems, code) -> tuple[float, float]:
-    """The mean over the stores of the model's moving and still PSNR (dB) of ``code``."""
-    got = [_forward(p, _weights(p, code), 1.0) for p in problems]
-    return float(np.mean([f["psnr"] for f in got])), float(np.mean([f["psnr_still"] for f in got]))
+    """The model's moving PSNR (dB) of ``code``, the mean over the stores, and its still PSNR,
+    the mean over the stores with still pixels (nan where none has)."""
+    got = [_forward(p, _weights(p, code), float(p.still.any())) for p in problems]
+    still = [f["psnr_still"] for f in got if "psnr_still" in f]
+    return float(np.mean([f["psnr"] for f in got])), float(np.mean(still)) if still else math.nan
 
 
 def _weights(p: CellProblem, code) -> np.ndarray:

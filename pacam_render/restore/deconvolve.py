@@ -38,6 +38,16 @@ from .sparse import sparse_deconvolve
 
 METHODS = ("wiener", "hl", "tv", "rl", "uwiener", "bm3d", "pnp")
 """The deconvolution methods ``deconvolve`` takes (``method``)."""
+PRIOR_MIN_TRANSFER = 0.2
+"""The prior's level is fitted only where the kernel passes at least this share of the power,
+|H|^2 >= 0.2 (:func:`prior_spectrum`). Where the s = 0 kernel has a notch, objects at other
+depths or speeds (whose blur is not that kernel) still put power, and (|Y|^2/N - sigma^2) / |H|^2
+there overstates the level: a 2-D spread of openings has many notches, its fitted c rose 10x and
+its restoration lost 4 dB to amplified noise. Measured on four held-out family:occluders windows
+(128x64, 300 photons/px/ms, 2 draws), moving / still PSNR as the threshold rises 0, 0.05, 0.1,
+0.2, 0.4: prototype 16.83/22.75, 16.90/22.94, 16.97/23.23, 16.98/23.41, 16.97/23.94; random
+discs 14.82/21.68 ... 15.40/24.56, 15.41/24.93; Levin 17.27/24.40 ... 17.32/24.67, 17.32/24.68;
+normal (a delta kernel) unchanged. The moving objects' gain saturates at 0.2."""
 SIGMA_METHODS = ("wiener", "hl", "tv", "bm3d", "pnp")
 """The methods that take a ``noise_sigma`` (rl regularises by its iterations, uwiener
 estimates its own)."""
@@ -118,8 +128,10 @@ def prior_spectrum(Y: np.ndarray, H2: np.ndarray, shape, sigma: float) -> np.nda
     -----
     g(f) = 1 / (|f|^2 + f0^2), with f = (f_y, f_x) in cycles/px and f0 = 1 / max(H, W).
     c is the median, over the frequencies where the observation is well above the noise
-    (|Y|^2 / N > t sigma^2) and |H|^2 g > 0, DC excluded, of (|Y|^2 / N - sigma^2) / (|H|^2 g):
-    the prior's level where the data can see it. A median, not a mean, so the brightest low
+    (|Y|^2 / N > t sigma^2) and the kernel passes at least :data:`PRIOR_MIN_TRANSFER` of the
+    power (|H|^2 >= 0.2), DC excluded, of (|Y|^2 / N - sigma^2) / (|H|^2 g): the prior's level
+    where the data can see it through the kernel (at a notch, light the kernel does not
+    describe, other depths' and speeds', would inflate it). A median, not a mean, so the brightest low
     frequencies do not dominate. For white noise |Y|^2 / (N sigma^2) of a frequency with no
     signal is Exp(1), so t = max(4, ln M) over the grid's M frequencies lets fewer than one
     noise-only frequency in: with t = 4 alone, a very noisy image's noise-only frequencies
@@ -133,7 +145,7 @@ def prior_spectrum(Y: np.ndarray, H2: np.ndarray, shape, sigma: float) -> np.nda
     g = 1.0 / (_freq2(shape) + (1.0 / max(shape)) ** 2)
     p = np.abs(Y) ** 2 / n
     t = max(4.0, float(np.log(p.size)))
-    seen = (p > t * sigma**2) & (H2 * g > 0)
+    seen = (p > t * sigma**2) & (H2 * g > 0) & (H2 >= PRIOR_MIN_TRANSFER)
     seen[0, 0] = False
     if seen.sum() < 8:  # the image is all noise: fall back to matching its variance
         c = max(float(p[1:].mean()) - sigma**2, 1e-20) / float(g[1:].mean())

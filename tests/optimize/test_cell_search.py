@@ -132,3 +132,22 @@ def test_a_bad_still_weight_is_refused(setup):
         gradient_search([problem], {"prototype": base}, iterations=1, still_weight=-1.0)
     with pytest.raises(ParameterError, match="still_weight"):
         gradient_search([problem], {"prototype": base}, iterations=1, still_weight=float("nan"))
+
+
+def test_a_store_with_no_still_pixel_scores_its_moving_objects_only(setup):
+    """With a still weight, a window whose scored columns hold no still pixel counts its
+    moving PSNR alone in the mean; with no such pixel in any store the weight is refused."""
+    from dataclasses import replace as dc_replace
+
+    from pacam_render.optimize.cell_objective import mean_objective
+
+    _, _, base, problem = setup
+    bare = dc_replace(problem, still=np.zeros_like(problem.still))
+    w = 0.5
+    moving, still = parts([problem], base)
+    bare_moving = objective(bare, base, False)[0]
+    got = mean_objective([problem, bare], base, False, w)[0]
+    assert got == pytest.approx(((moving + w * still) / (1 + w) + bare_moving) / 2)
+    assert parts([problem, bare], base)[1] == pytest.approx(still)  # the still stores' mean
+    with pytest.raises(ParameterError, match="no store's window shows a still pixel"):
+        gradient_search([bare], {"prototype": base}, iterations=1, still_weight=w)
