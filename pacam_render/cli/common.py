@@ -100,6 +100,7 @@ FLAGS = {
     "objective": "--objective",
     "still_weight": "--still-weight",
     "held_out": "--held-out",
+    "max_still_loss_db": "--max-still-loss",
     "space": "--space",
 }
 """Parameter names in library messages, and the flags a CLI user typed instead: the one

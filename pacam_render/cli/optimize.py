@@ -40,7 +40,8 @@ FOURIER_ONLY = ("depth_range", "n_patterns", "free_radius", "f_number", "r_px", 
                 "quick", "max_velocity")  # fmt: skip
 """Flags of the Fourier objective that a search on stores does not take (its camera is the
 stores')."""
-CELLS_FLAGS = ("cells", "light", "starts", "iterations", "objective", "still_weight", "held_out")
+CELLS_FLAGS = ("cells", "light", "starts", "iterations", "objective", "still_weight", "held_out",
+               "max_still_loss")  # fmt: skip
 SPACE_FLAGS = {"centres": ("positions", "sweeps", "check_seeds"),
                "bitmap": CELLS_FLAGS + ("levels",), "discs": CELLS_FLAGS}  # fmt: skip
 """Flags that only some ``--space`` of a search on stores takes: the ones each space takes."""
@@ -177,7 +178,16 @@ def _add_bitmap(p) -> None:
 
 
 def _add_held_out(p) -> None:
-    """``--held-out``: stores of scenes the search never sees, scored in the report."""
+    """``--held-out``: stores of scenes the search never sees, scored in the report; and
+    ``--max-still-loss``, the constraint the choice holds on the training stores."""
+    p.add_argument(
+        "--max-still-loss",
+        type=float,
+        metavar="DB",
+        help="with --space bitmap or discs: a found design whose still regions lose more than "
+        "DB dB against the store's design on the training stores (real pipeline) is not chosen "
+        "(default: no limit); where none is eligible and better, the store's design is kept",
+    )
     p.add_argument(
         "--held-out",
         nargs="+",
@@ -360,6 +370,7 @@ def _run_bitmap(args: argparse.Namespace, level: float) -> int:
         seed=args.seed, noise_draws=args.noise_draws,
         objective=_or(args.objective, "moving"), still_weight=args.still_weight,
         space=args.space, held_out=tuple(args.held_out or ()),
+        max_still_loss_db=args.max_still_loss,
     )  # fmt: skip
     check_bitmap_problem(problem)  # refused before any output
     out = prepare_out_dir(args.out, args.force)

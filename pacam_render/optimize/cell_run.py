@@ -39,6 +39,7 @@ from .cell_design import bitmap_design, disc_code
 from .cell_objective import cell_problem
 from .cell_report import SCORES, design_row, markdown, paired, write_patterns, write_report
 from .cell_search import LIGHT_CHOICES, gradient_search, light_of
+from .cell_select import PROTOTYPE, choose
 from .disc_space import DiscGrid, disc_design, disc_search, plan_discs, random_discs, soft_code
 from .rendered_run import RenderedProblem, base_spec, open_stores
 
@@ -79,6 +80,7 @@ class BitmapProblem:
     still_weight: float | None = None
     space: str = "bitmap"
     held_out: tuple[str, ...] = ()
+    max_still_loss_db: float | None = None
 
     @property
     def weight(self) -> float:
@@ -101,6 +103,9 @@ def check_bitmap_problem(p: BitmapProblem):
     if p.held_out and len(p.held_out) < MIN_HELD_OUT:
         raise ParameterError(f"`held_out`: at least {MIN_HELD_OUT} stores for a paired interval"
                              f" (one difference per store), got {len(p.held_out)}")  # fmt: skip
+    d = p.max_still_loss_db
+    if d is not None and not (math.isfinite(float(d)) and d >= 0):
+        raise ParameterError(f"max_still_loss_db: a finite number >= 0 (dB), got {d!r}")
     if set(map(str, p.held_out)) & set(map(str, p.stores)):
         raise ParameterError("`held_out`: a store the search trains on is not held out")
     if p.light not in LIGHT_CHOICES:
@@ -208,43 +213,61 @@ def search_discs(p: BitmapProblem, prepared: dict):
 
 
 def found_design(p: BitmapProblem, prepared: dict) -> dict:
-    """The search of ``p.space`` on :func:`prepare_bitmap`'s problems: ``design`` (to write),
-    ``code`` (n, G, G: the patterns on the cells), the model's dB (``model_db``: ``found``,
-    ``relaxed``, ``starts``), the ``curve`` and the ``evaluations``."""
+    """The search of ``p.space`` on :func:`prepare_bitmap`'s problems: ``candidates`` (each
+    start's found design, named "from START"), ``codes`` (their patterns on the cells, (n, G, G)),
+    the model's dB (``model_db``: ``found``, ``relaxed``, ``starts``), the ``curve`` and the
+    ``evaluations``."""
+    plan = prepared["plan"]
     if p.space == "discs":
         s = search_discs(p, prepared)
-        cam = prepared["plan"].cam
-        code = soft_code(s.discs, DiscGrid(p.cells, cam.R_max_mm, cam.lcos_pitch_mm))[0]
+        grid = DiscGrid(p.cells, plan.cam.R_max_mm, plan.cam.lcos_pitch_mm)
+        codes = {f"from {k}": soft_code(d, grid)[0] for k, d in s.found.items()}
+        designs = {f"from {k}": disc_design(plan, d) for k, d in s.found.items()}
         model = {"found": s.model_db, "relaxed": s.model_db, "starts": [list(x) for x in s.starts],
-                 "R_mm": s.discs.R_mm, "centres_mm": s.discs.centres_mm.tolist()}  # fmt: skip
-        design = disc_design(prepared["plan"], s.discs)
+                 "R_mm": {k: d.R_mm for k, d in s.found.items()}}  # fmt: skip
     else:
         s = search_bitmap(p, prepared)
-        code = s.code
+        codes = {f"from {k}": c for k, c in s.codes.items()}
+        designs = {k: bitmap_design(plan, prepared["bases"][0], c) for k, c in codes.items()}
         model = {"found": s.projected_db, "relaxed": s.relaxed_db,
                  "starts": [list(x) for x in s.starts]}  # fmt: skip
-        design = bitmap_design(prepared["plan"], prepared["bases"][0], code)
-    return dict(design=design, code=code, model_db=model, curve=[list(x) for x in s.rows],
-                evaluations=s.evaluations)  # fmt: skip
+    return dict(candidates=designs, codes=codes, model_db=model,
+                curve=[list(x) for x in s.rows], evaluations=s.evaluations)  # fmt: skip
 
 
-def _rows(p: BitmapProblem, folders, stores, path: Path, refs=None) -> list[dict]:
-    """Report rows of the prototype and the found design (the file at ``path``) synthesised
-    from each store; ``refs`` the stores' own designs' captures (synthesised where None)."""
+def chosen_design(p: BitmapProblem, prepared: dict, stores, f: dict) -> dict:
+    """:func:`~.cell_select.choose` on ``f``'s candidates: adds ``choice`` (its result),
+    ``design`` and ``code`` (the chosen one's; the store's design, as discs and rasterised,
+    where none beat it) to ``f``."""
+    c = choose(f["candidates"], stores, prepared["templates"], p, design_spec)
+    name = c["chosen"]
+    if name == PROTOTYPE:
+        f["design"], f["code"] = disc_design(prepared["plan"], plan_discs(prepared["plan"])), \
+            prepared["base_code"]  # fmt: skip
+    else:
+        f["design"], f["code"] = f["candidates"][name], f["codes"][name]
+    f["choice"] = c
+    return f
+
+
+def _rows(p: BitmapProblem, folders, stores, path: Path, name: str) -> list[dict]:
+    """Report rows of the prototype and the design file at ``path`` (``name``) synthesised
+    from each store."""
     draws, rows = tuple(range(p.noise_draws)), []
-    for i, (folder, store) in enumerate(zip(folders, stores)):
+    for folder, store in zip(folders, stores):
         spec = base_spec(store)
-        tpl = synthesize(store, spec, progress=False) if refs is None else refs[i]
+        tpl = synthesize(store, spec, progress=False)
         found = synthesize(store, design_spec(spec, path), progress=False)
-        for name, cap in (("prototype", tpl), (f"found {p.space}", found)):
-            rows.append(design_row(name, str(folder), cap, tpl, p.sensor, p.light_level, draws))
+        for label, cap in ((PROTOTYPE, tpl), (name, found)):
+            rows.append(design_row(label, str(folder), cap, tpl, p.sensor, p.light_level, draws))
     return rows
 
 
 def run_bitmap_optimize(p: BitmapProblem, out: Path, force: bool, progress: bool) -> dict:
-    """Search, write ``out``/design.toml (a bitmap's masks beside it) and report.json/.md/.png
-    and patterns.png: the prototype and the found design synthesised from every training store
-    and every held-out store, scored with the real pipeline, paired intervals on the held-out.
+    """Search, choose (:mod:`.cell_select`), write ``out``/design.toml (a bitmap's masks
+    beside it) and report.json/.md/.png and patterns.png: the store's design and every start's
+    result synthesised from every training store, the chosen one on every held-out store, all
+    scored with the real pipeline, paired intervals on the held-out.
 
     Returns
     -------
@@ -253,14 +276,17 @@ def run_bitmap_optimize(p: BitmapProblem, out: Path, force: bool, progress: bool
     """
     stores = check_bitmap_problem(p)
     r = prepare_bitmap(p, stores, progress)
-    f = found_design(p, r)
+    check_still_loss(p, r["problems"])
+    f = chosen_design(p, r, stores, found_design(p, r))
     path = out / "design.toml"
     write_design(path, f["design"], force)
-    rows = _rows(p, p.stores, stores, path, r["templates"])
-    held = _rows(p, p.held_out, [Store.open(s) for s in p.held_out], path)
+    name = f"found {p.space}" if f["choice"]["chosen"] != PROTOTYPE else "kept prototype"
+    held = _rows(p, p.held_out, [Store.open(s) for s in p.held_out], path, name)
     doc = {"problem": {**p.__dict__, "stores": list(p.stores), "held_out": list(p.held_out)},
-           "train": rows, "held_out": held, "model_db": f["model_db"],
-           "held_out_vs_prototype": ({k: paired(held, k).get(f"found {p.space}") for k in SCORES}
+           "train": f["choice"]["rows"], "choice": {k: v for k, v in f["choice"].items()
+                                                     if k != "rows"},
+           "held_out": held, "model_db": f["model_db"],
+           "held_out_vs_prototype": ({k: paired(held, k).get(name) for k in SCORES}
                                      if held else None),
            "evaluations": f["evaluations"], "setup_s": r["setup_s"],
            "search_s": f["curve"][-1][1], "curve": f["curve"],
@@ -268,8 +294,18 @@ def run_bitmap_optimize(p: BitmapProblem, out: Path, force: bool, progress: bool
                            "prototype_capture": r["templates"][0].record.light_factor,
                            "found": light_of(r["problems"][0], f["code"])}}  # fmt: skip
     write_report(out, doc, force, _text(p, doc))
-    write_patterns(out / "patterns.png", f["code"], f"found {p.space}", force)
+    write_patterns(out / "patterns.png", f["code"], name, force)
     return doc
+
+
+def check_still_loss(p: BitmapProblem, problems) -> None:
+    """With ``max_still_loss_db``, some training store shows still pixels in the scorer's
+    columns to hold it on."""
+    if p.max_still_loss_db is None:
+        return
+    if not any(q.still.any() for q in problems):
+        raise ParameterError("max_still_loss_db: no training store's window shows a still pixel "
+                             "inside the scorer's columns")  # fmt: skip
 
 
 def _what(p: BitmapProblem) -> str:
@@ -282,10 +318,30 @@ def _what(p: BitmapProblem) -> str:
 def _starts(p: BitmapProblem, m: dict) -> str:
     """The starts' model dB in words."""
     if p.space == "discs":
-        return ("Starts (name, dB): " + "; ".join(f"{s[0]} {s[1]:.2f}" for s in m["starts"])
-                + f". Found R = {m['R_mm']:.4g} mm.")  # fmt: skip
+        return ("Starts (name, dB, R mm): " + "; ".join(
+            f"{s[0]} {s[1]:.2f} {m['R_mm'][s[0]]:.4g}" for s in m["starts"]) + ".")  # fmt: skip
     return ("Starts (name, relaxed dB, binary dB): "
             + "; ".join(f"{s[0]} {s[1]:.2f}/{s[2]:.2f}" for s in m["starts"]) + ".")  # fmt: skip
+
+
+def _choice_text(p: BitmapProblem, doc: dict) -> str:
+    """Which design was written, and why (:mod:`.cell_select`)."""
+    c = doc["choice"]
+    sc = {k: v for k, v in c["scores"].items()}
+    best = max(sc, key=lambda k: sc[k]["value_db"])
+    rule = (
+        ""
+        if p.max_still_loss_db is None
+        else (f"; eligible: still regions within {p.max_still_loss_db:g} dB of the prototype's")
+    )
+    line = (f"Chosen with the real pipeline on the training stores (the search's score, mean "
+            f"over the stores{rule}): ")  # fmt: skip
+    line += "; ".join(f"{k} {v['value_db']:.2f} dB" + ("" if v["eligible"] else " (not eligible)")
+                      for k, v in sc.items())  # fmt: skip
+    if c["chosen"] == PROTOTYPE:
+        why = "none eligible beat it" if best != PROTOTYPE else "no start beat it"
+        return line + f". **Kept the prototype** ({why}): design.toml is the store's design."
+    return line + f". Written: the result from start {c['chosen']!r}."
 
 
 def _held_text(doc: dict) -> list[str]:
@@ -319,6 +375,7 @@ def _text(p: BitmapProblem, doc: dict) -> str:
         f"{m['found']:.2f} dB; {doc['evaluations']} evaluations in {doc['search_s']:.1f} s "
         f"after {doc['setup_s']:.1f} s of setup. " + _starts(p, m), "",
         markdown(doc["train"], "Scored with the real pipeline on the stores' syntheses"),
+        _choice_text(p, doc), "",
         f"Each capture through {p.noise_draws} sensor draw(s) of {p.sensor} at "
         f"{p.light_level:g} photons/px/ms, Wiener with the design's s = 0 kernel told the "
         "sensor's and the render's noise, scored by score_capture. Invariant range: the "

@@ -35,7 +35,7 @@ start's binary cells can still move."""
 class CellSearch:
     """A search's result: the projected code, its and the relaxed code's mean PSNR (dB), and
     per start its (start name, relaxed dB, projected dB); ``rows`` the curve (evaluations,
-    seconds, relaxed dB)."""
+    seconds, relaxed dB); ``codes`` each start's projected code (start name to code)."""
 
     code: np.ndarray
     projected_db: float
@@ -43,6 +43,7 @@ class CellSearch:
     starts: list
     rows: list
     evaluations: int
+    codes: dict
 
 
 def _check_levels(levels) -> int:
@@ -206,7 +207,7 @@ def gradient_search(problems, starts: dict, iterations: int = 200, step: float |
         raise ParameterError("starts: at least one start code")
     target = None if light == "free" else _target(problems[0], reference)
     step = (0.1 if target is None else 0.02) if step is None else float(step)
-    rows, out, best = [], [], None
+    rows, out, best, codes = [], [], None, {}
     t0 = time.perf_counter()
     for name, code in starts.items():
         relaxed = _climb(problems, code, int(iterations), step, rows, t0, target, sw)
@@ -217,8 +218,9 @@ def gradient_search(problems, starts: dict, iterations: int = 200, step: float |
         r_db = mean_objective(problems, relaxed, False, sw)[0]
         p_db = mean_objective(problems, proj, False, sw)[0]
         out.append((name, r_db, p_db))
+        codes[name] = proj
         if best is None or p_db > best[0]:
             best = (p_db, r_db, proj)
     if best is None:
         raise ParameterError("every start projected to an all-black code")
-    return CellSearch(best[2], best[0], best[1], out, rows, len(rows) * len(problems))
+    return CellSearch(best[2], best[0], best[1], out, rows, len(rows) * len(problems), codes)

@@ -109,13 +109,15 @@ def disc_objective(problems, d: Discs, grid: DiscGrid, grad: bool = True,
 @dataclass
 class DiscSearch:
     """A search's result: the best discs, their mean model dB, per start (name, dB), the curve
-    ``rows`` (evaluation, seconds, dB) and the evaluations over all stores."""
+    ``rows`` (evaluation, seconds, dB), the evaluations over all stores and each start's
+    discs (``found``: start name to discs)."""
 
     discs: Discs
     model_db: float
     starts: list
     rows: list
     evaluations: int
+    found: dict
 
 
 def random_discs(rng, base: Discs, grid: DiscGrid) -> Discs:
@@ -178,16 +180,17 @@ def disc_search(problems, starts: dict, grid: DiscGrid, iterations: int = 200,
     if not starts:
         raise ParameterError("starts: at least one start")
     sw = check_still_weight(problems, still_weight)
-    rows, out, best = [], [], None
+    rows, out, best, each = [], [], None, {}
     t0 = time.perf_counter()
     for name, d in starts.items():
         d = project_inside(d, grid, light == "free")
         found = _climb(problems, d, grid, int(iterations), light == "free", rows, t0, sw)
         val = disc_objective(problems, found, grid, False, sw)[0]
         out.append((name, val))
+        each[name] = found
         if best is None or val > best[0]:
             best = (val, found)
-    return DiscSearch(best[1], best[0], out, rows, len(rows) * len(problems))
+    return DiscSearch(best[1], best[0], out, rows, len(rows) * len(problems), each)
 
 
 def disc_design(plan, d: Discs, name: str = "pacam optimize --space discs"):

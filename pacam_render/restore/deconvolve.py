@@ -127,16 +127,16 @@ def prior_spectrum(Y: np.ndarray, H2: np.ndarray, shape, sigma: float) -> np.nda
     Notes
     -----
     g(f) = 1 / (|f|^2 + f0^2), with f = (f_y, f_x) in cycles/px and f0 = 1 / max(H, W).
-    c is the median, over the frequencies where the observation is well above the noise
-    (|Y|^2 / N > t sigma^2) and the kernel passes at least :data:`PRIOR_MIN_TRANSFER` of the
-    power (|H|^2 >= 0.2), DC excluded, of (|Y|^2 / N - sigma^2) / (|H|^2 g): the prior's level
-    where the data can see it through the kernel (at a notch, light the kernel does not
-    describe, other depths' and speeds', would inflate it). A median, not a mean, so the brightest low
-    frequencies do not dominate. For white noise |Y|^2 / (N sigma^2) of a frequency with no
-    signal is Exp(1), so t = max(4, ln M) over the grid's M frequencies lets fewer than one
-    noise-only frequency in: with t = 4 alone, a very noisy image's noise-only frequencies
-    (e^-4 = 1.8 % of them, most where |H|^2 g is small) outnumbered the signal's, the median
-    came out orders of magnitude too high and the filter amplified the noise a hundredfold.
+    c is the median, over the frequencies where the observation is well above the noise (|Y|^2 /
+    N > t sigma^2) and the kernel passes at least :data:`PRIOR_MIN_TRANSFER` of the power (|H|^2
+    >= 0.2), DC excluded, of (|Y|^2 / N - sigma^2) / (|H|^2 g): the prior's level where the data
+    can see it through the kernel (at a notch, light the kernel does not describe, other depths'
+    and speeds', would inflate it). A median, not a mean, so the brightest low frequencies do
+    not dominate. For white noise |Y|^2 / (N sigma^2) of a frequency with no signal is Exp(1),
+    so t = max(4, ln M) over the grid's M frequencies lets fewer than one noise-only frequency
+    in: with t = 4 alone, a very noisy image's noise-only frequencies (e^-4 = 1.8 % of them,
+    most where |H|^2 g is small) outnumbered the signal's, the median came out orders of
+    magnitude too high and the filter amplified the noise a hundredfold.
     If fewer than 8 frequencies qualify (the image is all noise),
     c matches the observed variance instead: c = max(mean(p) - sigma^2, 1e-20) / mean(g), with
     p = |Y|^2 / N and both means over every row of the grid but the first (which holds DC).

@@ -36,9 +36,17 @@ def test_a_bitmap_search_from_the_command_line(store, tmp_path, capsys):
     doc = json.loads((out / "report.json").read_text())
     light = doc["light_model"]
     assert light["found"] == pytest.approx(light["prototype_capture"], rel=2e-3)  # fixed light
-    proto, found = doc["train"]
-    assert found["light_rel"] == pytest.approx(1.0, abs=2e-3)  # the captures' light factors
-    assert found["range_px_per_ms"] is None  # a bitmap: no fitted parabola
+    rows = doc["train"]
+    assert [r["design"] for r in rows] == ["prototype", "from prototype", "from random 1"]
+    proto = rows[0]
+    for found in rows[1:]:
+        assert found["light_rel"] == pytest.approx(1.0, abs=2e-3)  # the captures' light factors
+        assert found["range_px_per_ms"] is None  # a bitmap: no fitted parabola
+    # the choice is the best of the real pipeline's (moving + 0.5 still) / 1.5, computed here
+    value = {r["design"]: (r["psnr_moving_db"] + 0.5 * r["psnr_static_db"]) / 1.5 for r in rows}
+    chosen = doc["choice"]["chosen"]
+    assert chosen == max(value, key=lambda k: (value[k], k == "prototype")), value
+    assert chosen != "prototype"  # this seed's search beats it (else design.toml is a disc)
     template = synthesize(store, base_spec(store), progress=False)
     own = CaptureScorer(template, "grasshopper-icx285", 300.0, (0,)).psnr_db(template)
     assert proto["psnr_moving_db"] == pytest.approx(own, abs=1e-6)

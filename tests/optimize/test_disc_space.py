@@ -140,6 +140,7 @@ def test_a_discs_search_with_held_out_stores_from_the_command_line(store, tmp_pa
     (["--space", "discs", "--held-out", "HELD1"], "--held-out: at least 2 stores"),
     (["--space", "discs", "--held-out", "STORE", "HELD1"], "--held-out: a store the search"),
     (["--space", "centres", "--held-out", "HELD1"], "--held-out: only a search with --space"),
+    (["--space", "discs", "--max-still-loss", "-1"], "--max-still-loss: a finite number >= 0"),
 ])  # fmt: skip
 def test_bad_discs_flags_get_one_line(store, tmp_path, capsys, extra, says):
     held = tmp_path / "held1"
@@ -152,3 +153,28 @@ def test_bad_discs_flags_get_one_line(store, tmp_path, capsys, extra, says):
     err = capsys.readouterr().err.strip()
     assert says in err and len(err.splitlines()) == 1, err
     assert not out.exists()
+
+
+def _row(design, where, moving, still):
+    return {"design": design, "where": where, "psnr_moving_db": moving, "psnr_static_db": still}
+
+
+def test_the_choice_keeps_the_best_eligible_design_or_the_prototype():
+    """The real pipeline's rows decide (:mod:`~pacam_render.optimize.cell_select`): the best
+    mean score wins; a design that loses more still PSNR than allowed is not eligible; where
+    nothing eligible beats the prototype, it is kept (ties too)."""
+    from pacam_render.optimize.cell_select import _pick
+
+    rows = [_row("prototype", "a", 20.0, 25.0), _row("prototype", "b", 18.0, None),
+            _row("from x", "a", 21.0, 23.0), _row("from x", "b", 19.0, None),
+            _row("from y", "a", 20.4, 24.9), _row("from y", "b", 18.2, None)]  # fmt: skip
+    names = ["prototype", "from x", "from y"]
+    assert _pick(rows, names, 0.0, None)["chosen"] == "from x"  # moving 20.0 vs 19.3
+    got = _pick(rows, names, 0.0, 1.0)
+    assert got["chosen"] == "from y" and not got["scores"]["from x"]["eligible"]
+    assert got["scores"]["from y"]["still_db"] == 24.9  # the stores with still pixels only
+    assert _pick(rows, names, 0.0, 0.05)["chosen"] == "prototype"  # y loses 0.1 dB of still
+    w = _pick(rows, names, 1.0, None)["scores"]["from x"]["value_db"]
+    assert w == pytest.approx((20.0 + 23.0) / 2)  # (moving + still) / 2, means over stores
+    tie = [_row("prototype", "a", 20.0, 25.0), _row("from x", "a", 20.0, 25.0)]
+    assert _pick(tie, ["prototype", "from x"], 0.0, None)["chosen"] == "prototype"

@@ -1,0 +1,91 @@
+"""The found design chosen with the real pipeline: every start's result of a cell-basis search
+(:mod:`.cell_run`) and the store's own design, synthesised from each training store and scored
+as the report scores them (:func:`~.cell_report.design_row`), and the best kept.
+
+The model (:mod:`.cell_objective`) ranks designs well enough to climb, not to choose: it leaves
+out the scorer's per-object shifts, the per-capture prior fit and drawn noise. So the last word
+is the real pipeline's, on the training stores only (the held-out stay unseen): the score is the
+same aggregate the search climbs (the moving objects' PSNR, mean over the stores, or its
+weighted mean in dB with the still regions'), and with ``max_still_loss_db`` a candidate whose
+still regions lose more than that against the store's design (mean over the stores that show
+still pixels) is not eligible. Where no candidate beats the store's design, it is kept: a
+search never hands back a design worse than its start on what it was trained on."""
+
+from __future__ import annotations
+
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+from ..lightfield.synthesis import synthesize
+from ..model.design_file import write_design
+from .cell_report import design_row
+from .rendered_run import base_spec
+
+PROTOTYPE = "prototype"
+"""The store's own design's name among the candidates."""
+
+
+def aggregate(rows: list[dict], still_weight: float) -> tuple[float, float | None, float]:
+    """(moving, still, value) of one design's rows: the moving PSNR's mean over the stores, the
+    still PSNR's over those that have one (None where none has), and the score the search
+    climbs, (moving + w still) / (1 + w) (moving alone where w = 0 or no still)."""
+    moving = float(np.mean([r["psnr_moving_db"] for r in rows]))
+    got = [r["psnr_static_db"] for r in rows if r["psnr_static_db"] is not None]
+    still = float(np.mean(got)) if got else None
+    if still_weight == 0 or still is None:
+        return moving, still, moving
+    return moving, still, (moving + still_weight * still) / (1.0 + still_weight)
+
+
+def choose(candidates: dict, stores, templates, p, design_spec) -> dict:
+    """Score each candidate (name to its CameraDesign) and the store's design on the training
+    stores with the real pipeline and choose.
+
+    Parameters
+    ----------
+    candidates : dict
+        Start name to the design that start's search found.
+    stores, templates : list
+        The training stores and their own designs' synthesised captures.
+    p : BitmapProblem
+        The sensor, light level, noise draws, still weight and ``max_still_loss_db``.
+    design_spec : callable
+        (spec, path) to the spec of the design file at path (:func:`.cell_run.design_spec`).
+
+    Returns
+    -------
+    dict
+        ``chosen`` (a candidate's name, or :data:`PROTOTYPE` where none beat it), ``rows``
+        (every design's report rows on every store), ``scores`` (name to moving, still, value
+        and whether eligible).
+    """
+    draws = tuple(range(p.noise_draws))
+    rows = []
+    for folder, tpl in zip(p.stores, templates):
+        rows.append(design_row(PROTOTYPE, str(folder), tpl, tpl, p.sensor, p.light_level, draws))
+    with tempfile.TemporaryDirectory(prefix="pacam-candidates-") as tmp:
+        for i, (name, design) in enumerate(candidates.items()):
+            path = Path(tmp) / f"candidate_{i}.toml"
+            write_design(path, design, force=True)
+            for folder, store, tpl in zip(p.stores, stores, templates):
+                cap = synthesize(store, design_spec(base_spec(store), path), progress=False)
+                rows.append(design_row(name, str(folder), cap, tpl, p.sensor, p.light_level,
+                                       draws))  # fmt: skip
+    return _pick(rows, [PROTOTYPE, *candidates], p.weight, p.max_still_loss_db)
+
+
+def _pick(rows: list[dict], names: list[str], weight: float, max_loss: float | None) -> dict:
+    """The eligible design of the best score; the store's design where none beats it."""
+    scores = {}
+    for name in names:
+        moving, still, value = aggregate([r for r in rows if r["design"] == name], weight)
+        scores[name] = {"moving_db": moving, "still_db": still, "value_db": value}
+    ref = scores[PROTOTYPE]
+    for s in scores.values():
+        s["eligible"] = (max_loss is None or s["still_db"] is None or ref["still_db"] is None
+                         or s["still_db"] >= ref["still_db"] - max_loss)  # fmt: skip
+    ok = [n for n in names if scores[n]["eligible"]]
+    chosen = max(ok, key=lambda n: (scores[n]["value_db"], n == PROTOTYPE))
+    return {"chosen": chosen, "rows": rows, "scores": scores}
