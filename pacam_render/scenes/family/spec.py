@@ -13,9 +13,11 @@ from typing import Any
 from ...errors import ParameterError, check_finite, check_integer, check_range, did_you_mean
 from ...model.camera import MIN_FOCUS_MM, CameraDesign, prototype
 
-FAMILY_VERSION = 1
+FAMILY_VERSION = 2
 """The version of the drawing rules: a scene's card records it, and the asset cache keys on it.
-Raise it whenever the same seed and parameters would draw a different scene."""
+Raise it whenever the same seed and parameters would draw a different scene, or write it
+differently. 2: cylinders as an exact matrix (1 wrote ``p0``/``p1``, whose float32 frame made
+Mitsuba warn of shear for some lengths; the same geometry to 1e-7)."""
 
 FAMILY_PREFIX = "family:"
 """How a family scene is named where a scene is taken: ``family:NAME:SEED``."""

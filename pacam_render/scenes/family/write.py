@@ -88,6 +88,20 @@ def _facing(sx: float, sy: float, sz: float, centre) -> list[str]:
     ]
 
 
+def _upright(r: float, length: float, base) -> list[str]:
+    """Mitsuba's unit cylinder (axis 0 to 1 along z, radius 1) stood on ``base`` along +y,
+    radius ``r``, as an exact matrix (local z to world y, local y to world -z). Not ``p0``/``p1``:
+    Mitsuba builds that frame in float32 and, for some lengths, leaves a 1e-7 residue that its
+    own check reports as shear and non-uniform scaling, once per load."""
+    x, y, z = base
+    m = [r, 0, 0, x, 0, 0, length, y, 0, -r, 0, z, 0, 0, 0, 1]
+    return [
+        '        <transform name="to_world">',
+        f'            <matrix value="{" ".join(_n(v) for v in m)}"/>',
+        "        </transform>",
+    ]
+
+
 def _shape_xml(sid: str, shape: str, centre, size_mm, texture: str) -> list[str]:
     """The ``<shape>`` element of one object (or the wall, a rectangle)."""
     w, h, d = size_mm
@@ -102,12 +116,8 @@ def _shape_xml(sid: str, shape: str, centre, size_mm, texture: str) -> list[str]
             f'        <point name="center" x="{_n(x)}" y="{_n(y)}" z="{_n(z)}"/>',
             f'        <float name="radius" value="{_n(w / 2)}"/>',
         ]
-    else:  # cylinder: vertical axis through the centre
-        lines += [
-            f'        <point name="p0" x="{_n(x)}" y="{_n(y - h / 2)}" z="{_n(z)}"/>',
-            f'        <point name="p1" x="{_n(x)}" y="{_n(y + h / 2)}" z="{_n(z)}"/>',
-            f'        <float name="radius" value="{_n(w / 2)}"/>',
-        ]
+    else:  # cylinder: vertical axis through the centre, from y - h/2 up to y + h/2
+        lines += _upright(w / 2, h, (x, y - h / 2, z))
     return lines + _bsdf(texture, "        ") + ["    </shape>"]
 
 
