@@ -90,7 +90,7 @@ def speed_key(value: float) -> float:
 
 def speed_label(key: float) -> str:
     """A speed key in words: ``0.7`` or ``the scene's own``."""
-    return "the scene's own" if key == SCENE_SPEED else f"{key:g}"
+    return "the scene's own" if key == SCENE_SPEED else f"{key:.3g}"
 
 
 def usable(rows: list[dict], score: str = SCORE) -> list[dict]:
@@ -100,7 +100,9 @@ def usable(rows: list[dict], score: str = SCORE) -> list[dict]:
 
 def capture_name(row: dict, designs: int) -> str:
     """A capture within its camera: its design where the camera has several, and its method."""
-    parts = [row["design"]] if designs > 1 else []
+    name = row["design"]
+    name = Path(name).stem if name.endswith(".toml") else name  # a design file by its stem
+    parts = [name] if designs > 1 else []
     parts += [] if row["method"] in ("", "none") else [row["method"]]
     return " + ".join(parts) or row["mode"]
 
@@ -170,13 +172,31 @@ def winner_cells(rows: list[dict], score: str = SCORE) -> list[Cell]:
 
 def map_applies(rows: list[dict]) -> bool:
     """Whether a study's rows make a light level x speed map worth drawing: several cameras
-    compared at one cell at least, over several light levels, with every other axis (scene,
-    sensor, depth) fixed."""
+    compared at one cell at least, over several light levels, with the sensor fixed and one
+    scene and depth per speed row (one scene, or several at their own speeds and depths:
+    held-out scenes of a family, each a row, :func:`row_scenes`)."""
     ok = usable(rows)
-    fixed = {(r["scene"], r["sensor"], str(r["depth_mm"])) for r in ok}
+    fixed = {r["sensor"] for r in ok}
     lights = {r[LIGHT] for r in ok}
     compared = any(len(s) > 1 for s in cell_scores(ok).values())
-    return len(fixed) == 1 and len(lights) > 1 and compared
+    one_each = all(len(v) == 1 for v in _scenes_by_speed(ok).values())
+    return len(fixed) == 1 and one_each and len(lights) > 1 and compared
+
+
+def _scenes_by_speed(rows: list[dict]) -> dict:
+    """Each speed row's (scene, depth) pairs."""
+    out = defaultdict(set)
+    for r in rows:
+        out[speed_key(r[SPEED])].add((r["scene"], str(r["depth_mm"])))
+    return out
+
+
+def row_scenes(rows: list[dict]) -> dict:
+    """Each speed row's scene, where the map's rows are several scenes (else empty)."""
+    by = _scenes_by_speed(usable(rows))
+    if len({s for v in by.values() for s, _ in v}) < 2:
+        return {}
+    return {k: next(iter(v))[0] for k, v in sorted(by.items())}
 
 
 def mode_colour(mode: str, modes: list[str]) -> str:
@@ -369,6 +389,20 @@ def map_section(rows: list[dict], name: str = MAP_FILE) -> list[str]:
         "moving objects' PSNR (mean over the seeds).*",
         "",
         *map_table(cells),
+        "",
+        *_scene_lines(rows),
+    ]
+
+
+def _scene_lines(rows: list[dict]) -> list[str]:
+    """Which scene each speed row is, where the rows are several scenes."""
+    scenes = row_scenes(rows)
+    if not scenes:
+        return []
+    return [
+        "Each speed row is one scene at its own speeds (its fastest moving object's): "
+        + "; ".join(f"{speed_label(k)} px/ms: {v}" for k, v in scenes.items())
+        + ".",
         "",
     ]
 

@@ -261,3 +261,16 @@ def test_the_speed_study_gets_no_map(tmp_path):
     Results(tmp_path, spec).add(rows)
     files = write_report(spec, tmp_path)
     assert "crossover_map.png" not in files and not (tmp_path / "crossover_map.png").exists()
+
+
+def test_several_scenes_map_as_rows_when_each_has_its_own_speed():
+    """Held-out scenes of a family, each at its own speed: one map row per scene (issue 58,
+    item 6); two scenes in one speed row stay refused (above)."""
+    rows = [r for r in _synthetic() if r[cmap.SPEED] == 0.7]
+    other = [{**r, "scene": "family:occluders:11", cmap.SPEED: 2.1} for r in rows]
+    assert cmap.map_applies(rows + other)
+    scenes = cmap.row_scenes(rows + other)
+    assert list(scenes.values()) == [rows[0]["scene"], "family:occluders:11"]
+    text = "\n".join(cmap.map_section(rows + other))
+    assert "2.1 px/ms: family:occluders:11" in text
+    assert cmap.row_scenes(rows) == {}
