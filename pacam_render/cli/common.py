@@ -101,6 +101,7 @@ FLAGS = {
     "still_weight": "--still-weight",
     "held_out": "--held-out",
     "max_still_loss_db": "--max-still-loss",
+    "held_passes": "--held-passes",
     "space": "--space",
 }
 """Parameter names in library messages, and the flags a CLI user typed instead: the one

@@ -41,7 +41,7 @@ FOURIER_ONLY = ("depth_range", "n_patterns", "free_radius", "f_number", "r_px", 
 """Flags of the Fourier objective that a search on stores does not take (its camera is the
 stores')."""
 CELLS_FLAGS = ("cells", "light", "starts", "iterations", "objective", "still_weight", "held_out",
-               "max_still_loss")  # fmt: skip
+               "max_still_loss", "held_passes")  # fmt: skip
 SPACE_FLAGS = {"centres": ("positions", "sweeps", "check_seeds"),
                "bitmap": CELLS_FLAGS + ("levels",), "discs": CELLS_FLAGS}  # fmt: skip
 """Flags that only some ``--space`` of a search on stores takes: the ones each space takes."""
@@ -180,6 +180,15 @@ def _add_bitmap(p) -> None:
 def _add_held_out(p) -> None:
     """``--held-out``: stores of scenes the search never sees, scored in the report; and
     ``--max-still-loss``, the constraint the choice holds on the training stores."""
+    p.add_argument(
+        "--held-passes",
+        type=int,
+        metavar="K",
+        help="with --space bitmap or discs: the last K passes of each store are not searched "
+        "on; the choice among the search's results is made on them, so that the search's fit "
+        "to its samples' noise does not choose (default: half of them where every store has "
+        "at least 4 passes, else 0: choose on the searched samples); 0 or 2 to passes - 2",
+    )
     p.add_argument(
         "--max-still-loss",
         type=float,
@@ -370,7 +379,7 @@ def _run_bitmap(args: argparse.Namespace, level: float) -> int:
         seed=args.seed, noise_draws=args.noise_draws,
         objective=_or(args.objective, "moving"), still_weight=args.still_weight,
         space=args.space, held_out=tuple(args.held_out or ()),
-        max_still_loss_db=args.max_still_loss,
+        max_still_loss_db=args.max_still_loss, held_passes=args.held_passes,
     )  # fmt: skip
     check_bitmap_problem(problem)  # refused before any output
     out = prepare_out_dir(args.out, args.force)

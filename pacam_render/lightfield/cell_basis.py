@@ -27,7 +27,7 @@ import numpy as np
 from ..errors import ParameterError
 from ..model.masks import pixel_centres_mm
 from .store import Store
-from .synthesis import _resolve, _scene, weighted_samples
+from .synthesis import _resolve, _scene, check_passes, weighted_samples
 
 CELL_CHOICES = (8, 16, 32, 64)
 """Cell grids the basis builds (G x G); each must divide the display's D pixels across the
@@ -148,7 +148,7 @@ def estimate_bytes(n: int, m: int, h: int, w: int, c: int) -> int:
 
 
 def cell_basis(store: Store, spec, cells: int = DEFAULT_CELLS, progress: bool = False,
-               max_bytes: int = MAX_BASIS_BYTES) -> CellBasis:  # fmt: skip
+               max_bytes: int = MAX_BASIS_BYTES, passes=None) -> CellBasis:  # fmt: skip
     """:class:`CellBasis` of ``store`` on a ``cells`` x ``cells`` grid, for ``spec``'s camera.
 
     Parameters
@@ -163,6 +163,9 @@ def cell_basis(store: Store, spec, cells: int = DEFAULT_CELLS, progress: bool = 
     max_bytes : int
         Refuse (ParameterError, before any pass over the store) a basis whose memory
         (:func:`estimate_bytes`) exceeds this.
+    passes : sequence of int, optional
+        Only these store passes (:func:`~.synthesis.check_passes`; default all): the basis of
+        a search that leaves the others to choose among its results.
 
     Returns
     -------
@@ -176,7 +179,7 @@ def cell_basis(store: Store, spec, cells: int = DEFAULT_CELLS, progress: bool = 
     ij = lens_cells(G, R)
     n, M = len(design_plan.is_open), len(ij)
     _, _, w, h = store.manifest.camera.window
-    c, passes = store.manifest.channels, store.manifest.passes
+    c, chosen = store.manifest.channels, check_passes(store, passes)
     need = estimate_bytes(n, M, h, w, c)
     if need > max_bytes:
         raise ParameterError(
@@ -186,20 +189,21 @@ def cell_basis(store: Store, spec, cells: int = DEFAULT_CELLS, progress: bool = 
         )
     slot = np.full(G * G, -1, np.int64)
     slot[ij[:, 0] * G + ij[:, 1]] = np.arange(M)  # -1: a cell no lens point reaches
-    parts = list(_binned(store, plan, params, design_plan, (D, per, G, M), slot, progress))
+    parts = list(_binned(store, plan, params, design_plan, (D, per, G, M), slot, progress,
+                         chosen))  # fmt: skip
     bins = np.concatenate([b for b, _ in parts])
     L = np.concatenate([v for _, v in parts], axis=1)
     del parts
     size = n * M * h * w
     grid = np.empty((size, c), np.float32)  # contiguous (n, M, h, w, c): a matrix's view
     for ch in range(c):  # one float64 accumulator at a time
-        grid[:, ch] = np.bincount(bins, L[ch], minlength=size + 1)[:size] / passes
+        grid[:, ch] = np.bincount(bins, L[ch], minlength=size + 1)[:size] / len(chosen)
     grid = grid.reshape(n, M, h, w, c)
     return CellBasis(grid, grid.sum(axis=1, dtype=np.float64).astype(np.float32), G, ij, D,
                      pitch, params.get("lcos_contrast"), plan.spec, len(bins))  # fmt: skip
 
 
-def _binned(store, plan, params, design_plan, grid, slot, progress):
+def _binned(store, plan, params, design_plan, grid, slot, progress, passes):
     """Per shard: each sample's bin in B (window, cell, pixel; n M h w for none: outside the
     window, the exposure, a closed pattern or the display) and its weighted radiance
     (channels, samples), the cell from the LCoS pixel that :func:`~.codes.transmission`
@@ -209,7 +213,8 @@ def _binned(store, plan, params, design_plan, grid, slot, progress):
     hw = h * w
     pitch = plan.cam.lcos_pitch_mm
     allowed = lens_pixels(D, pitch)
-    for _, rec, t, pix, weight in weighted_samples(store, plan, params, design_plan, progress):
+    for _, rec, t, pix, weight in weighted_samples(store, plan, params, design_plan, progress,
+                                                   passes):  # fmt: skip
         t = np.broadcast_to(np.asarray(t, float), pix.shape)
         inside = (t >= design_plan.t_open) & (t < design_plan.t_close)
         k = design_plan.pattern_at(np.clip(t, design_plan.t_open, design_plan.t_close))

@@ -53,7 +53,7 @@ def check_fits(store: Store, spec) -> None:
         )
 
 
-def synthesize(store: Store, spec, progress: bool = True, description=None):
+def synthesize(store: Store, spec, progress: bool = True, description=None, passes=None):
     """The capture ``spec`` asks for, from ``store`` (module docstring).
 
     Parameters
@@ -71,6 +71,9 @@ def synthesize(store: Store, spec, progress: bool = True, description=None):
     description : SceneDescription, optional
         The scene the store was rendered from, when it is not ``spec.scene`` by name (checked
         against the store's digest).
+    passes : sequence of int, optional
+        Only these store passes (:func:`check_passes`; default all): a capture from samples a
+        search never read, e.g. to choose among its results. Its sigma is these passes'.
 
     Returns
     -------
@@ -89,7 +92,7 @@ def synthesize(store: Store, spec, progress: bool = True, description=None):
     t_start = time.perf_counter()
     desc = _scene(store, _spec_of(spec), description)
     plan, params, design_plan = _resolve(store, spec)
-    images, used = pass_images(store, plan, params, design_plan, progress)
+    images, used = pass_images(store, plan, params, design_plan, progress, passes)
     stats = PassStats([PassGroup(store.manifest.samples_per_pass)])
     for img in images:
         stats.add(0, img)
@@ -98,6 +101,7 @@ def synthesize(store: Store, spec, progress: bool = True, description=None):
     layers, objects, sharp_sigma = store.truth()
     lightfield = {
         "store": str(store.folder), "digest": store.digest, "samples_used": used,
+        "passes": list(check_passes(store, passes)),
         "approximation": APPROXIMATION, "store_seconds": store.manifest.seconds,
     }  # fmt: skip
     passes = Passes(
@@ -234,7 +238,20 @@ def _shear(store: Store, plan) -> float:
     return k
 
 
-def weighted_samples(store: Store, plan, params, design_plan, progress: bool = False):
+def check_passes(store: Store, passes=None) -> tuple[int, ...]:
+    """``passes`` (default: all the store's), checked: distinct store pass indices, at least
+    one."""
+    n = store.manifest.passes
+    if passes is None:
+        return tuple(range(n))
+    got = tuple(int(p) for p in passes)
+    if not got or len(set(got)) != len(got) or not all(0 <= p < n for p in got):
+        raise ParameterError(f"passes: distinct store passes in 0..{n - 1}, got {list(passes)!r}")
+    return got
+
+
+def weighted_samples(store: Store, plan, params, design_plan, progress: bool = False,
+                     passes=None):  # fmt: skip
     """The store's samples as the design's camera sees them, shard by shard.
 
     Yields
@@ -244,7 +261,7 @@ def weighted_samples(store: Store, plan, params, design_plan, progress: bool = F
         (channels, n)), each sample's time on the design's shutter clock (ms), its pixel in
         the window (h * w for a point outside it) and its weight before the design's
         transmission: its step's share of the exposure / (spp p pi R_max^2), times cos^4 where
-        the design has it.
+        the design has it. Only ``passes`` (:func:`check_passes`; default all).
     """
     info = store.manifest.camera
     k = _shear(store, plan)
@@ -253,8 +270,9 @@ def weighted_samples(store: Store, plan, params, design_plan, progress: bool = F
     cos4 = params.get("relative_illumination") == "cos4"
     offset = design_plan.t_mid - store.manifest.mid_ms  # the paper's t = 0 is shared
     lens_area = np.pi * info.lens_radius_mm**2
-    bar = tqdm(total=sum(len(r) for r in steps), desc="synthesis", disable=not progress)
-    for p in range(store.manifest.passes):
+    chosen = check_passes(store, passes)
+    bar = tqdm(total=sum(len(steps[p]) for p in chosen), desc="synthesis", disable=not progress)
+    for p in chosen:
         for rec, meta in store.shards(p):
             t = rec["t"] + offset if "t" in rec else meta["time"] + offset  # a step: one time
             x = geo.shifted(rec["x"], rec["u"], k) - np.float32(x0)
@@ -268,23 +286,24 @@ def weighted_samples(store: Store, plan, params, design_plan, progress: bool = F
     bar.close()
 
 
-def pass_images(store: Store, plan, params, design_plan, progress: bool = False):
-    """Each store pass binned into one pass of the capture (a list of images), and the number
-    of samples with weight > 0."""
+def pass_images(store: Store, plan, params, design_plan, progress: bool = False, passes=None):
+    """Each store pass (of ``passes``, default all) binned into one pass of the capture (a
+    list of images), and the number of samples with weight > 0."""
     masks = params.get("masks")
     masks = None if masks is None else np.asarray(masks, np.float32)
     contrast = params.get("lcos_contrast")
     _, _, w, h = store.manifest.camera.window
-    c, passes = store.manifest.channels, store.manifest.passes
-    sums = np.zeros((passes, c, h * w + 1))  # the last bin takes what falls outside the window
+    c, n = store.manifest.channels, store.manifest.passes
+    sums = np.zeros((n, c, h * w + 1))  # the last bin takes what falls outside the window
     used = 0
-    for p, rec, t, pix, weight in weighted_samples(store, plan, params, design_plan, progress):
+    for p, rec, t, pix, weight in weighted_samples(store, plan, params, design_plan, progress,
+                                                   passes):  # fmt: skip
         a = transmission(design_plan, rec["u"], rec["v"], t, masks, contrast)
         for ch in range(c):  # L is (channels, n): each row a contiguous weight
             sums[p, ch] += np.bincount(pix, rec["L"][ch] * (a * weight), minlength=h * w + 1)
         used += int(np.count_nonzero((a > 0) & (pix < h * w)))
     images = []
-    for image in sums:
+    for image in sums[list(check_passes(store, passes))]:
         img = np.moveaxis(image[:, :-1].reshape(c, h, w), 0, -1)
         images.append(img[..., 0] if c == 1 else img)
     return images, used

@@ -57,6 +57,29 @@ CELL_SPACES = ("bitmap", "discs")
 """The spaces searched on the cells' basis: any bitmap per window, or one disc per window."""
 MIN_HELD_OUT = 2
 """Held-out stores a paired interval needs (one difference per store)."""
+MIN_SIDE_PASSES = 2
+"""Passes on each side of a split (search, choice): a capture's Monte Carlo sigma needs two."""
+
+
+def split_passes(p: BitmapProblem, stores) -> tuple[tuple[int, ...] | None, tuple | None]:
+    """(search passes, choice passes) of every store: with ``held_passes`` K the last K passes
+    of each store choose and the others search; default (None) half of them where every store
+    has at least 2 x MIN_SIDE_PASSES, else none held (both None: all passes do both)."""
+    n = min(s.manifest.passes for s in stores)
+    k = p.held_passes
+    if k is None:
+        k = n // 2 if n >= 2 * MIN_SIDE_PASSES else 0
+    if k == 0:
+        return None, None
+    if not (MIN_SIDE_PASSES <= k <= n - MIN_SIDE_PASSES):
+        raise ParameterError(
+            f"held_passes: 0, or {MIN_SIDE_PASSES} to the stores' fewest passes ({n}) - "
+            f"{MIN_SIDE_PASSES} (each side needs {MIN_SIDE_PASSES} for its Monte Carlo sigma), "
+            f"got {k}"
+        )
+    return tuple(range(n - k)), tuple(range(n - k, n))
+
+
 STILL_WEIGHT = 1.0
 """The still term's weight w in (P_moving + w P_still) / (1 + w) by default: a dB on the moving
 objects counts as one on the still regions."""
@@ -81,6 +104,7 @@ class BitmapProblem:
     space: str = "bitmap"
     held_out: tuple[str, ...] = ()
     max_still_loss_db: float | None = None
+    held_passes: int | None = None
 
     @property
     def weight(self) -> float:
@@ -115,6 +139,9 @@ def check_bitmap_problem(p: BitmapProblem):
                                         p.light_level, noise_draws=p.noise_draws, seed=p.seed,
                                         check_seeds=0))  # fmt: skip
     stores = every[: len(p.stores)]
+    if p.held_passes is not None:
+        check_integer("held_passes", p.held_passes, 0, None)
+    split_passes(p, stores)
     cam = plan_capture(base_spec(stores[0])).cam
     try:
         display_px(cam.R_max_mm, cam.lcos_pitch_mm, p.cells)
@@ -160,12 +187,16 @@ def prepare_bitmap(p: BitmapProblem, stores, progress: bool = False) -> dict:
     specs = [base_spec(s) for s in stores]
     plan = plan_capture(specs[0])
     base = disc_code(plan, p.cells)
-    bases = [cell_basis(s, spec, p.cells, progress) for s, spec in zip(stores, specs)]
-    templates = [synthesize(s, spec, progress=False) for s, spec in zip(stores, specs)]
+    search, choice = split_passes(p, stores)
+    bases = [cell_basis(s, spec, p.cells, progress, passes=search)
+             for s, spec in zip(stores, specs)]  # fmt: skip
+    templates = [synthesize(s, spec, progress=False, passes=search)
+                 for s, spec in zip(stores, specs)]  # fmt: skip
     problems = [cell_problem(b, t, plan, base, p.sensor, p.light_level)
                 for b, t in zip(bases, templates)]  # fmt: skip
     return dict(specs=specs, plan=plan, bases=bases, templates=templates, base_code=base,
-                problems=problems, setup_s=time.perf_counter() - t0)  # fmt: skip
+                problems=problems, setup_s=time.perf_counter() - t0, search_passes=search,
+                choice_passes=choice)  # fmt: skip
 
 
 def search_bitmap(p: BitmapProblem, prepared: dict):
@@ -239,7 +270,11 @@ def chosen_design(p: BitmapProblem, prepared: dict, stores, f: dict) -> dict:
     """:func:`~.cell_select.choose` on ``f``'s candidates: adds ``choice`` (its result),
     ``design`` and ``code`` (the chosen one's; the store's design, as discs and rasterised,
     where none beat it) to ``f``."""
-    c = choose(f["candidates"], stores, prepared["templates"], p, design_spec)
+    held = prepared["choice_passes"]
+    refs = prepared["templates"] if held is None else [
+        synthesize(s, spec, progress=False, passes=held)
+        for s, spec in zip(stores, prepared["specs"])]  # fmt: skip
+    c = choose(f["candidates"], stores, refs, p, design_spec, held)
     name = c["chosen"]
     if name == PROTOTYPE:
         f["design"], f["code"] = disc_design(prepared["plan"], plan_discs(prepared["plan"])), \
@@ -285,6 +320,7 @@ def run_bitmap_optimize(p: BitmapProblem, out: Path, force: bool, progress: bool
     doc = {"problem": {**p.__dict__, "stores": list(p.stores), "held_out": list(p.held_out)},
            "train": f["choice"]["rows"], "choice": {k: v for k, v in f["choice"].items()
                                                      if k != "rows"},
+           "passes": {"search": r["search_passes"], "choice": r["choice_passes"]},
            "held_out": held, "model_db": f["model_db"],
            "held_out_vs_prototype": ({k: paired(held, k).get(name) for k in SCORES}
                                      if held else None),
@@ -334,8 +370,15 @@ def _choice_text(p: BitmapProblem, doc: dict) -> str:
         if p.max_still_loss_db is None
         else (f"; eligible: still regions within {p.max_still_loss_db:g} dB of the prototype's")
     )
-    line = (f"Chosen with the real pipeline on the training stores (the search's score, mean "
-            f"over the stores{rule}): ")  # fmt: skip
+    ps = doc["passes"]
+    where = ("the stores' passes the search did not read "
+             f"({', '.join(map(str, ps['choice']))}; it searched on "
+             f"{', '.join(map(str, ps['search']))})" if ps["choice"] else
+             "the training stores' own samples, which the search read: it may have fitted their "
+             f"Monte Carlo noise (give stores of at least {2 * MIN_SIDE_PASSES} passes to "
+             "choose on others)")  # fmt: skip
+    line = (f"Chosen with the real pipeline on {where} (the search's score, mean over the "
+            f"stores{rule}): ")  # fmt: skip
     line += "; ".join(f"{k} {v['value_db']:.2f} dB" + ("" if v["eligible"] else " (not eligible)")
                       for k, v in sc.items())  # fmt: skip
     if c["chosen"] == PROTOTYPE:
