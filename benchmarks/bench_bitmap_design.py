@@ -46,6 +46,7 @@ from pacam_render.optimize.cell_report import design_row, paired, summary  # noq
 from pacam_render.optimize.cell_run import (  # noqa: E402
     BitmapProblem,
     check_bitmap_problem,
+    chosen_design,
     design_spec,
     found_design,
     prepare_bitmap,
@@ -66,6 +67,10 @@ MIDDLE_DEPTH_MM = 650.0
 SENSOR, LEVEL = "grasshopper-icx285-mono", 300.0
 STILL_WEIGHT = 1.0
 """The still term's weight in (moving + w still) / (1 + w), dB: cell_run's default."""
+STORE_PASSES = 4
+"""Store passes: the search reads 2, the choice among its results the other 2."""
+CHOICES: dict = {}
+"""Design name -> the candidate the real pipeline chose (``prototype``: kept)."""
 MAX_SPEED_PX_PER_MS = 1.4
 """The family's fastest image speed (its speed range 0.2-1.4 px/ms): the Fourier model's
 --max-velocity."""
@@ -83,9 +88,9 @@ def window(seed: int) -> tuple[int, int, int, int]:
     return x, y, w, h
 
 
-def spec(seed: int, spp: int, render_seed: int) -> CaptureSpec:
+def spec(seed: int, spp: int, render_seed: int, passes: int = 2) -> CaptureSpec:
     return CaptureSpec.geometric(scene=f"family:occluders:{seed}", width=1280, height=960,
-                                 crop=window(seed), mode="coded", spp=spp, passes=2,
+                                 crop=window(seed), mode="coded", spp=spp, passes=passes,
                                  seed=render_seed, object_depth_mm=MIDDLE_DEPTH_MM,
                                  grey=True)  # fmt: skip
 
@@ -95,23 +100,28 @@ def stores(root: Path, spp: int) -> list[str]:
     for seed in TRAIN:
         folder = root / f"store_{seed}"
         if not (folder / "manifest.json").exists():
-            render_lightfield(StoreSpec(spec(seed, spp, 1 + seed), alpha=1.0), folder,
+            render_lightfield(StoreSpec(spec(seed, spp, 1 + seed, STORE_PASSES), alpha=1.0), folder,
                               progress=False)  # fmt: skip
         Store.open(folder)
         out.append(str(folder))
     return out
 
 
-def _search(root: Path, name: str, q: BitmapProblem, prepared: dict, found: dict) -> None:
-    """One cell-basis search (``q.space``) written as a design file into ``found``."""
+def _search(root: Path, name: str, q: BitmapProblem, prepared: dict, found: dict,
+            stores) -> None:  # fmt: skip
+    """One cell-basis search (``q.space``), chosen with the real pipeline on the stores' held
+    passes (``pacam optimize``'s own functions), written as a design file into ``found``."""
     t0 = time.perf_counter()
-    f = found_design(q, prepared)
+    f = chosen_design(q, prepared, stores, found_design(q, prepared))
+    CHOICES[name] = f["choice"]["chosen"]
     path = root / f"{name.replace(' ', '_').replace('+', '_')}.toml"
     write_design(path, f["design"], True)
     found[name] = (path, time.perf_counter() - t0, f["model_db"]["found"])
     moving, still = parts(prepared["problems"], f["code"])
     print(f"{name}: model {f['model_db']['found']:.2f} dB (moving {moving:.2f}, still "
-          f"{still:.2f}), starts {f['model_db']['starts']}", flush=True)  # fmt: skip
+          f"{still:.2f}), starts {f['model_db']['starts']}; chosen {CHOICES[name]!r}: "
+          + ", ".join(f"{k} {v['value_db']:.2f}" for k, v in f["choice"]["scores"].items()),
+          flush=True)  # fmt: skip
 
 
 def designs(root: Path, folders, cells: int, iterations: int, starts: int, quick: bool):
@@ -119,19 +129,15 @@ def designs(root: Path, folders, cells: int, iterations: int, starts: int, quick
     for each objective), centres and the Fourier model's."""
     found, p = {}, BitmapProblem(tuple(folders), SENSOR, LEVEL, cells, "fixed", starts,
                                  iterations, noise_draws=2)  # fmt: skip
-    prepared = prepare_bitmap(p, check_bitmap_problem(p))
-    _search(root, "bitmap moving", p, prepared, found)
+    opened = check_bitmap_problem(p)
+    prepared = prepare_bitmap(p, opened)
+    _search(root, "bitmap moving", p, prepared, found, opened)
     d = replace(p, space="discs", cells=cells if quick else DISC_CELLS)
     del prepared["bases"], prepared["problems"]  # one grid's bases in memory at a time
-    prepared = prepare_bitmap(d, check_bitmap_problem(d))
-    _search(root, "discs moving", d, prepared, found)
-    _search(
-        root,
-        "discs moving+still",
-        replace(d, objective="moving+still", still_weight=STILL_WEIGHT),
-        prepared,
-        found,
-    )
+    prepared = prepare_bitmap(d, opened)
+    _search(root, "discs moving", d, prepared, found, opened)
+    still = replace(d, objective="moving+still", still_weight=STILL_WEIGHT)
+    _search(root, "discs moving+still", still, prepared, found, opened)
     t0 = time.perf_counter()
     rp = RenderedProblem(tuple(folders), SENSOR, LEVEL, positions=9, sweeps=1, noise_draws=1,
                          check_seeds=0)  # fmt: skip
@@ -217,7 +223,10 @@ def main() -> None:
     (root / "bench.json").write_text(json.dumps({"train": train, "held": held}, indent=1))
     fmt = lambda v: f"{v:.2f}"  # noqa: E731
     notes = (f"train seeds {TRAIN}, held-out {HELD}, {WINDOW_PX[0]}x{WINDOW_PX[1]} windows at "
-             f"each scene's largest occlusion; stores spp {store_spp} x 2 passes "
+             f"each scene's largest occlusion; stores spp {store_spp} x {STORE_PASSES} passes "
+             "(the cell searches read 2, the real-pipeline choice among their results and the "
+             "prototype the other 2; chosen: "
+             + ", ".join(f"{k} -> {v}" for k, v in CHOICES.items()) + ") "
              f"({t_store:.0f} s), grey; bitmap {cells}x{cells} cells, discs {DISC_CELLS}x"
              f"{DISC_CELLS} cells, {starts} starts x {iters} Adam steps each, fixed light, "
              f"objectives moving and (moving + {STILL_WEIGHT:g} still) / {1 + STILL_WEIGHT:g} in "
