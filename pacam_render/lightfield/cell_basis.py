@@ -225,4 +225,22 @@ def _binned(store, plan, params, design_plan, grid, slot, progress, passes):
         cell = np.where(on, slot[np.where(on, (row // per) * G + col // per, 0)], -1)
         keep = inside & design_plan.is_open[k] & (pix < hw) & (cell >= 0)
         rows = np.nonzero(keep)[0]
-        yield (k[rows] * M + cell[rows]) * hw + pix[rows], rec["L"][:, rows] * weight[rows]
+        bins = (k[rows] * M + cell[rows]) * hw + pix[rows]
+        yield _blend(bins, rec["L"][:, rows] * weight[rows], k[rows], t[rows], design_plan,
+                     params.get("lcos_switching"), M * hw)  # fmt: skip
+
+
+def _blend(bins, values, k, t, design_plan, switch_ms, window_size):
+    """With a switching LCoS (``switch_ms`` > 0), a sample tau into window k > 0's first t_s
+    counts tau / t_s in window k and 1 - tau / t_s in window k - 1 (same cell and pixel, one
+    window earlier: ``window_size`` bins), as :func:`~.codes.transmission` blends the
+    patterns; else the bins and values as they are."""
+    if not switch_ms:
+        return bins, values
+    tc = np.clip(t, design_plan.t_open, design_plan.t_close)
+    f = np.clip((tc - design_plan.pattern_edges[k]) / switch_ms, 0.0, 1.0)
+    old = (k > 0) & (f < 1.0)
+    now = np.where(old, f, 1.0).astype(values.dtype)
+    was = (1.0 - f[old]).astype(values.dtype)
+    return (np.concatenate([bins, bins[old] - window_size]),
+            np.concatenate([values * now, values[:, old] * was], axis=1))  # fmt: skip

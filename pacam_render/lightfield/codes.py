@@ -27,15 +27,29 @@ def check_served(plan: AperturePlan, params: dict) -> None:
             f"a light-field store cannot serve schedule {plan.schedule!r}: Levin's camera moves "
             "its body, so its rays are not the store's; render it directly"
         )
-    if params.get("lcos_switching"):
-        raise ParameterError(
-            "lcos_switching_ms: a switching LCoS is not in the store's weights yet; render it "
-            "directly"
-        )
+    switch = float(params.get("lcos_switching") or 0.0)
+    if switch > 0:
+        if plan.schedule not in ("parabolic", "centres") or plan.continuous:
+            raise ParameterError(
+                f"lcos_switching_ms: the {plan.schedule} schedule has no discs switching on "
+                "the LCoS (discrete parabolic or centres, as the plugin draws them)"
+            )
+        width = plan.duration / plan.n_patterns
+        if switch > width:
+            raise ParameterError(
+                f"lcos_switching_ms ({switch:g} ms) must be at most a pattern's time ({width:g} "
+                f"ms = the exposure / {plan.n_patterns})"
+            )
 
 
 def transmission(
-    plan: AperturePlan, u, v, t, masks: np.ndarray | None = None, contrast: float | None = None
+    plan: AperturePlan,
+    u,
+    v,
+    t,
+    masks: np.ndarray | None = None,
+    contrast: float | None = None,
+    switch_ms: float | None = None,
 ) -> np.ndarray:
     """A(u, v, t) of ``plan`` at lens points (u, v) (mm, the plugin's local frame) and times
     t (ms on the design's shutter clock: one per point, or one for all), float32.
@@ -43,20 +57,36 @@ def transmission(
     0 outside the exposure and in closed patterns; inside an open pattern, 1 in the opening
     (a disc about the pattern's centre at t, or a bitmap's value at its LCoS pixel) and
     1 / ``contrast`` elsewhere on the lens (a finite-contrast LCoS's leakage, disc schedules).
+    With ``switch_ms`` t_s > 0, in the first t_s of pattern k > 0's window (tau into it) the
+    pixels turn linearly from pattern k - 1: A = (tau / t_s) A_k + (1 - tau / t_s) A_(k-1),
+    the expectation of the plugin's draw of k - 1 with probability 1 - tau / t_s.
     """
     t = np.asarray(t, np.float64)  # one time (a moving scene's step) is computed once
     inside = (t >= plan.t_open) & (t < plan.t_close)
-    k = plan.pattern_at(np.clip(t, plan.t_open, plan.t_close))
+    tc = np.clip(t, plan.t_open, plan.t_close)
+    k = plan.pattern_at(tc)
     shown = inside & plan.is_open[k]
-    if plan.kind == "bitmap":
-        a = _bitmap(plan, masks, u, v, k)
-    else:
-        c = plan.aperture_centre_at(np.clip(t, plan.t_open, plan.t_close))
-        r2 = (u - c[..., 0]) ** 2 + (v - c[..., 1]) ** 2
-        a = (r2 < plan.radius_mm**2).astype(np.float32)
-        if contrast is not None:
-            a = np.maximum(a, np.float32(1.0 / contrast))
+    a = _pattern(plan, masks, u, v, k, tc, contrast)
+    if switch_ms:
+        f = np.clip((tc - plan.pattern_edges[k]) / switch_ms, 0.0, 1.0)
+        old = np.broadcast_to((k > 0) & (f < 1.0), np.shape(a))
+        if old.any():
+            prev = _pattern(plan, masks, u, v, np.maximum(k - 1, 0), tc, contrast)
+            a = np.where(old, f * a + (1.0 - f) * prev, a)
     return np.where(shown, a, 0.0).astype(np.float32)
+
+
+def _pattern(plan: AperturePlan, masks, u, v, k, t, contrast) -> np.ndarray:
+    """Pattern k's transmittance at lens points (u, v), time t (its disc's centre there)."""
+    if plan.kind == "bitmap":
+        return _bitmap(plan, masks, u, v, k)
+    c = plan.centres_mm[k].copy()
+    c[..., 0] += plan.aperture_quad * (np.asarray(t) - plan.t_mid) ** 2
+    r2 = (u - c[..., 0]) ** 2 + (v - c[..., 1]) ** 2
+    a = (r2 < plan.radius_mm**2).astype(np.float32)
+    if contrast is not None:
+        a = np.maximum(a, np.float32(1.0 / contrast))
+    return a
 
 
 def _bitmap(plan: AperturePlan, masks: np.ndarray, u, v, k) -> np.ndarray:

@@ -87,7 +87,7 @@ def synthesize(store: Store, spec, progress: bool = True, description=None, pass
     ------
     ParameterError
         If the store cannot serve the design (another window, Levin's moving camera, a
-        refocus beyond the store's margin, diffraction on, a switching LCoS).
+        refocus beyond the store's margin, diffraction on, a switching continuous schedule).
     """
     t_start = time.perf_counter()
     desc = _scene(store, _spec_of(spec), description)
@@ -292,13 +292,14 @@ def pass_images(store: Store, plan, params, design_plan, progress: bool = False,
     masks = params.get("masks")
     masks = None if masks is None else np.asarray(masks, np.float32)
     contrast = params.get("lcos_contrast")
+    switch = params.get("lcos_switching")
     _, _, w, h = store.manifest.camera.window
     c, n = store.manifest.channels, store.manifest.passes
     sums = np.zeros((n, c, h * w + 1))  # the last bin takes what falls outside the window
     used = 0
     for p, rec, t, pix, weight in weighted_samples(store, plan, params, design_plan, progress,
                                                    passes):  # fmt: skip
-        a = transmission(design_plan, rec["u"], rec["v"], t, masks, contrast)
+        a = transmission(design_plan, rec["u"], rec["v"], t, masks, contrast, switch)
         for ch in range(c):  # L is (channels, n): each row a contiguous weight
             sums[p, ch] += np.bincount(pix, rec["L"][ch] * (a * weight), minlength=h * w + 1)
         used += int(np.count_nonzero((a > 0) & (pix < h * w)))
