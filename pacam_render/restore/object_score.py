@@ -67,7 +67,9 @@ def physical_shift_px(speed_px_per_ms: float, mode: str, optics: dict, max_shift
 def _opening_span_px(optics: dict) -> float:
     """The image span of the schedule's openings, px: |beta| x (largest - smallest centre x),
     over its open patterns (a black pattern's centre is NaN)."""
-    x = np.asarray(optics.get("pattern_centres_xy_mm") or [[0.0, 0.0]], float)[:, 0]
+    pairs = optics.get("pattern_centres_xy_mm") or [[0.0, 0.0]]
+    # a black pattern's centre is NaN, or None once the record went through JSON
+    x = np.array([np.nan if c is None or c[0] is None else c[0] for c in pairs], float)
     x = x[np.isfinite(x)]
     beta = abs(float(optics.get("beta_px_per_mm") or 0.0))
     return beta * float(np.ptp(x)) if x.size else 0.0

@@ -87,3 +87,13 @@ def test_a_periodic_texture_is_aligned_at_the_physical_shift_not_a_period_away()
     assert abs(shift) <= bound
     free = score(est, layers, record.objects, {"box"}, 32)  # the search before issue 56
     assert json.loads(free["psnr_by_object"])["box"][1] == 20
+
+
+def test_a_dark_pattern_of_a_bitmap_has_no_centre_in_the_span():
+    """A bitmap with a black pattern: its centre is None in the record (schedule_figures), and
+    the openings' span is |beta| x (largest - smallest) over the lit patterns only (it raised
+    on the ragged list before)."""
+    from pacam_render.restore.object_score import _opening_span_px
+
+    optics = {"pattern_centres_xy_mm": [[1.0, 0.5], None, [3.0, -0.5]], "beta_px_per_mm": -2.0}
+    assert _opening_span_px(optics) == pytest.approx(4.0)
