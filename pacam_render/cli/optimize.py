@@ -43,7 +43,8 @@ stores')."""
 CELLS_FLAGS = ("cells", "light", "starts", "iterations", "objective", "still_weight", "held_out",
                "max_still_loss", "held_passes")  # fmt: skip
 SPACE_FLAGS = {"centres": ("positions", "sweeps", "check_seeds"),
-               "bitmap": CELLS_FLAGS + ("levels",), "discs": CELLS_FLAGS}  # fmt: skip
+               "bitmap": CELLS_FLAGS + ("levels",),
+               "discs": CELLS_FLAGS + ("lcos_switching",)}  # fmt: skip
 """Flags that only some ``--space`` of a search on stores takes: the ones each space takes."""
 SPACES = tuple(SPACE_FLAGS)
 
@@ -188,6 +189,14 @@ def _add_held_out(p) -> None:
         "on; the choice among the search's results is made on them, so that the search's fit "
         "to its samples' noise does not choose (default: half of them where every store has "
         "at least 4 passes, else 0: choose on the searched samples); 0 or 2 to passes - 2",
+    )
+    p.add_argument(
+        "--lcos-switching",
+        type=float,
+        metavar="MS",
+        help="with --space discs: the LCoS's switching time, ms (default 0): in the first MS "
+        "of each pattern's window the pixels turn linearly from the previous pattern, in the "
+        "search's basis and kernel and in every capture it scores",
     )
     p.add_argument(
         "--max-still-loss",
@@ -380,6 +389,7 @@ def _run_bitmap(args: argparse.Namespace, level: float) -> int:
         objective=_or(args.objective, "moving"), still_weight=args.still_weight,
         space=args.space, held_out=tuple(args.held_out or ()),
         max_still_loss_db=args.max_still_loss, held_passes=args.held_passes,
+        lcos_switching_ms=args.lcos_switching,
     )  # fmt: skip
     check_bitmap_problem(problem)  # refused before any output
     out = prepare_out_dir(args.out, args.force)

@@ -152,8 +152,9 @@ def cell_problem(basis, template, plan, base_code, sensor: str, light_level: flo
     mask[:, :SHIFT_PX] = mask[:, ids.shape[1] - SHIFT_PX :] = False
     if not mask.any():
         raise ParameterError("the window shows no moving object: the objective scores them")
-    dp = plan.aperture(plan.sensor_params())
-    dt = np.diff(dp.pattern_edges) / (dp.t_close - dp.t_open)
+    params = plan.sensor_params()
+    dp = plan.aperture(params)
+    dt = open_times(np.diff(dp.pattern_edges), params.get("lcos_switching"))
     area = _areas(basis)
     sharp = layers["sharp"]
     sharp = sharp[..., None] if sharp.ndim == 2 else sharp
@@ -166,6 +167,19 @@ def cell_problem(basis, template, plan, base_code, sensor: str, light_level: flo
     u = np.asarray(base_code, float)[:, basis.cells_ij[:, 0], basis.cells_ij[:, 1]].T @ dt
     p.S = _prior(p, template, rec.light_factor, u)
     return p
+
+
+def open_times(widths_ms, switch_ms: float | None = None) -> np.ndarray:
+    """Each pattern window's share of the exposure that its code is shown for: its width,
+    with a switching LCoS (t_s) less the t_s / 2 that the next window's first t_s still shows
+    it on average (the pixels turn linearly), and plus the t_s / 2 it is shown into the next
+    window: window 0 gains t_s / 2, the last window loses it (a cell's open time, the
+    kernel's weight, is linear in the code either way)."""
+    w = np.asarray(widths_ms, float).copy()
+    if switch_ms:
+        w[:-1] += 0.5 * switch_ms
+        w[1:] -= 0.5 * switch_ms
+    return w / float(np.sum(widths_ms))
 
 
 def _scorer_edge_px(record) -> int:

@@ -61,6 +61,12 @@ MIN_SIDE_PASSES = 2
 """Passes on each side of a split (search, choice): a capture's Monte Carlo sigma needs two."""
 
 
+def store_spec(store, p: BitmapProblem):
+    """The capture a store was rendered for (:func:`~.rendered_run.base_spec`), with the
+    problem's LCoS switching time."""
+    return replace(base_spec(store), lcos_switching_ms=p.lcos_switching_ms)
+
+
 def split_passes(p: BitmapProblem, stores) -> tuple[tuple[int, ...] | None, tuple | None]:
     """(search passes, choice passes) of every store: with ``held_passes`` K the last K passes
     of each store choose and the others search; default (None) half of them where every store
@@ -105,6 +111,7 @@ class BitmapProblem:
     held_out: tuple[str, ...] = ()
     max_still_loss_db: float | None = None
     held_passes: int | None = None
+    lcos_switching_ms: float | None = None
 
     @property
     def weight(self) -> float:
@@ -142,7 +149,10 @@ def check_bitmap_problem(p: BitmapProblem):
     if p.held_passes is not None:
         check_integer("held_passes", p.held_passes, 0, None)
     split_passes(p, stores)
-    cam = plan_capture(base_spec(stores[0])).cam
+    if p.lcos_switching_ms and p.space != "discs":
+        raise ParameterError("lcos_switching_ms: only the discs space (the plugin switches "
+                             "discs, not bitmaps)")  # fmt: skip
+    cam = plan_capture(store_spec(stores[0], p)).cam  # checks lcos_switching_ms
     try:
         display_px(cam.R_max_mm, cam.lcos_pitch_mm, p.cells)
     except ParameterError as exc:
@@ -184,7 +194,7 @@ def prepare_bitmap(p: BitmapProblem, stores, progress: bool = False) -> dict:
         rasterised), ``problems`` and ``setup_s``.
     """
     t0 = time.perf_counter()
-    specs = [base_spec(s) for s in stores]
+    specs = [store_spec(s, p) for s in stores]
     plan = plan_capture(specs[0])
     base = disc_code(plan, p.cells)
     search, choice = split_passes(p, stores)
@@ -274,7 +284,7 @@ def chosen_design(p: BitmapProblem, prepared: dict, stores, f: dict) -> dict:
     refs = prepared["templates"] if held is None else [
         synthesize(s, spec, progress=False, passes=held)
         for s, spec in zip(stores, prepared["specs"])]  # fmt: skip
-    c = choose(f["candidates"], stores, refs, p, design_spec, held)
+    c = choose(f["candidates"], stores, prepared["specs"], refs, p, design_spec, held)
     name = c["chosen"]
     if name == PROTOTYPE:
         f["design"], f["code"] = disc_design(prepared["plan"], plan_discs(prepared["plan"])), \
@@ -290,7 +300,7 @@ def _rows(p: BitmapProblem, folders, stores, path: Path, name: str) -> list[dict
     from each store."""
     draws, rows = tuple(range(p.noise_draws)), []
     for folder, store in zip(folders, stores):
-        spec = base_spec(store)
+        spec = store_spec(store, p)
         tpl = synthesize(store, spec, progress=False)
         found = synthesize(store, design_spec(spec, path), progress=False)
         for label, cap in ((PROTOTYPE, tpl), (name, found)):

@@ -24,7 +24,6 @@ import numpy as np
 from ..lightfield.synthesis import synthesize
 from ..model.design_file import write_design
 from .cell_report import design_row
-from .rendered_run import base_spec
 
 PROTOTYPE = "prototype"
 """The store's own design's name among the candidates."""
@@ -44,7 +43,7 @@ def aggregate(rows: list[dict], still_weight: float) -> tuple[float, float | Non
     return moving, still, (moving + still_weight * still) / (1.0 + still_weight)
 
 
-def choose(candidates: dict, stores, templates, p, design_spec, passes=None) -> dict:
+def choose(candidates: dict, stores, specs, templates, p, design_spec, passes=None) -> dict:
     """Score each candidate (name to its CameraDesign) and the store's design on the training
     stores with the real pipeline and choose.
 
@@ -52,8 +51,9 @@ def choose(candidates: dict, stores, templates, p, design_spec, passes=None) -> 
     ----------
     candidates : dict
         Start name to the design that start's search found.
-    stores, templates : list
-        The training stores and their own designs' synthesised captures.
+    stores, specs, templates : list
+        The training stores, their captures (the store's design, the problem's optics) and
+        those captures synthesised.
     p : BitmapProblem
         The sensor, light level, noise draws, still weight and ``max_still_loss_db``.
     design_spec : callable
@@ -77,8 +77,8 @@ def choose(candidates: dict, stores, templates, p, design_spec, passes=None) -> 
         for i, (name, design) in enumerate(candidates.items()):
             path = Path(tmp) / f"candidate_{i}.toml"
             write_design(path, design, force=True)
-            for folder, store, tpl in zip(p.stores, stores, templates):
-                cap = synthesize(store, design_spec(base_spec(store), path), progress=False,
+            for folder, store, spec, tpl in zip(p.stores, stores, specs, templates):
+                cap = synthesize(store, design_spec(spec, path), progress=False,
                                  passes=passes)  # fmt: skip
                 rows.append(design_row(name, str(folder), cap, tpl, p.sensor, p.light_level,
                                        draws))  # fmt: skip

@@ -141,6 +141,8 @@ def test_a_discs_search_with_held_out_stores_from_the_command_line(store, tmp_pa
     (["--space", "discs", "--held-out", "STORE", "HELD1"], "--held-out: a store the search"),
     (["--space", "centres", "--held-out", "HELD1"], "--held-out: only a search with --space"),
     (["--space", "discs", "--max-still-loss", "-1"], "--max-still-loss: a finite number >= 0"),
+    (["--space", "bitmap", "--lcos-switching", "1"], "--lcos-switching: only a search with"),
+    (["--space", "discs", "--lcos-switching", "9"], "--lcos-switching (9 ms) must be at most"),
 ])  # fmt: skip
 def test_bad_discs_flags_get_one_line(store, tmp_path, capsys, extra, says):
     held = tmp_path / "held1"
@@ -178,3 +180,24 @@ def test_the_choice_keeps_the_best_eligible_design_or_the_prototype():
     assert w == pytest.approx((20.0 + 23.0) / 2)  # (moving + still) / 2, means over stores
     tie = [_row("prototype", "a", 20.0, 25.0), _row("from x", "a", 20.0, 25.0)]
     assert _pick(tie, ["prototype", "from x"], 0.0, None)["chosen"] == "prototype"
+
+
+def test_open_times_with_a_switching_lcos_are_the_blend_s_closed_form():
+    """Four windows of 2 ms, t_s = 1 ms: a window's code loses, on average, 0.5 ms of its own
+    first ms to the previous code and is still shown 0.5 ms into the next window; window 0
+    only gains, the last only loses."""
+    from pacam_render.optimize.cell_objective import open_times
+
+    got = open_times([2.0, 2.0, 2.0, 2.0], 1.0) * 8.0
+    assert np.allclose(got, [2.5, 2.0, 2.0, 1.5]) and np.allclose(open_times([2.0] * 4), 0.25)
+
+
+def test_a_discs_search_with_a_switching_lcos(store, tmp_path):
+    out = tmp_path / "sw"
+    args = ["optimize", "--lightfield", str(store.folder), "--space", "discs", "--cells", "8",
+            "--iterations", "2", "--starts", "1", "--noise-draws", "1", "--quiet",
+            "--lcos-switching", "1.0", "--out", str(out)]  # fmt: skip
+    assert main(args) == 0
+    doc = json.loads((out / "report.json").read_text())
+    assert doc["problem"]["lcos_switching_ms"] == 1.0
+    assert read_design(out / "design.toml").schedule_kind == "centres"
