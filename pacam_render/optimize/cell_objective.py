@@ -239,17 +239,30 @@ def objective(p: CellProblem, code, grad: bool = True, still_weight: float = 0.0
     or with ``still_weight`` w > 0 the weighted mean (P + w P_s) / (1 + w) with the still
     pixels' (module docstring; P alone where the store's scored columns hold no still pixel);
     and its gradient d PSNR / d code (n, G, G) when ``grad`` (adjoint by hand)."""
+    vals, grads = objectives(p, np.asarray(code, float)[None], grad, still_weight)
+    return float(vals[0]), None if grads is None else grads[0]
+
+
+def objectives(p: CellProblem, codes, grad: bool = True, still_weight: float = 0.0):
+    """:func:`objective` of S codes (S, n, G, G) at once: values (S,) and gradients (S, n, G,
+    G) or None. The basis is read once for all of them (its matrix products take the S codes
+    together: an evaluation is bound by reading the basis, not by arithmetic)."""
     still_weight = still_weight if p.still.any() else 0.0
-    A = np.asarray(code, float)
+    A = np.asarray(codes, float)
     scale = 1.0 if p.contrast is None else 1.0 - 1.0 / p.contrast
-    w = _weights(p, A)
-    fwd = _forward(p, w, float(still_weight))
+    w = np.stack([_weights(p, a) for a in A])
+    H, W, Ch = p.sharp.shape
+    Y = (w.reshape(len(A), -1).astype(p.B.dtype) @ _flat(p.B)).astype(float)
+    fwd = [_forward(p, w[i], float(still_weight), Y[i].reshape(H, W, Ch)) for i in range(len(A))]
+    vals = np.array([f["value"] for f in fwd])
     if not grad:
-        return fwd["value"], None
-    gw = _backward(p, w, fwd)
+        return vals, None
+    parts_ = [_backward(p, w[i], fwd[i]) for i in range(len(A))]
+    g_y = np.stack([g.ravel() for g, _ in parts_]).astype(p.B.dtype)
+    g_w = (g_y @ _flat(p.B).T).astype(float).reshape(w.shape) + np.stack([r for _, r in parts_])
     out = np.zeros_like(A)
-    out[:, p.cells_ij[:, 0], p.cells_ij[:, 1]] = scale * gw
-    return fwd["value"], out
+    out[:, :, p.cells_ij[:, 0], p.cells_ij[:, 1]] = scale * g_w
+    return vals, out
 
 
 def _best_shift(p: CellProblem, xp: np.ndarray) -> tuple:
@@ -264,10 +277,12 @@ def _best_shift(p: CellProblem, xp: np.ndarray) -> tuple:
     return best
 
 
-def _forward(p: CellProblem, w: np.ndarray, still_weight: float = 0.0) -> dict:
-    """The objective's forward pass, keeping what the adjoint needs."""
+def _forward(p: CellProblem, w: np.ndarray, still_weight: float = 0.0, y=None) -> dict:
+    """The objective's forward pass, keeping what the adjoint needs (``y``: the capture
+    sum w B where the caller has it)."""
     H, W, Ch = p.sharp.shape
-    y = (w.ravel().astype(p.B.dtype) @ _flat(p.B)).reshape(H, W, Ch).astype(float)
+    if y is None:
+        y = (w.ravel().astype(p.B.dtype) @ _flat(p.B)).reshape(H, W, Ch).astype(float)
     L = float(np.sum(w * p.lam))
     if L <= 0:
         raise ParameterError("code: an all-black code collects no light")
@@ -301,9 +316,10 @@ def _forward(p: CellProblem, w: np.ndarray, still_weight: float = 0.0) -> dict:
 
 
 def _backward(p: CellProblem, w: np.ndarray, f: dict) -> np.ndarray:
-    """d value / d w (n, M): the adjoint of :func:`_forward` (dE = Re sum conj(G) dX for
-    each complex intermediate X, unitary FFTs); the squared errors' weights cE, cS are
-    d value / d E and d value / d E_s."""
+    """d value / d w (n, M) as (d value / d y (H, W, C), the rest): the adjoint of
+    :func:`_forward` (dE = Re sum conj(G) dX for each complex intermediate X, unitary FFTs),
+    d value / d w = B d value / d y + the rest (the caller's matrix product, :func:`objectives`);
+    the squared errors' weights cE, cS are d value / d E and d value / d E_s."""
     H, W, Ch = p.sharp.shape
     ws = f["weight"]
     cE = -10.0 / (math.log(10.0) * f["E"]) / (1.0 + ws)
@@ -333,15 +349,21 @@ def _backward(p: CellProblem, w: np.ndarray, f: dict) -> np.ndarray:
     L = f["L"]
     g_y = g_z / L
     g_L = -float(np.sum(g_z * f["y"])) / L**2 + g_s2 * f["ds2"]
-    g_w = (_flat(p.B) @ g_y.ravel().astype(p.B.dtype)).reshape(w.shape).astype(float)
-    return g_w + g_L * p.lam + p.dt[:, None] * g_u[None, :]
+    return g_y, g_L * p.lam + p.dt[:, None] * g_u[None, :]
 
 
 def mean_objective(problems, code, grad: bool = True, still_weight: float = 0.0):
     """The mean over the stores of :func:`objective` (dB) and its gradient."""
-    vals = [objective(p, code, grad, still_weight) for p in problems]
-    g = None if not grad else sum(v[1] for v in vals) / len(vals)
-    return float(np.mean([v[0] for v in vals])), g
+    vals, grads = mean_objectives(problems, np.asarray(code, float)[None], grad, still_weight)
+    return float(vals[0]), None if grads is None else grads[0]
+
+
+def mean_objectives(problems, codes, grad: bool = True, still_weight: float = 0.0):
+    """The mean over the stores of :func:`objectives` of S codes: values (S,) and gradients
+    (S, n, G, G) or None."""
+    got = [objectives(p, codes, grad, still_weight) for p in problems]
+    vals = np.mean([v for v, _ in got], axis=0)
+    return vals, None if not grad else sum(g for _, g in got) / len(got)
 
 
 def parts(problems, code) -> tuple[float, float]:

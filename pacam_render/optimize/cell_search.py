@@ -24,7 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import ParameterError
-from .cell_objective import check_still_weight, mean_objective
+from .cell_objective import check_still_weight, mean_objective, mean_objectives
 
 LOGIT_CLIP = 4.0
 """A start's logits: a code's 0 and 1 become -4 and +4 (A = 0.018, 0.982), so that a
@@ -111,20 +111,28 @@ def project_levels(code, problem, target: float, levels: int = 2) -> np.ndarray:
     return out.reshape(low.shape)
 
 
-def adam(problems, theta, iterations: int, step: float, rows: list, t0: float,
-         still_weight: float = 0.0):  # fmt: skip
-    """Adam ascent of the mean objective in logits ``theta``; appends to ``rows``."""
-    m, v = np.zeros_like(theta), np.zeros_like(theta)
+def adam_lockstep(x, value_grad, project, iterations: int, step: float, t0: float):
+    """Adam ascent of S starts at once (``x``: (S, ...)), one shared evaluation per step
+    (``value_grad(x)`` -> values (S,), gradients like x: the basis read once for all starts),
+    ``project`` applied after each step.
+
+    Returns
+    -------
+    (ndarray, list)
+        The climbed x, and per start its curve [(iteration, seconds, value), ...].
+    """
+    m, v = np.zeros_like(x), np.zeros_like(x)
     b1, b2 = 0.9, 0.999
+    curves = [[] for _ in range(len(x))]
     for i in range(1, iterations + 1):
-        a = 1.0 / (1.0 + np.exp(-theta))
-        val, g = mean_objective(problems, a, True, still_weight)
-        g = g * a * (1.0 - a)  # d A / d theta
+        val, g = value_grad(x)
         m = b1 * m + (1 - b1) * g
         v = b2 * v + (1 - b2) * g * g
-        theta = theta + step * (m / (1 - b1**i)) / (np.sqrt(v / (1 - b2**i)) + 1e-12)
-        rows.append((len(rows) + 1, time.perf_counter() - t0, val))
-    return theta
+        x = project(x + step * (m / (1 - b1**i)) / (np.sqrt(v / (1 - b2**i)) + 1e-12))
+        now = time.perf_counter() - t0
+        for s, c in zip(val, curves):
+            c.append((i, now, float(s)))
+    return x, curves
 
 
 def _target(problem, reference) -> float:
@@ -134,33 +142,40 @@ def _target(problem, reference) -> float:
     return light_of(problem, reference)
 
 
-def adam_fixed(problems, a, iterations: int, step: float, rows: list, t0: float,
-               target: float, still_weight: float = 0.0):  # fmt: skip
-    """Projected Adam ascent in the code ``a`` itself, kept at light ``target``
-    (:func:`project_light` after every step); appends to ``rows``."""
-    m, v = np.zeros_like(a), np.zeros_like(a)
-    b1, b2 = 0.9, 0.999
-    for i in range(1, iterations + 1):
-        val, g = mean_objective(problems, a, True, still_weight)
-        m = b1 * m + (1 - b1) * g
-        v = b2 * v + (1 - b2) * g * g
-        a = a + step * (m / (1 - b1**i)) / (np.sqrt(v / (1 - b2**i)) + 1e-12)
-        a = project_light(a, problems[0], target)
-        rows.append((len(rows) + 1, time.perf_counter() - t0, val))
-    return a
-
-
-def _climb(problems, code, iterations, step, rows, t0, target, still_weight):
-    """One start climbed: the relaxed code (free light: Adam in logits; fixed: projected)."""
-    c = np.clip(np.asarray(code, float), 0.0, 1.0)
+def _climb(problems, codes, iterations, step, t0, target, still_weight):
+    """All starts climbed together: the relaxed codes (free light: Adam in logits; fixed:
+    projected Adam in the code) and each start's curve."""
+    c = np.clip(np.asarray(codes, float), 0.0, 1.0)
     if target is not None:
-        return adam_fixed(problems, project_light(c, problems[0], target), iterations, step,
-                          rows, t0, target, still_weight)  # fmt: skip
+
+        def fixed(a):
+            return np.stack([project_light(x, problems[0], target) for x in a])
+
+        def value_grad(a):
+            return mean_objectives(problems, a, True, still_weight)
+
+        return adam_lockstep(fixed(c), value_grad, fixed, iterations, step, t0)
     theta = np.where(c >= 0.5, LOGIT_CLIP, -LOGIT_CLIP)  # a binary start
-    if np.any((c > 0) & (c < 1)):  # a grey start keeps its levels
-        theta = np.log(np.clip(c, 1e-3, 1 - 1e-3) / np.clip(1 - c, 1e-3, 1 - 1e-3))
-    theta = adam(problems, theta, iterations, step, rows, t0, still_weight)
-    return 1.0 / (1.0 + np.exp(-theta))
+    grey = np.any((c > 0) & (c < 1), axis=tuple(range(1, c.ndim)))  # a grey start keeps levels
+    logits = np.log(np.clip(c, 1e-3, 1 - 1e-3) / np.clip(1 - c, 1e-3, 1 - 1e-3))
+    theta[grey] = logits[grey]
+
+    def value_grad_logits(t):
+        a = 1.0 / (1.0 + np.exp(-t))
+        val, g = mean_objectives(problems, a, True, still_weight)
+        return val, g * a * (1.0 - a)  # d A / d theta
+
+    theta, curves = adam_lockstep(theta, value_grad_logits, lambda t: t, iterations, step, t0)
+    return 1.0 / (1.0 + np.exp(-theta)), curves
+
+
+def flatten_curves(curves) -> list:
+    """Per-start curves as one list of rows (evaluation, seconds, value), start after start
+    (the starts climbed together, so the seconds are shared)."""
+    rows = []
+    for c in curves:
+        rows += [(len(rows) + 1, t, v) for _, t, v in c]
+    return rows
 
 
 def gradient_search(problems, starts: dict, iterations: int = 200, step: float | None = None,
@@ -207,15 +222,17 @@ def gradient_search(problems, starts: dict, iterations: int = 200, step: float |
         raise ParameterError("starts: at least one start code")
     target = None if light == "free" else _target(problems[0], reference)
     step = (0.1 if target is None else 0.02) if step is None else float(step)
-    rows, out, best, codes = [], [], None, {}
+    out, best, codes = [], None, {}
     t0 = time.perf_counter()
-    for name, code in starts.items():
-        relaxed = _climb(problems, code, int(iterations), step, rows, t0, target, sw)
-        proj = project(relaxed, levels) if target is None else project_levels(
-            relaxed, problems[0], target, levels)  # fmt: skip
+    names = list(starts)
+    relaxed, curves = _climb(problems, np.stack([starts[n] for n in names]), int(iterations),
+                             step, t0, target, sw)  # fmt: skip
+    for name, r in zip(names, relaxed):
+        proj = project(r, levels) if target is None else project_levels(
+            r, problems[0], target, levels)  # fmt: skip
         if not proj.any():
             continue
-        r_db = mean_objective(problems, relaxed, False, sw)[0]
+        r_db = mean_objective(problems, r, False, sw)[0]
         p_db = mean_objective(problems, proj, False, sw)[0]
         out.append((name, r_db, p_db))
         codes[name] = proj
@@ -223,4 +240,5 @@ def gradient_search(problems, starts: dict, iterations: int = 200, step: float |
             best = (p_db, r_db, proj)
     if best is None:
         raise ParameterError("every start projected to an all-black code")
+    rows = flatten_curves(curves)
     return CellSearch(best[2], best[0], best[1], out, rows, len(rows) * len(problems), codes)

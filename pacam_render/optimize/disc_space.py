@@ -28,7 +28,8 @@ import numpy as np
 from ..errors import ParameterError
 from ..model.camera import MIN_OPENING_LCOS_PX
 from .cell_design import cell_centres_mm
-from .cell_objective import check_still_weight, mean_objective
+from .cell_objective import check_still_weight, mean_objective, mean_objectives
+from .cell_search import adam_lockstep, flatten_curves
 
 STEP_CELLS = 0.1
 """Adam's step in cell pitches (mm / pitch): a disc moves about a tenth of a cell a step."""
@@ -130,24 +131,34 @@ def random_discs(rng, base: Discs, grid: DiscGrid) -> Discs:
     return project_inside(Discs(c, base.R_mm, base.is_open), grid, False)
 
 
-def _climb(problems, d: Discs, grid: DiscGrid, iterations: int, free: bool, rows: list,
-           t0: float, still_weight: float) -> Discs:  # fmt: skip
-    """Projected Adam ascent in (centres, R) from ``d``; appends to ``rows``."""
-    p = np.concatenate([np.ravel(d.centres_mm), [d.R_mm]])
-    m, v = np.zeros_like(p), np.zeros_like(p)
-    b1, b2, step = 0.9, 0.999, STEP_CELLS * grid.pitch_mm
-    n = len(d.is_open)
-    for i in range(1, iterations + 1):
-        cur = Discs(p[:-1].reshape(n, 2), float(p[-1]), d.is_open)
-        val, (gc, gR) = disc_objective(problems, cur, grid, True, still_weight)
-        g = np.concatenate([gc.ravel(), [gR if free else 0.0]])
-        m = b1 * m + (1 - b1) * g
-        v = b2 * v + (1 - b2) * g * g
-        p = p + step * (m / (1 - b1**i)) / (np.sqrt(v / (1 - b2**i)) + 1e-12)
-        nxt = project_inside(Discs(p[:-1].reshape(n, 2), float(p[-1]), d.is_open), grid, free)
-        p = np.concatenate([nxt.centres_mm.ravel(), [nxt.R_mm]])
-        rows.append((len(rows) + 1, time.perf_counter() - t0, val))
-    return Discs(p[:-1].reshape(n, 2), float(p[-1]), d.is_open)
+def _climb(problems, starts: list, grid: DiscGrid, iterations: int, free: bool, t0: float,
+           still_weight: float):  # fmt: skip
+    """All starts' projected Adam ascent in (centres, R) together (one evaluation of every
+    start's soft code per step, :func:`~.cell_search.adam_lockstep`): the climbed discs and
+    each start's curve."""
+    is_open = starts[0].is_open
+    n = len(is_open)
+
+    def discs(x) -> Discs:
+        return Discs(x[:-1].reshape(n, 2), float(x[-1]), is_open)
+
+    def value_grad(xs):
+        codes, caches = zip(*(soft_code(discs(x), grid) for x in xs))
+        vals, g = mean_objectives(problems, np.stack(codes), True, still_weight)
+        out = np.zeros_like(xs)
+        for i, (gi, cache) in enumerate(zip(g, caches)):
+            gc, gR = code_vjp(gi, cache, grid)
+            out[i] = np.concatenate([gc.ravel(), [gR if free else 0.0]])
+        return vals, out
+
+    def project(xs):
+        got = [project_inside(discs(x), grid, free) for x in xs]
+        return np.stack([np.concatenate([d.centres_mm.ravel(), [d.R_mm]]) for d in got])
+
+    x0 = project(np.stack([np.concatenate([np.ravel(d.centres_mm), [d.R_mm]]) for d in starts]))
+    xs, curves = adam_lockstep(x0, value_grad, project, iterations, STEP_CELLS * grid.pitch_mm,
+                               t0)  # fmt: skip
+    return [discs(x) for x in xs], curves
 
 
 def disc_search(problems, starts: dict, grid: DiscGrid, iterations: int = 200,
@@ -180,17 +191,15 @@ def disc_search(problems, starts: dict, grid: DiscGrid, iterations: int = 200,
     if not starts:
         raise ParameterError("starts: at least one start")
     sw = check_still_weight(problems, still_weight)
-    rows, out, best, each = [], [], None, {}
     t0 = time.perf_counter()
-    for name, d in starts.items():
-        d = project_inside(d, grid, light == "free")
-        found = _climb(problems, d, grid, int(iterations), light == "free", rows, t0, sw)
-        val = disc_objective(problems, found, grid, False, sw)[0]
-        out.append((name, val))
-        each[name] = found
-        if best is None or val > best[0]:
-            best = (val, found)
-    return DiscSearch(best[1], best[0], out, rows, len(rows) * len(problems), each)
+    names = list(starts)
+    found, curves = _climb(problems, [starts[k] for k in names], grid, int(iterations),
+                           light == "free", t0, sw)  # fmt: skip
+    vals = [disc_objective(problems, d, grid, False, sw)[0] for d in found]
+    best = int(np.argmax(vals))
+    rows = flatten_curves(curves)
+    return DiscSearch(found[best], vals[best], list(zip(names, vals)), rows,
+                      len(rows) * len(problems), dict(zip(names, found)))  # fmt: skip
 
 
 def disc_design(plan, d: Discs, name: str = "pacam optimize --space discs"):

@@ -151,3 +151,17 @@ def test_a_store_with_no_still_pixel_scores_its_moving_objects_only(setup):
     assert parts([problem, bare], base)[1] == pytest.approx(still)  # the still stores' mean
     with pytest.raises(ParameterError, match="no store's window shows a still pixel"):
         gradient_search([bare], {"prototype": base}, iterations=1, still_weight=w)
+
+
+def test_several_codes_at_once_are_each_code_alone(setup):
+    """objectives() reads the basis once for S codes: each value and gradient is that code's
+    own (objective(), checked above against finite differences)."""
+    from pacam_render.optimize.cell_objective import objectives
+
+    _, basis, _, problem = setup
+    rng = np.random.default_rng(11)
+    codes = rng.uniform(0.05, 0.95, (3, basis.n_patterns, G, G))
+    vals, grads = objectives(problem, codes, True, 0.5)
+    for code, v, g in zip(codes, vals, grads):
+        v1, g1 = objective(problem, code, True, 0.5)
+        assert v == pytest.approx(v1, rel=1e-12) and np.allclose(g, g1, rtol=1e-9, atol=1e-12)
