@@ -6,7 +6,7 @@ The model (:mod:`.cell_objective`) ranks designs well enough to climb, not to ch
 out the scorer's per-object shifts, the per-capture prior fit and drawn noise. So the last word
 is the real pipeline's, on the training stores only (the held-out stay unseen), and on passes
 the search did not read where the stores have enough (a search fits its samples' Monte Carlo
-noise: 1.6 of a bitmap's 2.3 dB on its own samples, ``bench_bitmap_design.py``): the score is the
+noise: 0.6 of a bitmap's 2.3 dB on its own samples, ``bench_bitmap_design.py``): the score is the
 same aggregate the search climbs (the moving objects' PSNR, mean over the stores, or its
 weighted mean in dB with the still regions'), and with ``max_still_loss_db`` a candidate whose
 still regions lose more than that against the store's design (mean over the stores that show
