@@ -102,13 +102,21 @@ def open_stores(p: RenderedProblem):
 
 def _note_store_noise(template, scorer, sensor: str) -> None:
     """Say when a store's render noise is a large share of the sensor's the search scores
-    through (:func:`~pacam_render.lightfield.synthesis.store_noise_note`)."""
-    rec = template.record
-    sigma = sensor_sigma(rec, scorer.model, scorer.light_level, clean_level(template))
-    light = "" if scorer.light_level is None else f" at {scorer.light_level:g} photons/px/ms"
-    text = store_noise_note(template, sigma * rec.light_factor, f"{sensor}{light}")
+    through (:func:`store_noise`)."""
+    text = store_noise(template, scorer.model, scorer.light_level, sensor)[1]
     if text:
         note(text)
+
+
+def store_noise(template, model, light_level, sensor: str) -> tuple[float, str | None]:
+    """A store's capture's render noise over the sensor's noise it is scored through (at
+    ``light_level``), and :func:`~pacam_render.lightfield.synthesis.store_noise_note`'s text
+    where that exceeds the share a synthesised capture should stay under."""
+    rec = template.record
+    sigma = sensor_sigma(rec, model, light_level, clean_level(template)) * rec.light_factor
+    light = "" if light_level is None else f" at {light_level:g} photons/px/ms"
+    ratio = float(rec.render_error.mc_sigma / sigma) if sigma > 0 else float("nan")
+    return ratio, store_noise_note(template, sigma, f"{sensor}{light}")
 
 
 def basis_bytes(stores, n_patterns: int, candidates: int) -> float:

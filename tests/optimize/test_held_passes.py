@@ -68,5 +68,20 @@ def test_the_command_chooses_on_the_held_passes(four, tmp_path, capsys):
     assert "passes the search did not read (2, 3; it searched on 0, 1)" in capsys.readouterr().out
     doc = json.loads((out / "report.json").read_text())
     assert doc["passes"] == {"search": [0, 1], "choice": [2, 3]}
+    assert len(doc["store_noise"]) == 1 and doc["store_noise"][0] > 0
     assert main([*args[:-2], "--held-passes", "1", "--out", str(tmp_path / "x")]) == 2
     assert "--held-passes: 0, or 2 to" in capsys.readouterr().err
+
+
+def test_a_store_s_render_noise_against_the_sensor_s_falls_as_one_over_root_samples(four, store):
+    """store_noise: the render noise over the sensor's of a store's capture. A store of 4x
+    the samples (8 spp x 4 passes against 4 x 2, the same window) halves it (Monte Carlo);
+    the report states it."""
+    from pacam_render.optimize.rendered_run import base_spec, store_noise
+    from pacam_render.sensor.model import SensorModel
+
+    model = SensorModel.from_preset("grasshopper-icx285")
+    r = [store_noise(synthesize(s, base_spec(s), progress=False), model, 300.0, "icx285")[0]
+         for s in (store, four)]  # fmt: skip
+    assert r[0] / r[1] == pytest.approx(2.0, rel=0.25)
+    assert r[0] > 0.3  # a 4 spp store is noisier than a synthesised capture should be
