@@ -18,6 +18,7 @@ from __future__ import annotations
 import hashlib
 import json
 import stat
+import weakref
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import NamedTuple
@@ -397,17 +398,34 @@ def manifest_digest(manifest: dict) -> str:
     return hashlib.sha256(json.dumps(kept, sort_keys=True).encode()).hexdigest()[:16]
 
 
+_SHARED_CACHE = {"budget": None, "used": 0}
+"""The shard caches of every open store together: at most a quarter of the memory available
+when the first store opened (a search over eight stores once pinned eight quarters' worth,
+22 of 23 GiB), released as stores are dropped."""
+
+
+def _release(account: list) -> None:
+    _SHARED_CACHE["used"] -= account[0]
+
+
 @dataclass
 class Store:
     """A store read back: its folder and manifest (``store.json``). Shards read once are kept
-    in memory up to ``cache_bytes`` (a quarter of the memory available when it opens), so
-    that many designs synthesised from one store read the disk once."""
+    in memory up to ``cache_bytes`` (a quarter of the memory available when it opens), and all
+    open stores' caches together up to a quarter of the memory available when the first one
+    opened, so that many designs synthesised from one store read the disk once."""
 
     folder: Path
     manifest: Manifest
     cache_bytes: int = 0
     _cache: dict = field(default_factory=dict, repr=False)
     _cached: int = 0
+    _account: list = field(default_factory=lambda: [0], repr=False)
+
+    def __post_init__(self) -> None:
+        if _SHARED_CACHE["budget"] is None:
+            _SHARED_CACHE["budget"] = available_bytes() // 4
+        weakref.finalize(self, _release, self._account)
 
     @classmethod
     def open(cls, folder) -> Store:
@@ -438,9 +456,12 @@ class Store:
                 continue
             shard = self.read_shard(pass_index, step)
             size = sum(a.nbytes for a in shard[0].values())
-            if self._cached + size <= self.cache_bytes:
+            shared = _SHARED_CACHE["used"] + size <= _SHARED_CACHE["budget"]
+            if self._cached + size <= self.cache_bytes and shared:
                 self._cache[name] = shard
                 self._cached += size
+                self._account[0] += size
+                _SHARED_CACHE["used"] += size
             yield shard
 
     def read_shard(self, pass_index: int, step: int) -> tuple[dict, dict]:

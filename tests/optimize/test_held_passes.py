@@ -85,3 +85,31 @@ def test_a_store_s_render_noise_against_the_sensor_s_falls_as_one_over_root_samp
          for s in (store, four)]  # fmt: skip
     assert r[0] / r[1] == pytest.approx(2.0, rel=0.25)
     assert r[0] > 0.3  # a 4 spp store is noisier than a synthesised capture should be
+
+
+def test_open_stores_share_one_cache_budget(four, store, monkeypatch):
+    """Every open store's shard cache together stays under one budget (it was a quarter of the
+    memory per store: eight stores pinned 22 of 23 GiB), and a dropped store gives its share
+    back."""
+    import gc
+
+    from pacam_render.lightfield import Store
+    from pacam_render.lightfield import store as store_module
+
+    shared = {"budget": 0, "used": 0}
+    monkeypatch.setattr(store_module, "_SHARED_CACHE", shared)
+    a, b = Store.open(four.folder), Store.open(store.folder)
+    one = sum(x.nbytes for x in next(a.shards(0))[0].values())
+    shared["budget"] = int(2.5 * one)
+    for s in (a, b):
+        for p in range(s.manifest.passes):
+            for _ in s.shards(p):
+                pass
+    assert 0 < shared["used"] <= shared["budget"] and a._cached + b._cached == shared["used"]
+    held = a._cached
+    del a
+    gc.collect()
+    assert shared["used"] == b._cached and held > 0
+    del b  # inside the patch: its share goes back to this budget, not the session's
+    gc.collect()
+    assert shared["used"] == 0
