@@ -32,15 +32,16 @@ from ..lightfield.cell_basis import (
     lens_cells,
 )
 from ..lightfield.store import Store
-from ..lightfield.synthesis import RENDER_NOISE_SHARE, synthesize
+from ..lightfield.synthesis import synthesize
 from ..limits import available_bytes, gib, note
 from ..model.design_file import write_design
 from ..sensor.model import SensorModel
 from .cell_design import bitmap_design, disc_code
 from .cell_objective import cell_problem
-from .cell_report import SCORES, design_row, markdown, paired, write_patterns, write_report
+from .cell_report import SCORES, design_row, paired, write_patterns, write_report
 from .cell_search import LIGHT_CHOICES, gradient_search, light_of
-from .cell_select import PROTOTYPE, choose
+from .cell_select import PROTOTYPE, choose, split_passes
+from .cell_text import report_text
 from .disc_space import DiscGrid, disc_design, disc_search, plan_discs, random_discs, soft_code
 from .rendered_run import RenderedProblem, base_spec, open_stores, store_noise
 
@@ -58,35 +59,6 @@ CELL_SPACES = ("bitmap", "discs")
 """The spaces searched on the cells' basis: any bitmap per window, or one disc per window."""
 MIN_HELD_OUT = 2
 """Held-out stores a paired interval needs (one difference per store)."""
-MIN_SIDE_PASSES = 2
-"""Passes on each side of a split (search, choice): a capture's Monte Carlo sigma needs two."""
-
-
-def store_spec(store, p: BitmapProblem):
-    """The capture a store was rendered for (:func:`~.rendered_run.base_spec`), with the
-    problem's LCoS switching time."""
-    return replace(base_spec(store), lcos_switching_ms=p.lcos_switching_ms)
-
-
-def split_passes(p: BitmapProblem, stores) -> tuple[tuple[int, ...] | None, tuple | None]:
-    """(search passes, choice passes) of every store: with ``held_passes`` K the last K passes
-    of each store choose and the others search; default (None) half of them where every store
-    has at least 2 x MIN_SIDE_PASSES, else none held (both None: all passes do both)."""
-    n = min(s.manifest.passes for s in stores)
-    k = p.held_passes
-    if k is None:
-        k = n // 2 if n >= 2 * MIN_SIDE_PASSES else 0
-    if k == 0:
-        return None, None
-    if not (MIN_SIDE_PASSES <= k <= n - MIN_SIDE_PASSES):
-        raise ParameterError(
-            f"held_passes: 0, or {MIN_SIDE_PASSES} to the stores' fewest passes ({n}) - "
-            f"{MIN_SIDE_PASSES} (each side needs {MIN_SIDE_PASSES} for its Monte Carlo sigma), "
-            f"got {k}"
-        )
-    return tuple(range(n - k)), tuple(range(n - k, n))
-
-
 STILL_WEIGHT = 1.0
 """The still term's weight w in (P_moving + w P_still) / (1 + w) by default: a dB on the moving
 objects counts as one on the still regions."""
@@ -183,6 +155,12 @@ def check_objective(objective: str, still_weight: float | None) -> None:
     w = float(still_weight)
     if not (math.isfinite(w) and w > 0):
         raise ParameterError(f"still_weight: a finite number > 0, got {still_weight!r}")
+
+
+def store_spec(store, p: BitmapProblem):
+    """The capture a store was rendered for (:func:`~.rendered_run.base_spec`), with the
+    problem's LCoS switching time."""
+    return replace(base_spec(store), lcos_switching_ms=p.lcos_switching_ms)
 
 
 def prepare_bitmap(p: BitmapProblem, stores, progress: bool = False) -> dict:
@@ -341,7 +319,7 @@ def run_bitmap_optimize(p: BitmapProblem, out: Path, force: bool, progress: bool
                            "prototype_capture": r["templates"][0].record.light_factor,
                            "found": light_of(r["problems"][0], f["code"])}}  # fmt: skip
     doc["store_noise"] = _store_noise(p, r["templates"])
-    write_report(out, doc, force, _text(p, doc))
+    write_report(out, doc, force, report_text(p, doc))
     write_patterns(out / "patterns.png", f["code"], name, force)
     return doc
 
@@ -369,102 +347,3 @@ def check_still_loss(p: BitmapProblem, problems) -> None:
     if not any(q.still.any() for q in problems):
         raise ParameterError("max_still_loss_db: no training store's window shows a still pixel "
                              "inside the scorer's columns")  # fmt: skip
-
-
-def _what(p: BitmapProblem) -> str:
-    """The objective in words."""
-    if p.objective == "moving":
-        return "moving objects' PSNR"
-    return f"(moving PSNR + {p.weight:g} still PSNR) / {1 + p.weight:g}"
-
-
-def _starts(p: BitmapProblem, m: dict) -> str:
-    """The starts' model dB in words."""
-    if p.space == "discs":
-        return ("Starts (name, dB, R mm): " + "; ".join(
-            f"{s[0]} {s[1]:.2f} {m['R_mm'][s[0]]:.4g}" for s in m["starts"]) + ".")  # fmt: skip
-    return ("Starts (name, relaxed dB, binary dB): "
-            + "; ".join(f"{s[0]} {s[1]:.2f}/{s[2]:.2f}" for s in m["starts"]) + ".")  # fmt: skip
-
-
-def _choice_text(p: BitmapProblem, doc: dict) -> str:
-    """Which design was written, and why (:mod:`.cell_select`)."""
-    c = doc["choice"]
-    sc = {k: v for k, v in c["scores"].items()}
-    best = max(sc, key=lambda k: sc[k]["value_db"])
-    rule = (
-        ""
-        if p.max_still_loss_db is None
-        else (f"; eligible: still regions within {p.max_still_loss_db:g} dB of the prototype's")
-    )
-    ps = doc["passes"]
-    where = ("the stores' passes the search did not read "
-             f"({', '.join(map(str, ps['choice']))}; it searched on "
-             f"{', '.join(map(str, ps['search']))})" if ps["choice"] else
-             "the training stores' own samples, which the search read: it may have fitted their "
-             f"Monte Carlo noise (give stores of at least {2 * MIN_SIDE_PASSES} passes to "
-             "choose on others)")  # fmt: skip
-    line = (f"Chosen with the real pipeline on {where} (the search's score, mean over the "
-            f"stores{rule}): ")  # fmt: skip
-    line += "; ".join(f"{k} {v['value_db']:.2f} dB" + ("" if v["eligible"] else " (not eligible)")
-                      for k, v in sc.items())  # fmt: skip
-    if c["chosen"] == PROTOTYPE:
-        why = "none eligible beat it" if best != PROTOTYPE else "no start beat it"
-        return line + f". **Kept the prototype** ({why}): design.toml is the store's design."
-    return line + f". Written: the result from start {c['chosen']!r}."
-
-
-def _noise_text(p: BitmapProblem, doc: dict) -> str:
-    """The stores' render noise against the sensor's, and what it means for the ranking."""
-    r = [x for x in doc["store_noise"] if math.isfinite(x)]
-    if not r:
-        return ""
-    span = f"{min(r):.2g}x" if min(r) == max(r) else f"{min(r):.2g}-{max(r):.2g}x"
-    head = (f"The stores' captures carry render noise at {span} the sensor's ({p.sensor} at "
-            f"{p.light_level:g} photons/px/ms).")  # fmt: skip
-    if max(r) <= RENDER_NOISE_SHARE:
-        return head + f" Under {RENDER_NOISE_SHARE:g}x: the camera's own regime."
-    return head + (f" Over {RENDER_NOISE_SHARE:g}x, the designs are ranked in the render's "
-                   "noise, not the camera's, which can reorder them (the notes on stderr say "
-                   "how many samples per pass bring it under).")  # fmt: skip
-
-
-def _held_text(doc: dict) -> list[str]:
-    """The held-out table and the paired intervals, or where to check a design."""
-    if not doc["held_out"]:
-        return ["These are the training stores: check a design on scenes it has not seen "
-                "(--held-out, or fresh renders: benchmarks/bench_bitmap_design.py)."]  # fmt: skip
-    out = [markdown(doc["held_out"], "Held-out stores (scenes the search never saw)"),
-           "Found design minus the prototype, paired per held-out store, mean [95 % "
-           "Student-t interval] (n: the stores with pixels of that kind):", ""]  # fmt: skip
-    for k, label in zip(SCORES, ("moving", "still", "whole")):
-        d = doc["held_out_vs_prototype"][k]
-        out.append(
-            f"- {label}: "
-            + (
-                "n/a (fewer than 2 stores score it)"
-                if d is None
-                else f"{d[0]:+.2f} dB [{d[1]:+.2f}, {d[2]:+.2f}], n = {d[3]}"
-            )
-        )
-    return out
-
-
-def _text(p: BitmapProblem, doc: dict) -> str:
-    """report.md."""
-    m = doc["model_db"]
-    return "\n".join([
-        f"# pacam optimize --lightfield --space {p.space} ({p.cells}x{p.cells} cells, light "
-        f"{p.light})", "",
-        f"Model objective (mean over {len(p.stores)} store(s), {_what(p)}): found "
-        f"{m['found']:.2f} dB; {doc['evaluations']} evaluations in {doc['search_s']:.1f} s "
-        f"after {doc['setup_s']:.1f} s of setup. " + _starts(p, m), "",
-        markdown(doc["train"], "Scored with the real pipeline on the stores' syntheses"),
-        _choice_text(p, doc), "",
-        _noise_text(p, doc), "",
-        f"Each capture through {p.noise_draws} sensor draw(s) of {p.sensor} at "
-        f"{p.light_level:g} photons/px/ms, Wiener with the design's s = 0 kernel told the "
-        "sensor's and the render's noise, scored by score_capture. Invariant range: the "
-        "smallest fitted range over the moving objects (n/a: a design with no parabola).", "",
-        *_held_text(doc),
-    ]) + "\n"  # fmt: skip

@@ -21,12 +21,34 @@ from pathlib import Path
 
 import numpy as np
 
+from ..errors import ParameterError
 from ..lightfield.synthesis import synthesize
 from ..model.design_file import write_design
 from .cell_report import design_row
 
 PROTOTYPE = "prototype"
 """The store's own design's name among the candidates."""
+MIN_SIDE_PASSES = 2
+"""Passes on each side of a split (search, choice): a capture's Monte Carlo sigma needs two."""
+
+
+def split_passes(p, stores) -> tuple[tuple[int, ...] | None, tuple | None]:
+    """(search passes, choice passes) of every store: with ``held_passes`` K the last K passes
+    of each store choose and the others search; default (None) half of them where every store
+    has at least 2 x MIN_SIDE_PASSES, else none held (both None: all passes do both)."""
+    n = min(s.manifest.passes for s in stores)
+    k = p.held_passes
+    if k is None:
+        k = n // 2 if n >= 2 * MIN_SIDE_PASSES else 0
+    if k == 0:
+        return None, None
+    if not (MIN_SIDE_PASSES <= k <= n - MIN_SIDE_PASSES):
+        raise ParameterError(
+            f"held_passes: 0, or {MIN_SIDE_PASSES} to the stores' fewest passes ({n}) - "
+            f"{MIN_SIDE_PASSES} (each side needs {MIN_SIDE_PASSES} for its Monte Carlo sigma), "
+            f"got {k}"
+        )
+    return tuple(range(n - k)), tuple(range(n - k, n))
 
 
 def aggregate(rows: list[dict], still_weight: float) -> tuple[float, float | None, float]:

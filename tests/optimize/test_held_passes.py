@@ -17,7 +17,8 @@ from pacam_render.exposure.plan import plan_capture
 from pacam_render.lightfield import StoreSpec, render_lightfield, synthesize
 from pacam_render.lightfield.cell_basis import cell_basis
 from pacam_render.optimize.cell_design import bitmap_design_spec, disc_code
-from pacam_render.optimize.cell_run import BitmapProblem, split_passes
+from pacam_render.optimize.cell_run import BitmapProblem
+from pacam_render.optimize.cell_select import split_passes
 from tests.optimize.small_store import SPEC
 
 FOUR = replace(SPEC, spp=8, passes=4, seed=9)
