@@ -183,13 +183,13 @@ def main() -> None:
     store_spp, direct_spp, cells, iters, starts, rseeds = (
         (16, 16, 8, 5, 2, 2) if a.quick else (256, 64, 16, 100, 3, 2)
     )
-    train = TRAIN
+    train_seeds = TRAIN
     if a.quiet_stores:
-        store_spp, direct_spp, train = 4096, 256, TRAIN[:4]
+        store_spp, direct_spp, train_seeds = 4096, 256, TRAIN[:4]
     root = Path(a.root)
     root.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
-    folders = stores(root, store_spp, train)
+    folders = stores(root, store_spp, train_seeds)
     t_store = time.perf_counter() - t0
     found, prepared = designs(root, folders, cells, iters, starts, a.quick)
     train = []
@@ -229,7 +229,8 @@ def main() -> None:
         })  # fmt: skip
     (root / "bench.json").write_text(json.dumps({"train": train, "held": held}, indent=1))
     fmt = lambda v: f"{v:.2f}"  # noqa: E731
-    notes = (f"train seeds {train}, held-out {HELD}, {WINDOW_PX[0]}x{WINDOW_PX[1]} windows at "
+    notes = (f"train seeds {train_seeds}, held-out {HELD}, {WINDOW_PX[0]}x{WINDOW_PX[1]} windows "
+             "at "
              f"each scene's largest occlusion; stores spp {store_spp} x {STORE_PASSES} passes "
              "(the cell searches read 2, the real-pipeline choice among their results and the "
              "prototype the other 2; chosen: "
@@ -254,7 +255,7 @@ def main() -> None:
         print(rows, notes)
         return
     quiet = ", quiet stores" if a.quiet_stores else ""
-    record(f"Whole-aperture designs: train on {len(train)} family scenes{quiet}, check on "
+    record(f"Whole-aperture designs: train on {len(train_seeds)} family scenes{quiet}, check on "
            f"{len(HELD)} held-out", rows, notes)  # fmt: skip
 
 
