@@ -41,13 +41,13 @@ from pacam_render.exposure.plan import plan_capture  # noqa: E402
 from pacam_render.exposure.spec import CaptureSpec  # noqa: E402
 from pacam_render.lightfield import Store, StoreSpec, render_lightfield, synthesize  # noqa: E402
 from pacam_render.model.design_file import write_design  # noqa: E402
+from pacam_render.optimize.cell_design import design_spec  # noqa: E402
 from pacam_render.optimize.cell_objective import parts  # noqa: E402
 from pacam_render.optimize.cell_report import design_row, paired, summary  # noqa: E402
 from pacam_render.optimize.cell_run import (  # noqa: E402
     BitmapProblem,
     check_bitmap_problem,
     chosen_design,
-    design_spec,
     found_design,
     prepare_bitmap,
 )

@@ -76,3 +76,9 @@ def bitmap_design_spec(spec, basis, code, path):
     road: its masks written beside it and read back)."""
     write_design(path, bitmap_design(plan_capture(spec), basis, code), force=True)
     return dataclasses.replace(spec, design=str(path))
+
+
+def design_spec(spec, path):
+    """``spec`` with the design file at ``path`` in place of its own schedule."""
+    return dataclasses.replace(spec, design=str(path), cover_px_per_ms=None, f_number=None,
+                               r_px=None, schedule=None)  # fmt: skip

@@ -38,9 +38,9 @@ from ..model.design_file import write_design
 from ..sensor.model import SensorModel
 from .cell_design import bitmap_design, disc_code
 from .cell_objective import cell_problem
-from .cell_report import SCORES, design_row, paired, write_patterns, write_report
+from .cell_report import SCORES, paired, write_patterns, write_report
 from .cell_search import LIGHT_CHOICES, gradient_search, light_of
-from .cell_select import PROTOTYPE, choose, split_passes
+from .cell_select import PROTOTYPE, choose, score_rows, split_passes
 from .cell_text import report_text
 from .disc_space import DiscGrid, disc_design, disc_search, plan_discs, random_discs, soft_code
 from .rendered_run import RenderedProblem, base_spec, open_stores, store_noise
@@ -208,12 +208,6 @@ def search_bitmap(p: BitmapProblem, prepared: dict):
                            reference=reference, still_weight=p.weight)  # fmt: skip
 
 
-def design_spec(spec, path: Path):
-    """``spec`` with the design file at ``path`` in place of its own schedule."""
-    return replace(spec, design=str(path), cover_px_per_ms=None, f_number=None, r_px=None,
-                   schedule=None)  # fmt: skip
-
-
 def search_discs(p: BitmapProblem, prepared: dict):
     """:func:`~.disc_space.disc_search` from the store design's discs and ``p.starts - 1``
     random centres (its radius) on :func:`prepare_bitmap`'s problems.
@@ -263,7 +257,7 @@ def chosen_design(p: BitmapProblem, prepared: dict, stores, f: dict) -> dict:
     refs = prepared["templates"] if held is None else [
         synthesize(s, spec, progress=False, passes=held)
         for s, spec in zip(stores, prepared["specs"])]  # fmt: skip
-    c = choose(f["candidates"], stores, prepared["specs"], refs, p, design_spec, held)
+    c = choose(f["candidates"], stores, prepared["specs"], refs, p, held)
     name = c["chosen"]
     if name == PROTOTYPE:
         f["design"], f["code"] = disc_design(prepared["plan"], plan_discs(prepared["plan"])), \
@@ -276,15 +270,10 @@ def chosen_design(p: BitmapProblem, prepared: dict, stores, f: dict) -> dict:
 
 def _rows(p: BitmapProblem, folders, stores, path: Path, name: str) -> list[dict]:
     """Report rows of the prototype and the design file at ``path`` (``name``) synthesised
-    from each store."""
-    draws, rows = tuple(range(p.noise_draws)), []
-    for folder, store in zip(folders, stores):
-        spec = store_spec(store, p)
-        tpl = synthesize(store, spec, progress=False)
-        found = synthesize(store, design_spec(spec, path), progress=False)
-        for label, cap in ((PROTOTYPE, tpl), (name, found)):
-            rows.append(design_row(label, str(folder), cap, tpl, p.sensor, p.light_level, draws))
-    return rows
+    from each store (:func:`~.cell_select.score_rows`)."""
+    specs = [store_spec(s, p) for s in stores]
+    templates = [synthesize(s, spec, progress=False) for s, spec in zip(stores, specs)]
+    return score_rows(p, folders, stores, specs, templates, {name: path})
 
 
 def run_bitmap_optimize(p: BitmapProblem, out: Path, force: bool, progress: bool) -> dict:

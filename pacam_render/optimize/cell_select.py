@@ -24,6 +24,7 @@ import numpy as np
 from ..errors import ParameterError
 from ..lightfield.synthesis import synthesize
 from ..model.design_file import write_design
+from .cell_design import design_spec
 from .cell_report import design_row
 
 PROTOTYPE = "prototype"
@@ -65,7 +66,7 @@ def aggregate(rows: list[dict], still_weight: float) -> tuple[float, float | Non
     return moving, still, (moving + still_weight * still) / (1.0 + still_weight)
 
 
-def choose(candidates: dict, stores, specs, templates, p, design_spec, passes=None) -> dict:
+def choose(candidates: dict, stores, specs, templates, p, passes=None) -> dict:
     """Score each candidate (name to its CameraDesign) and the store's design on the training
     stores with the real pipeline and choose.
 
@@ -78,8 +79,6 @@ def choose(candidates: dict, stores, specs, templates, p, design_spec, passes=No
         those captures synthesised.
     p : BitmapProblem
         The sensor, light level, noise draws, still weight and ``max_still_loss_db``.
-    design_spec : callable
-        (spec, path) to the spec of the design file at path (:func:`.cell_run.design_spec`).
     passes : sequence of int, optional
         The store passes the candidates are synthesised from (``templates`` must be too): the
         ones the search did not read, so that its fit to its samples' noise does not choose.
@@ -91,20 +90,26 @@ def choose(candidates: dict, stores, specs, templates, p, design_spec, passes=No
         (every design's report rows on every store), ``scores`` (name to moving, still, value
         and whether eligible).
     """
-    draws = tuple(range(p.noise_draws))
-    rows = []
-    for folder, tpl in zip(p.stores, templates):
-        rows.append(design_row(PROTOTYPE, str(folder), tpl, tpl, p.sensor, p.light_level, draws))
     with tempfile.TemporaryDirectory(prefix="pacam-candidates-") as tmp:
+        paths = {}
         for i, (name, design) in enumerate(candidates.items()):
-            path = Path(tmp) / f"candidate_{i}.toml"
-            write_design(path, design, force=True)
-            for folder, store, spec, tpl in zip(p.stores, stores, specs, templates):
-                cap = synthesize(store, design_spec(spec, path), progress=False,
-                                 passes=passes)  # fmt: skip
-                rows.append(design_row(name, str(folder), cap, tpl, p.sensor, p.light_level,
-                                       draws))  # fmt: skip
+            paths[name] = Path(tmp) / f"candidate_{i}.toml"
+            write_design(paths[name], design, force=True)
+        rows = score_rows(p, p.stores, stores, specs, templates, paths, passes)
     return _pick(rows, [PROTOTYPE, *candidates], p.weight, p.max_still_loss_db)
+
+
+def score_rows(p, folders, stores, specs, templates, paths: dict, passes=None) -> list[dict]:
+    """Report rows (:func:`~.cell_report.design_row`) of each store's own design (its
+    ``templates``, named :data:`PROTOTYPE`) and of each design file in ``paths`` (name to
+    path), synthesised from each store (its ``passes``), store by store."""
+    draws, rows = tuple(range(p.noise_draws)), []
+    for folder, store, spec, tpl in zip(folders, stores, specs, templates):
+        rows.append(design_row(PROTOTYPE, str(folder), tpl, tpl, p.sensor, p.light_level, draws))
+        for name, path in paths.items():
+            cap = synthesize(store, design_spec(spec, path), progress=False, passes=passes)
+            rows.append(design_row(name, str(folder), cap, tpl, p.sensor, p.light_level, draws))
+    return rows
 
 
 def _pick(rows: list[dict], names: list[str], weight: float, max_loss: float | None) -> dict:

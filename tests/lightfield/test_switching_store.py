@@ -16,8 +16,7 @@ from pacam_render.exposure.plan import plan_capture
 from pacam_render.lightfield import StoreSpec, render_lightfield, synthesize
 from pacam_render.lightfield.cell_basis import cell_basis
 from pacam_render.lightfield.synthesis import _resolve, pass_images
-from pacam_render.optimize.cell_design import bitmap_design_spec, disc_code
-from pacam_render.optimize.cell_run import design_spec
+from pacam_render.optimize.cell_design import bitmap_design_spec, design_spec, disc_code
 from tests.optimize.small_store import SPEC
 
 SWITCH_MS = 2.0

@@ -19,9 +19,8 @@ from pacam_render.exposure.plan import plan_capture
 from pacam_render.lightfield import StoreSpec, render_lightfield, synthesize
 from pacam_render.lightfield.cell_basis import cell_basis
 from pacam_render.model.design_file import read_design, write_design
-from pacam_render.optimize.cell_design import disc_code
+from pacam_render.optimize.cell_design import design_spec, disc_code
 from pacam_render.optimize.cell_objective import cell_problem
-from pacam_render.optimize.cell_run import design_spec
 from pacam_render.optimize.disc_space import (
     DiscGrid,
     Discs,

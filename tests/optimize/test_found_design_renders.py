@@ -16,9 +16,8 @@ from pacam_render.exposure.spec import CaptureSpec
 from pacam_render.lightfield import StoreSpec, render_lightfield, synthesize
 from pacam_render.lightfield.cell_basis import cell_basis
 from pacam_render.model.design_file import write_design
-from pacam_render.optimize.cell_design import bitmap_design, disc_code
+from pacam_render.optimize.cell_design import bitmap_design, design_spec, disc_code
 from pacam_render.optimize.cell_objective import cell_problem
-from pacam_render.optimize.cell_run import design_spec
 from pacam_render.optimize.cell_search import gradient_search
 from pacam_render.optimize.disc_space import DiscGrid, disc_design, disc_search, plan_discs
 
