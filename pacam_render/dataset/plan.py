@@ -24,7 +24,7 @@ from ..errors import ParameterError
 from ..exposure.direct import check_budget
 from ..exposure.plan import plan_capture
 from ..exposure.spec import CaptureSpec
-from ..lightfield.codes import SERVED
+from ..lightfield.codes import SERVED, check_served
 from ..limits import DEFAULT_MAX_SAMPLES, free_disk, gib
 from ..model.modes import MODES, MODES_WITH_PSF
 from ..psf.analytic import least_lost_fraction
@@ -269,7 +269,15 @@ def use_store(spec: DatasetSpec) -> bool:
 def store_serves(spec: CaptureSpec) -> bool:
     """Whether a store can give this camera's capture (:mod:`pacam_render.lightfield.codes`):
     its camera does not move (not Levin's), it has a lens (not the pinhole reference), its
-    diffraction is not asked in the rays, and its LCoS does not switch."""
+    diffraction is not asked in the rays, and an LCoS that switches (the spec's or its design
+    file's) does so between discrete discs, which stores blend as the plugin draws them."""
     schedule = MODES[spec.mode].schedule
-    served = schedule is not None and schedule in SERVED
-    return served and spec.diffraction != "on" and not spec.lcos_switching_ms
+    if schedule is None or schedule not in SERVED or spec.diffraction == "on":
+        return False
+    plan = plan_capture(spec)  # the design file's own LCoS and schedule, as synthesis reads it
+    params = plan.sensor_params()
+    try:
+        check_served(plan.aperture(params), params)
+    except ParameterError:
+        return False
+    return True

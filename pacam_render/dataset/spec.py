@@ -35,7 +35,11 @@ CAPTURE_KEYS = {
     "max_step_px", "diffraction", "relative_illumination", "grey", "max_samples", "max_steps",
 }  # fmt: skip
 CAMERA_KEYS = {"name", "mode", "preset", "design", "cover_px_per_ms", "f_number", "r_px",
-               "depth_mm"}  # fmt: skip
+               "depth_mm", "lcos_contrast", "lcos_fill_factor", "lcos_switching_ms"}  # fmt: skip
+LCOS_RANGES = {"lcos_contrast": (1.0, 1e9), "lcos_fill_factor": (1e-9, 1.0),
+               "lcos_switching_ms": (0.0, 1e3)}  # fmt: skip
+"""A camera's LCoS keys and their ranges (CaptureSpec's fields; a switching time is checked
+against the camera's pattern time when the dataset is planned)."""
 SCENE_KEYS = {"family", "seeds", "params", "list"}
 SENSOR_KEYS = {"preset", "light_levels"}
 PSF_KEYS = {"velocity_px_per_ms"}
@@ -323,6 +327,9 @@ def _camera(c, i: int, base: Path) -> Camera:
                           ("r_px", "r_px"), ("depth_mm", "object_depth_mm")):  # fmt: skip
         if key in c:
             fields[spec_key] = _number(c[key], f"{where} {key}", 1e-9, 1e9)
+    for key, (lo, hi) in LCOS_RANGES.items():
+        if key in c:
+            fields[key] = _number(c[key], f"{where} {key}", lo, hi)
     return Camera(name, fields)
 
 

@@ -173,3 +173,18 @@ def test_the_store_ratio_interpolates_the_measured_points():
     for n, r in STORE_RATIOS:
         assert store_ratio(n) == pytest.approx(r)
     assert store_ratio(8) == pytest.approx(math.sqrt(STORE_RATIOS[1][1] * STORE_RATIOS[2][1]))
+
+
+@pytest.mark.parametrize(
+    ("value", "words"),
+    [(-1.0, ["[[cameras]] #3 lcos_switching_ms", "[0, 1000]"]),
+     (5.0, ["lcos_switching_ms (5 ms)", "pattern's time"])],
+)  # fmt: skip
+def test_a_camera_lcos_switching_is_checked_before_any_work(value, words):
+    """Out of range, or longer than the camera's pattern time (45 ms / 16 = 2.81 ms): one
+    line naming the key, when the spec is read or planned."""
+    doc = _doc()
+    doc["cameras"][2]["lcos_switching_ms"] = value
+    with pytest.raises(ParameterError) as e:
+        plan_dataset(parse_spec(doc))
+    assert all(w in str(e.value) for w in words), e.value
