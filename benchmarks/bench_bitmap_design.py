@@ -208,7 +208,8 @@ def main() -> None:
             ref = caps[0][1]
             draws = (9000 + rs, 9500 + rs)
             for name, cap in caps:
-                held.append(design_row(name, f"{seed}/{rs}", cap, ref, SENSOR, LEVEL, draws))
+                held.append(design_row(name, f"{seed}/{rs}", cap, ref, SENSOR, LEVEL, draws,
+                                        unit=str(seed)))  # fmt: skip
             print(f"held-out seed {seed} render {j}: done", flush=True)
     diffs = paired(held)
     still = paired(held, "psnr_static_db")
@@ -247,8 +248,9 @@ def main() -> None:
              f"{direct_spp} x 2 passes, {rseeds} render seeds per scene, 2 new sensor draws, "
              f"{SENSOR} at {LEVEL:g} photons/px/ms, Wiener; all cameras but the Fourier model's "
              "focused for "
-             f"{MIDDLE_DEPTH_MM:g} mm; still intervals over the renders whose scored columns "
-             "hold still pixels; search s: "
+             f"{MIDDLE_DEPTH_MM:g} mm; intervals over scenes (a scene's render seeds averaged "
+             "first), the still ones over the scenes whose scored columns hold still pixels; "
+             "search s: "
              + ", ".join(f"{k} {v[1]:.0f}" for k, v in found.items())
              + (" (QUICK smoke sizes)" if a.quick else ""))  # fmt: skip
     if a.quick:

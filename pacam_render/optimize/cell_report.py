@@ -68,12 +68,15 @@ def invariant_range(cap) -> float | None:
 
 
 def design_row(design: str, where: str, cap, reference, sensor, light_level, seeds,
-               method: str = DEFAULT_METHOD) -> dict:  # fmt: skip
+               method: str = DEFAULT_METHOD, unit: str | None = None) -> dict:  # fmt: skip
     """One report row: ``cap`` of ``design`` on ``where`` (a store or a fresh render), its
-    three PSNRs, invariant range and light relative to ``reference``'s capture."""
+    three PSNRs, invariant range and light relative to ``reference``'s capture; ``unit``
+    names the independent unit ``where`` belongs to (a scene, for one of its render seeds;
+    :func:`paired` averages a unit's places), ``where`` itself if None."""
     return {
         "design": design,
         "where": where,
+        "unit": where if unit is None else unit,
         **score_draws(cap, sensor, light_level, seeds, method),
         "range_px_per_ms": invariant_range(cap),
         "light_rel": float(cap.record.light_factor / reference.record.light_factor),
@@ -95,15 +98,24 @@ def summary(rows: list[dict]) -> list[dict]:
 def paired(rows: list[dict], score: str = "psnr_moving_db", ref: str = "prototype") -> dict:
     """Per design but ``ref``, its ``score`` minus ``ref``'s on the same capture place
     (``where``: a store, or a scene and render seed), paired: (mean, 95 % Student-t interval
-    low, high, n); None where fewer than 2 places score both (a place with no still pixel in
-    the scored columns has no still score)."""
+    low, high, n); None where fewer than 2 units score both (a place with no still pixel in
+    the scored columns has no still score).
+
+    Places of one ``unit`` (a row's key, :func:`design_row`'s; its place where absent), such as
+    two render seeds of one scene, are averaged first: their differences are not independent
+    (a scene's two renders differ by its Monte Carlo noise, scenes by their content), so the
+    interval is over units and n counts them.
+    """
     from scipy.stats import t as student
 
     refs = {r["where"]: r[score] for r in rows if r["design"] == ref}
     out = {}
     for name in dict.fromkeys(r["design"] for r in rows if r["design"] != ref):
-        d = np.array([r[score] - refs[r["where"]] for r in rows if r["design"] == name
-                      and r[score] is not None and refs.get(r["where"]) is not None])  # fmt: skip
+        units: dict = {}
+        for r in rows:
+            if r["design"] == name and r[score] is not None and refs.get(r["where"]) is not None:
+                units.setdefault(r.get("unit", r["where"]), []).append(r[score] - refs[r["where"]])
+        d = np.array([np.mean(v) for v in units.values()])
         if len(d) < 2:
             out[name] = None
             continue

@@ -200,3 +200,28 @@ def test_a_discs_search_with_a_switching_lcos(store, tmp_path):
     doc = json.loads((out / "report.json").read_text())
     assert doc["problem"]["lcos_switching_ms"] == 1.0
     assert read_design(out / "design.toml").schedule_kind == "centres"
+
+
+def test_paired_intervals_count_scenes_not_their_render_seeds():
+    """Two render seeds of one scene are not independent: :func:`paired` averages a unit's
+    places first, so its interval is scipy's t interval over the scenes' mean differences, and
+    n counts scenes; without units, each place counts (the old, too narrow interval)."""
+    from scipy import stats
+
+    from pacam_render.optimize.cell_report import paired
+
+    rng = np.random.default_rng(3)
+    scene_gain = rng.normal(0.5, 1.0, 6)
+    rows = []
+    for i, g in enumerate(scene_gain):
+        for j in range(2):
+            base, d = 20.0 + i, g + rng.normal(0.0, 0.05)
+            for name, v in (("prototype", base), ("found", base + d)):
+                rows.append({**_row(name, f"{i}/{j}", v, None), "unit": str(i)})
+    means = [np.mean([r["psnr_moving_db"] for r in rows if r["unit"] == str(i)
+                      and r["design"] == "found"]) - (20.0 + i) for i in range(6)]  # fmt: skip
+    lo, hi = stats.t.interval(0.95, 5, loc=np.mean(means), scale=stats.sem(means))
+    m, a, b, n = paired(rows)["found"]
+    assert n == 6 and m == pytest.approx(np.mean(means)) and (a, b) == pytest.approx((lo, hi))
+    flat = paired([{k: v for k, v in r.items() if k != "unit"} for r in rows])["found"]
+    assert flat[3] == 12 and flat[2] - flat[1] < 0.8 * (hi - lo)
