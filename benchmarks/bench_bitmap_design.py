@@ -14,8 +14,9 @@ fastest speed and the middle depth; it chooses its own focus, one of its variabl
 held-out seeds HELD, FRESH DIRECT renders of every design (new render seeds) and new sensor
 draws, scored with the real pipeline (:mod:`pacam_render.optimize.cell_report`), paired 95 %
 intervals of the moving-object and still-region PSNR differences against the prototype over
-the scenes (each scene's render seeds averaged first: they are not independent). Levin's camera is focused once for the class, at the family's middle
-depth (650 mm), as every design here but the Fourier model's is.
+the scenes (each scene's render seeds averaged first: they are not independent). Levin's
+camera is focused once for the class, at the family's middle depth (650 mm), as every design
+here but the Fourier model's is.
 
     python benchmarks/bench_bitmap_design.py [--quick]
 """
