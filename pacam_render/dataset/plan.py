@@ -131,12 +131,13 @@ def plan_dataset(spec: DatasetSpec) -> DatasetPlan:
     """
     target = _target_json(spec)
     renders = []
-    stores = use_store(spec)
+    stores = use_store(spec)  # a camera's servability is its own, not its scene's: once each
+    via = {c.name: "store" if stores and store_serves(_base_spec(spec, "train", c)) else "direct"
+           for c in spec.cameras}  # fmt: skip
     for i, scene in enumerate(spec.scenes):
         digest, label = scene_digest(scene, spec), scene_label(scene, i)
         for cam in spec.cameras:
-            via = "store" if stores and store_serves(_base_spec(spec, scene, cam)) else "direct"
-            renders.append(_render(spec, scene, label, digest, cam, target, via))
+            renders.append(_render(spec, scene, label, digest, cam, target, via[cam.name]))
     v = spec.psf_velocity_px_per_ms
     sizes = {c.name: sample_bytes(_base_spec(spec, "train", c), v) for c in spec.cameras}
     plan = DatasetPlan(spec, tuple(renders), sizes)
