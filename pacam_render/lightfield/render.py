@@ -40,6 +40,7 @@ from .proposal import Proposal, disc_plans
 from .store import (
     DISK_BYTES,
     FORMAT,
+    TRUTH_POSE_MS,
     Store,
     StoreSpec,
     bytes_per_sample,
@@ -323,41 +324,46 @@ def _render_shards(spec, plan, cam, desc, steps, out, manifest, flag, progress, 
     bar = tqdm(total=cap.passes * len(steps), desc=f"light field {cap.scene}", disable=not progress)
     pixels = window[2] * window[3]
     per_pass = sum(s[2] for s in steps)
-    for p in range(cap.passes):
-        row, first = [], 0
-        strata = Strata(pixels, per_pass, cap.seed, p) if Strata.fits(pixels, per_pass) else None
-        for k, (t0, t1, spp) in enumerate(steps):
-            first, k0 = first + spp, first
-            name = shard_name(p, k)
-            if (out / name).exists():
-                row.append(shard_digest(*load_shard(out / name)))
+    try:
+        for p in range(cap.passes):
+            row, first = [], 0
+            strata = (
+                Strata(pixels, per_pass, cap.seed, p) if Strata.fits(pixels, per_pass) else None
+            )
+            for k, (t0, t1, spp) in enumerate(steps):
+                first, k0 = first + spp, first
+                name = shard_name(p, k)
+                if (out / name).exists():
+                    row.append(shard_digest(*load_shard(out / name)))
+                    bar.update()
+                    continue
+                seed, u = step_draws(cap.seed, p, k)
+                t_start = time.perf_counter()
+                if animator is None:
+                    times = (t0, t1)
+                else:
+                    times = step_time(t0, t1, u)
+                    animator.set_time(times - manifest["mid_ms"])
+                rec = _records(scene, sensor, window, spp, seed, times, cam, m,
+                               None if strata is None else (strata, k0))  # fmt: skip
+                meta = {"t0": t0, "t1": t1, "spp": spp, "time": None if animator is None else times}
+                row.append(save_shard(out, name, rec, meta))
+                manifest["seconds"] = manifest.get("seconds", 0.0) + time.perf_counter() - t_start
                 bar.update()
-                continue
-            seed, u = step_draws(cap.seed, p, k)
-            t_start = time.perf_counter()
-            if animator is None:
-                times = (t0, t1)
-            else:
-                times = step_time(t0, t1, u)
-                animator.set_time(times - manifest["mid_ms"])
-            rec = _records(scene, sensor, window, spp, seed, times, cam, m,
-                           None if strata is None else (strata, k0))  # fmt: skip
-            meta = {"t0": t0, "t1": t1, "spp": spp, "time": None if animator is None else times}
-            row.append(save_shard(out, name, rec, meta))
-            manifest["seconds"] = manifest.get("seconds", 0.0) + time.perf_counter() - t_start
-            bar.update()
-            new += 1
-            if flag["signal"] is not None or (stop_after is not None and new >= stop_after):
-                write_manifest(out, manifest)
-                bar.close()
-                raise StoreInterrupted(
-                    f"the store stopped after {new} new shard(s); they are saved in {out}: run "
-                    "the same command again to resume",
-                    signum=flag["signal"],
-                )
-        digests.append(row)
-        write_manifest(out, manifest)
-    bar.close()
+                new += 1
+                if flag["signal"] is not None or (stop_after is not None and new >= stop_after):
+                    write_manifest(out, manifest)
+                    raise StoreInterrupted(
+                        f"the store stopped after {new} new shard(s); they are saved in {out}: run "
+                        "the same command again to resume",
+                        signum=flag["signal"],
+                    )
+            digests.append(row)
+            write_manifest(out, manifest)
+    finally:
+        bar.close()
+        if animator is not None:  # back to t = 0, as after a direct capture: the
+            animator.set_time(0.0)  # description's meshes are shared with the truth's scene
     return digests
 
 
@@ -376,5 +382,6 @@ def _render_truth(cap, plan, cam: dict, desc, out: Path) -> None:
 
     scene = desc.load(sensor=cam["sensor"])
     layers, objects, sharp = render_truth(scene, desc, cap, plan.design, True, None, None)
-    meta = {"objects": objects, "sharp_mc_sigma": None if sharp is None else rms(sharp.variance())}
+    meta = {"objects": objects, "sharp_mc_sigma": None if sharp is None else rms(sharp.variance()),
+            "pose_ms": TRUTH_POSE_MS}  # fmt: skip
     save_shard(out, "truth.npz", dict(layers), meta)

@@ -33,6 +33,10 @@ from ..limits import available_bytes, free_disk, gib
 from .trace import CHUNK_LANES
 
 FORMAT = "pacam-lightfield/1"
+TRUTH_POSE_MS = 0.0
+"""The time (ms from mid-exposure) of the pose the truth layers show, written into
+``truth.npz``'s meta. A moving scene's store whose truth lacks it had its truth layers
+rendered at its last step's pose (the shards left the description's shared meshes there)."""
 RECORD_FIELDS = ("x", "y", "u", "v", "p")
 """Per-sample float32 fields beside the radiance: film point (px), lens point (mm) and the
 proposal's density there (1/mm^2)."""
@@ -481,10 +485,12 @@ class Store:
         check_shard(records, meta, m.channels, m.camera.exposure_ms, path)
         return records, meta
 
-    def truth(self) -> tuple[dict, dict | None, float | None]:
+    def truth(self, moving: bool = True) -> tuple[dict, dict | None, float | None]:
         """The ground-truth layers, the ``object_id`` legend and the ``sharp`` layer's Monte
         Carlo sigma (white = 1); empty for a store rendered without truth. The file is the
-        one the manifest recorded, or refused naming it."""
+        one the manifest recorded, or refused naming it; a ``moving`` scene's layers must
+        show its t = 0 pose (:data:`TRUTH_POSE_MS`), or they are refused with the way to
+        render them again (the samples are kept)."""
         want = self.manifest.truth_digest
         if want is None:
             return {}, None, None
@@ -493,6 +499,13 @@ class Store:
         if shard_digest(records, meta) != want:
             raise ParameterError(f"{path}: not the truth layers store.json recorded (its digest "
                                  "differs); render the store again")  # fmt: skip
+        if moving and meta.get("pose_ms") != TRUTH_POSE_MS:
+            raise ParameterError(
+                f"{path}: this moving scene's truth layers do not record their pose: stores "
+                "written before it was recorded show the last step's pose, not t = 0 (a bug), "
+                "and scores against them are wrong. Delete truth.npz and run the same `pacam "
+                "lightfield` command again: it renders the truth layers only, keeping the samples"
+            )
         return records, meta.get("objects"), meta.get("sharp_mc_sigma")
 
 

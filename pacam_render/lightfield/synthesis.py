@@ -98,7 +98,7 @@ def synthesize(store: Store, spec, progress: bool = True, description=None, pass
         stats.add(0, img)
     seconds = time.perf_counter() - t_start
     n_steps = len(store.manifest.steps[0])
-    layers, objects, sharp_sigma = store.truth()
+    layers, objects, sharp_sigma = store.truth(moving=not desc.is_static)
     lightfield = {
         "store": str(store.folder), "digest": store.digest, "samples_used": used,
         "passes": list(check_passes(store, passes)),
