@@ -20,6 +20,14 @@ have kept the prototype (the table says which it chose).
 ``--store-spp`` above the default 256 quietens the stores (render noise falls as
 1/sqrt(spp); at 256 it is 1-2x the sensor's at 300 photons/px/ms): a separate ``--root``, and
 its own RESULTS.md section.
+
+``--noise-ratio R`` renders every checked capture to a Monte Carlo sigma of at most R x the
+sensor's noise instead of a fixed spp. At a fixed spp a bitmap's captures keep 2-3x the
+prototype's render noise (its open cells are scattered over the lens, so a pixel's rays reach
+more of the scene), which counts against it; the table's "render noise / sensor" column says
+what each design reached. ``--designs-from A.json B.json --only TEXT ...`` checks earlier runs'
+designs (no search); ``--baselines`` adds ``bench_bitmap_design.py``'s best centres design and
+Fourier-model design from the root.
 """
 
 from __future__ import annotations
@@ -51,6 +59,7 @@ from pacam_render.optimize.cell_run import (  # noqa: E402
 )
 from pacam_render.optimize.cell_select import PROTOTYPE  # noqa: E402
 from pacam_render.optimize.rendered_run import store_noise  # noqa: E402
+from pacam_render.sensor.apply import SensorTarget  # noqa: E402
 from pacam_render.sensor.model import SensorModel  # noqa: E402
 
 TRAIN_SEEDS = tuple(s for s in range(42) if s not in bbd.HELD)
@@ -93,9 +102,13 @@ def search(root: Path, folders, cells: int, starts: int, iterations: int,
     return out
 
 
-def held_rows(found: dict, spp: int, rseeds: int, seeds) -> list[dict]:
+def held_rows(found: dict, spp: int, rseeds: int, seeds, target=None) -> list[dict]:
     """Report rows of the prototype, Levin's camera and each found design on every held-out
-    scene (``seeds``), fresh direct renders (``rseeds`` render seeds), 2 new sensor draws."""
+    scene (``seeds``), fresh direct renders (``rseeds`` render seeds), 2 new sensor draws; with
+    a ``target`` (a :class:`SensorTarget`), each render runs ``spp`` x 2 pilot passes and then
+    as many as its Monte Carlo sigma needs to meet it, so that no design is compared in more
+    render noise than another (a bitmap's open cells are scattered over the lens, where the
+    plugin spreads its samples: at a fixed spp it keeps 2-3x the prototype's render noise)."""
     rows = []
     for seed in seeds:
         for j in range(rseeds):
@@ -105,7 +118,7 @@ def held_rows(found: dict, spp: int, rseeds: int, seeds) -> list[dict]:
             specs += [(name, design_spec(base, v["path"])) for name, v in found.items()]
             ref = None
             for name, s in specs:
-                cap = render_capture(s, progress=False, truth=True)
+                cap = render_capture(s, progress=False, truth=True, target=target)
                 ref = cap if ref is None else ref
                 rows.append(design_row(name, f"{seed}/{rs}", cap, ref, bbd.SENSOR, bbd.LEVEL,
                                        (9000 + rs, 9500 + rs), unit=str(seed)))  # fmt: skip
@@ -119,14 +132,16 @@ def table(found: dict, held: list[dict]) -> list[dict]:
     rows = []
     for r in summary(held):
         f = found.get(r["design"], {})
+        gain, noise = f.get("train_gain_db"), r.get("render_noise_ratio")
         rows.append({
             "design": r["design"],
-            "train gain, unread passes (dB)": f"{f['train_gain_db']:+.2f}" if f else "n/a",
+            "train gain, unread passes (dB)": "n/a" if gain is None else f"{gain:+.2f}",
             "choice kept": f.get("chosen", "n/a"),
+            "render noise / sensor": "n/a" if noise is None else f"{noise:.2f}",
             "held moving (dB)": f"{r['psnr_moving_db']:.2f}",
             "moving vs prototype (95 %)": ci(moving.get(r["design"])),
             "still vs prototype (95 %)": ci(still.get(r["design"])),
-            "search s": f"{f['seconds']:.0f}" if f else "n/a",
+            "search s": f"{f['seconds']:.0f}" if "seconds" in f else "n/a",
         })  # fmt: skip
     return rows
 
@@ -143,6 +158,7 @@ class Setup:
     spp: int
     held: tuple
     still_weight: float = 0.0
+    noise_ratio: float | None = None
 
     @property
     def objective(self) -> str:
@@ -153,12 +169,18 @@ class Setup:
         )
 
 
-def _found(root: Path, u: Setup, designs_from: str | None):
+def _found(root: Path, u: Setup, designs_from: list | None, only: list | None):
     """The searches' results (name to search()'s dict) and the stores' seconds; read from
-    ``designs_from`` (a run's scenes.json) instead where given."""
+    ``designs_from`` (runs' scenes.json files; a name in several gets its run's folder) instead
+    where given, keeping the names containing one of ``only``."""
     if designs_from:
-        got = json.loads(Path(designs_from).read_text())["found"]
-        return {k: {**v, "path": Path(v["path"])} for k, v in got.items()}, None
+        out = {}
+        for f in designs_from:
+            for k, v in json.loads(Path(f).read_text())["found"].items():
+                name = f"{k} [{Path(f).parent.name}]" if len(designs_from) > 1 else k
+                if not only or any(o in name for o in only):
+                    out[name] = {**v, "path": Path(v["path"])}
+        return out, None
     t0 = time.perf_counter()
     folders = bbd.stores(root, u.store_spp, TRAIN_SEEDS[: max(u.counts)])
     t_store = time.perf_counter() - t0
@@ -182,21 +204,46 @@ def _ranges(seeds) -> str:
     return ", ".join(f"{a}-{b}" if b > a else f"{a}" for a, b in runs)
 
 
-def _notes(found: dict, u: Setup, t_store) -> str:
+def _renders(u: Setup) -> str:
+    if u.noise_ratio is None:
+        return f"spp {u.spp} x 2 passes (render noise: each design's own, in the table)"
+    return (
+        f"to a Monte Carlo sigma of at most {u.noise_ratio:g}x the sensor's noise "
+        f"(pilot spp {u.spp} x 2 passes; render noise reached: in the table)"
+    )
+
+
+def baselines(root: Path) -> dict:
+    """bench_bitmap_design.py's best centres design and Fourier-model design, where its run
+    left them in ``root``: the issue's other comparisons."""
+    out = {}
+    for name, folder in (("best centres design", "centres"), ("Fourier-model design", "fourier")):
+        if (root / folder / "design.toml").exists():
+            out[name] = {"path": root / folder / "design.toml"}
+    return out
+
+
+def _train_text(found: dict, u: Setup, t_store, sources) -> str:
+    """What the checked designs were searched on: this run's searches, or earlier runs'."""
+    if sources:
+        return (f"designs read from {', '.join(sources)} (their searches: those runs' RESULTS "
+                "sections; train gain and choice as they recorded them)")  # fmt: skip
     noise = [v["noise"] for v in found.values() if "noise" in v]
-    noise = (f"{min(n[0] for n in noise):.2f}-{max(n[1] for n in noise):.2f}x" if noise
-             else "not recorded by that run; 1-2x at 256 spp,")  # fmt: skip
-    stores = "read from an earlier run's scenes.json" if t_store is None else f"{t_store:.0f} s"
-    h = u.held
+    noise = f"{min(n[0] for n in noise):.2f}-{max(n[1] for n in noise):.2f}x" if noise else "n/a"
     return (f"train: the first N of family seeds {TRAIN_SEEDS[0]}-9, 20-41 (N in {u.counts}), "
             f"128x64 windows at each scene's largest occlusion, grey stores spp {u.store_spp} x "
-            f"{bbd.STORE_PASSES} passes (designs: {stores}; the searched passes' render noise "
+            f"{bbd.STORE_PASSES} passes ({t_store:.0f} s; the searched passes' render noise "
             f"{noise} the sensor's); bitmap search on the G x G cells (G in {u.grids}), fixed "
             f"light, {u.objective}, {u.starts} starts x {u.iters} Adam steps, reading 2 "
             "passes; its best candidate on the other 2 is checked (train gain: its margin over "
-            "the store's design there; choice kept: what pacam optimize would write); "
-            f"{len(h)} checked scenes (family seeds {_ranges(h)}): fresh "
-            f"direct renders spp {u.spp} x 2 passes, {RENDER_SEEDS} render seed(s) per scene "
+            "the store's design there; choice kept: what pacam optimize would write)")  # fmt: skip
+
+
+def _notes(found: dict, u: Setup, t_store, sources=None) -> str:
+    h = u.held
+    return (f"{_train_text(found, u, t_store, sources)}; "
+            f"{len(h)} checked scenes (family seeds {_ranges(h)}): fresh direct renders "
+            f"{_renders(u)}, {RENDER_SEEDS} render seed(s) per scene "
             "(averaged before the intervals, which are over scenes), 2 new sensor draws, "
             f"{bbd.SENSOR} at {bbd.LEVEL:g} photons/px/ms, Wiener; every camera focused for "
             f"{bbd.MIDDLE_DEPTH_MM:g} mm")  # fmt: skip
@@ -223,7 +270,25 @@ def main() -> None:
                     help="family seeds to check on instead of the held-out ones (the training "
                     "seeds: what fresh renders of the scenes it was fitted on give)")  # fmt: skip
     ap.add_argument(
-        "--designs-from", help="an earlier run's scenes.json: check its designs again (no search)"
+        "--designs-from",
+        nargs="+",
+        help="earlier runs' scenes.json: check their designs again (no search)",
+    )
+    ap.add_argument(
+        "--only",
+        nargs="+",
+        help="with --designs-from: the designs whose names contain one of these",
+    )
+    ap.add_argument(
+        "--noise-ratio",
+        type=float,
+        help="render every checked capture to at most this times the sensor's "
+        "noise (pilot: the spp x 2 passes), not to a fixed spp",
+    )
+    ap.add_argument(
+        "--baselines",
+        action="store_true",
+        help="check the root's best centres and Fourier-model designs too",
     )
     a = ap.parse_args()  # fmt: skip
     warnings.simplefilter("ignore")  # the family's off-depth notes, once per capture
@@ -232,21 +297,28 @@ def main() -> None:
                     HELD_SEEDS, a.still_weight))  # fmt: skip
     if a.check_seeds:
         u = replace(u, held=tuple(a.check_seeds))
+    if a.noise_ratio is not None:
+        u = replace(u, noise_ratio=a.noise_ratio)
+        target = SensorTarget(a.noise_ratio, ((bbd.SENSOR, bbd.LEVEL),))  # checks the ratio
     root = Path(a.root)
     root.mkdir(parents=True, exist_ok=True)
-    found, t_store = _found(root, u, a.designs_from)
-    held = held_rows(found, u.spp, RENDER_SEEDS, u.held)
-    out = root / ("scenes_checked.json" if a.designs_from else "scenes.json")
+    found, t_store = _found(root, u, a.designs_from, a.only)
+    checked = {**(baselines(root) if a.baselines else {}), **found}
+    held = held_rows(checked, u.spp, RENDER_SEEDS, u.held,
+                     None if u.noise_ratio is None else target)  # fmt: skip
+    tag = "" if u.noise_ratio is None else f"_noise{u.noise_ratio:g}"
+    out = root / (f"scenes_checked{tag}.json" if a.designs_from else f"scenes{tag}.json")
     out.write_text(json.dumps({"found": {k: {**v, "path": str(v["path"])}
                                          for k, v in found.items()}, "held": held},
                               indent=1))  # fmt: skip
-    rows, notes = table(found, held), _notes(found, u, t_store)
+    rows, notes = table(found, held), _notes(found, u, t_store, a.designs_from)
     if a.quick:
         print(rows, notes + " (QUICK smoke sizes)")
         return
     extra = "" if u.store_spp == STORE_SPP else f", stores of {u.store_spp} spp"
     extra += f", still weight {u.still_weight:g}" if u.still_weight else ""
     extra += f", checked on family seeds {u.held[0]}-{u.held[-1]}" if a.check_seeds else ""
+    extra += "" if u.noise_ratio is None else f", renders to {u.noise_ratio:g}x the sensor's noise"
     record(f"Whole-aperture designs: held-out gain against the number of training scenes{extra}",
            rows, notes)  # fmt: skip
 

@@ -42,19 +42,22 @@ def _db(v) -> str:
 
 def score_draws(cap, sensor: str, light_level, seeds, method: str = DEFAULT_METHOD) -> dict:
     """The three PSNRs of ``cap`` restored after each sensor draw in ``seeds``, their squared
-    errors averaged over the draws (dB)."""
+    errors averaged over the draws (dB), and ``render_noise_ratio``: the capture's Monte Carlo
+    sigma over the sensor's noise sigma, both as the deconvolver is told them. Designs compared
+    at unequal ratios are compared in unequal noise."""
     model = SensorModel.from_preset(sensor)
     rec = cap.record
     render = flat_sigma(cap, rec.render_error.mc_sigma_white_units)
+    sigma = flat_sigma(cap, sensor_sigma(rec, model, light_level, clean_level(cap)))
     per = {k: [] for k in SCORES}
     for seed in seeds:
         _, noisy, _ = apply_sensor(cap, model, light_level, seed)
-        sigma = flat_sigma(cap, sensor_sigma(rec, model, light_level, clean_level(cap)))
         est = deconvolve_capture(cap, radiance(cap, noisy), math.hypot(sigma, render), method)
         s = score_capture(est, cap.extra_layers, rec)
         for k in SCORES:
             per[k].append(float(s[k]))
-    return {k: _mean_db(v) for k, v in per.items()}
+    ratio = render / sigma if sigma > 0 else float("nan")
+    return {**{k: _mean_db(v) for k, v in per.items()}, "render_noise_ratio": float(ratio)}
 
 
 def invariant_range(cap) -> float | None:
@@ -91,6 +94,7 @@ def summary(rows: list[dict]) -> list[dict]:
         out.append({"design": name, "n": len(mine),
                     **{k: _mean([r[k] for r in mine]) for k in SCORES},
                     "range_px_per_ms": _mean([r["range_px_per_ms"] for r in mine]),
+                    "render_noise_ratio": _mean([r.get("render_noise_ratio") for r in mine]),
                     "light_rel": float(np.mean([r["light_rel"] for r in mine]))})  # fmt: skip
     return out
 
@@ -126,15 +130,20 @@ def paired(rows: list[dict], score: str = "psnr_moving_db", ref: str = "prototyp
 
 def markdown(rows: list[dict], title: str) -> str:
     """A table of :func:`summary`'s rows (n/a: a PSNR with no pixels, e.g. no still pixel
-    inside the scored columns, or a design with no fitted range)."""
+    inside the scored columns, or a design with no fitted range). Render noise: each capture's
+    Monte Carlo sigma over the sensor's noise (:func:`score_draws`); designs at unequal ratios
+    are compared in unequal noise."""
     lines = [f"## {title}", "",
              "| design | n | moving (dB) | still (dB) | whole (dB) | invariant range (px/ms) "
-             "| light vs prototype |", "|---|---|---|---|---|---|---|"]  # fmt: skip
+             "| light vs prototype | render noise / sensor |",
+             "|---|---|---|---|---|---|---|---|"]  # fmt: skip
     for r in summary(rows):
         rng = "n/a" if r["range_px_per_ms"] is None else f"{r['range_px_per_ms']:.3f}"
+        noise = r.get("render_noise_ratio")
         lines.append(f"| {r['design']} | {r['n']} | {_db(r['psnr_moving_db'])} | "
                      f"{_db(r['psnr_static_db'])} | {_db(r['psnr_db'])} | {rng} | "
-                     f"{r['light_rel']:.2f}x |")  # fmt: skip
+                     f"{r['light_rel']:.2f}x | {'n/a' if noise is None else f'{noise:.2f}'} "
+                     "|")  # fmt: skip
     return "\n".join(lines) + "\n"
 
 
