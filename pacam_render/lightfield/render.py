@@ -258,7 +258,7 @@ def render_lightfield(
         manifest = _manifest(spec, plan, cam, steps, out, scene_digest(desc))
         digests = _render_shards(spec, plan, cam, desc, steps, out, manifest, flag, progress,
                                  stop_after)  # fmt: skip
-        if truth and not (out / "truth.npz").exists():
+        if truth and not _truth_current(out / "truth.npz", desc):
             _render_truth(cap, plan, cam, desc, out)
         remember(key, work, time.perf_counter() - t_start)
         _complete(manifest, spec, out, digests, planned)
@@ -374,6 +374,14 @@ def _records(scene, sensor, window, spp, seed, times, cam, margin, strata) -> di
     rec["x"] += float(window[0] - margin)  # the crop's corner, in px of the enlarged film
     rec["y"] += float(window[1] - margin)
     return rec
+
+
+def _truth_current(path: Path, desc) -> bool:
+    """Whether ``truth.npz`` is there and shows the scene at t = 0 (:data:`TRUTH_POSE_MS`; a
+    moving scene's truth that does not record its pose is rendered again)."""
+    if not path.exists():
+        return False
+    return desc.is_static or load_shard(path)[1].get("pose_ms") == TRUTH_POSE_MS
 
 
 def _render_truth(cap, plan, cam: dict, desc, out: Path) -> None:

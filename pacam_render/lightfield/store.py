@@ -503,8 +503,9 @@ class Store:
             raise ParameterError(
                 f"{path}: this moving scene's truth layers do not record their pose: stores "
                 "written before it was recorded show the last step's pose, not t = 0 (a bug), "
-                "and scores against them are wrong. Delete truth.npz and run the same `pacam "
-                "lightfield` command again: it renders the truth layers only, keeping the samples"
+                "and scores against them are wrong. Run the command that rendered the store "
+                "again (pacam lightfield, or the dataset's): it renders the truth layers again "
+                "and keeps the samples"
             )
         return records, meta.get("objects"), meta.get("sharp_mc_sigma")
 
