@@ -127,7 +127,7 @@ def held_rows(found: dict, spp: int, rseeds: int, seeds, target=None) -> list[di
 
 
 def table(found: dict, held: list[dict]) -> list[dict]:
-    moving, still = paired(held), paired(held, "psnr_static_db")
+    moving, still, whole = paired(held), paired(held, "psnr_static_db"), paired(held, "psnr_db")
     ci = lambda d: "-" if d is None else f"{d[0]:+.2f} [{d[1]:+.2f}, {d[2]:+.2f}] n={d[3]}"  # noqa: E731
     rows = []
     for r in summary(held):
@@ -141,6 +141,7 @@ def table(found: dict, held: list[dict]) -> list[dict]:
             "held moving (dB)": f"{r['psnr_moving_db']:.2f}",
             "moving vs prototype (95 %)": ci(moving.get(r["design"])),
             "still vs prototype (95 %)": ci(still.get(r["design"])),
+            "whole vs prototype (95 %)": ci(whole.get(r["design"])),
             "search s": f"{f['seconds']:.0f}" if "seconds" in f else "n/a",
         })  # fmt: skip
     return rows
