@@ -229,10 +229,11 @@ def test_paired_intervals_count_scenes_not_their_render_seeds():
 
 def test_each_row_states_its_render_noise_as_a_share_of_the_sensors():
     """A report row's ``render_noise_ratio`` is the capture's Monte Carlo sigma over the
-    sensor's: it falls as 1/sqrt(spp) (4x the samples, half the ratio; from 64 spp up, where the plan takes the spp asked), and a capture rendered
-    to a noise target (:class:`SensorTarget`) reports a ratio within it. Designs compared at
-    unequal ratios are compared in unequal noise (issue 58: a bitmap keeps 2-3x the
-    prototype's render noise at one spp)."""
+    sensor's: it falls as 1/sqrt(spp) (4x the samples, half the ratio; from 64 spp up, where
+    the plan takes the spp asked), and a capture rendered to a noise target
+    (:class:`SensorTarget`) reports a ratio within it. Designs compared at unequal ratios are
+    compared in unequal noise (issue 58: a bitmap keeps 2-3x the prototype's render noise at
+    one spp)."""
     import warnings
 
     from pacam_render.exposure.direct import render_capture
