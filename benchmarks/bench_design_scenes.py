@@ -320,6 +320,7 @@ def main() -> None:
     extra += f", still weight {u.still_weight:g}" if u.still_weight else ""
     extra += f", checked on family seeds {u.held[0]}-{u.held[-1]}" if a.check_seeds else ""
     extra += "" if u.noise_ratio is None else f", renders to {u.noise_ratio:g}x the sensor's noise"
+    extra += ", with the root's centres and Fourier-model designs" if a.baselines else ""
     record(f"Whole-aperture designs: held-out gain against the number of training scenes{extra}",
            rows, notes)  # fmt: skip
 

@@ -227,6 +227,7 @@ def test_paired_intervals_count_scenes_not_their_render_seeds():
     assert flat[3] == 12 and flat[2] - flat[1] < 0.8 * (hi - lo)
 
 
+@pytest.mark.render
 def test_each_row_states_its_render_noise_as_a_share_of_the_sensors():
     """A report row's ``render_noise_ratio`` is the capture's Monte Carlo sigma over the
     sensor's: it falls as 1/sqrt(spp) (4x the samples, half the ratio; from 64 spp up, where
