@@ -298,9 +298,16 @@ def main() -> None:
                     HELD_SEEDS, a.still_weight))  # fmt: skip
     if a.check_seeds:
         u = replace(u, held=tuple(a.check_seeds))
+    if a.only and not a.designs_from:
+        ap.error("--only picks among --designs-from's designs; give --designs-from too")
     if a.noise_ratio is not None:
+        if not 0 < a.noise_ratio < float("inf"):
+            ap.error(
+                f"--noise-ratio must be finite and > 0 (a share of the sensor's noise), "
+                f"got {a.noise_ratio}"
+            )
         u = replace(u, noise_ratio=a.noise_ratio)
-        target = SensorTarget(a.noise_ratio, ((bbd.SENSOR, bbd.LEVEL),))  # checks the ratio
+        target = SensorTarget(a.noise_ratio, ((bbd.SENSOR, bbd.LEVEL),))
     root = Path(a.root)
     root.mkdir(parents=True, exist_ok=True)
     found, t_store = _found(root, u, a.designs_from, a.only)
