@@ -49,6 +49,7 @@ from common import record  # noqa: E402
 from pacam_render.exposure.direct import render_capture  # noqa: E402
 from pacam_render.model.design_file import write_design  # noqa: E402
 from pacam_render.optimize.cell_design import design_spec  # noqa: E402
+from pacam_render.optimize.cell_objective import AGGREGATES, WORST_SOFTNESS_DB  # noqa: E402
 from pacam_render.optimize.cell_report import design_row, paired, summary  # noqa: E402
 from pacam_render.optimize.cell_run import (  # noqa: E402
     BitmapProblem,
@@ -77,14 +78,14 @@ STORE_SPP = 256
 
 
 def search(root: Path, folders, cells: int, starts: int, iterations: int,
-           still_weight: float = 0.0) -> dict:  # fmt: skip
+           still_weight: float = 0.0, aggregate: str = "mean") -> dict:  # fmt: skip
     """One bitmap search on ``folders``: its best candidate on the unread passes written as a
     design file, its gain there over the store's design, what the choice kept, seconds."""
     t0 = time.perf_counter()
     p = BitmapProblem(tuple(folders), bbd.SENSOR, bbd.LEVEL, cells, "fixed", starts,
                       iterations, noise_draws=2,
                       objective="moving+still" if still_weight else "moving",
-                      still_weight=still_weight or None)  # fmt: skip
+                      still_weight=still_weight or None, aggregate=aggregate)  # fmt: skip
     opened = check_bitmap_problem(p)
     prepared = prepare_bitmap(p, opened)
     f = chosen_design(p, prepared, opened, found_design(p, prepared))
@@ -92,7 +93,8 @@ def search(root: Path, folders, cells: int, starts: int, iterations: int,
     noise = [store_noise(t, model, bbd.LEVEL, bbd.SENSOR)[0] for t in prepared["templates"]]
     scores = f["choice"]["scores"]
     best = max((k for k in scores if k != PROTOTYPE), key=lambda k: scores[k]["value_db"])
-    path = root / f"bitmap_n{len(folders)}_g{cells}{'_still' if still_weight else ''}.toml"
+    tags = ("_still" if still_weight else "") + ("_worst" if aggregate == "worst" else "")
+    path = root / f"bitmap_n{len(folders)}_g{cells}{tags}.toml"
     write_design(path, f["candidates"][best], True)
     out = {"path": path, "best": best, "chosen": f["choice"]["chosen"],
            "train_gain_db": scores[best]["value_db"] - scores[PROTOTYPE]["value_db"],
@@ -160,14 +162,19 @@ class Setup:
     held: tuple
     still_weight: float = 0.0
     noise_ratio: float | None = None
+    aggregate: str = "mean"
 
     @property
     def objective(self) -> str:
-        return (
+        what = (
             "moving objects' PSNR"
             if not self.still_weight
             else f"(moving + {self.still_weight:g} still) / {1 + self.still_weight:g} in dB"
         )
+        if self.aggregate == "worst":
+            return (f"{what}, pooled over the stores as the soft minimum (tau "
+                    f"{WORST_SOFTNESS_DB:g} dB) of the gains over the prototype")  # fmt: skip
+        return f"{what}, mean over the stores"
 
 
 def _found(root: Path, u: Setup, designs_from: list | None, only: list | None):
@@ -189,7 +196,9 @@ def _found(root: Path, u: Setup, designs_from: list | None, only: list | None):
     for n in u.counts:
         for g in u.grids:
             name = f"bitmap {g}x{g}, {n} scenes" + (", moving+still" if u.still_weight else "")
-            found[name] = search(root, folders[:n], g, u.starts, u.iters, u.still_weight)
+            name += ", worst case" if u.aggregate == "worst" else ""
+            found[name] = search(root, folders[:n], g, u.starts, u.iters, u.still_weight,
+                                 u.aggregate)  # fmt: skip
             print(f"{name}: {found[name]}", flush=True)
     return found, t_store
 
@@ -291,6 +300,11 @@ def main() -> None:
         action="store_true",
         help="check the root's best centres and Fourier-model designs too",
     )
+    ap.add_argument(
+        "--aggregate",
+        default="mean",
+        help=f"how a search pools the stores: {' or '.join(AGGREGATES)} (pacam optimize's)",
+    )
     a = ap.parse_args()  # fmt: skip
     warnings.simplefilter("ignore")  # the family's off-depth notes, once per capture
     u = (Setup((2, 3), (8,), 2, 3, 16, 16, HELD_SEEDS[:12], a.still_weight) if a.quick
@@ -298,6 +312,9 @@ def main() -> None:
                     HELD_SEEDS, a.still_weight))  # fmt: skip
     if a.check_seeds:
         u = replace(u, held=tuple(a.check_seeds))
+    if a.aggregate not in AGGREGATES:
+        ap.error(f"--aggregate must be one of {', '.join(AGGREGATES)}, got {a.aggregate!r}")
+    u = replace(u, aggregate=a.aggregate)
     if a.only and not a.designs_from:
         ap.error("--only picks among --designs-from's designs; give --designs-from too")
     if a.noise_ratio is not None:
@@ -315,6 +332,7 @@ def main() -> None:
     held = held_rows(checked, u.spp, RENDER_SEEDS, u.held,
                      None if u.noise_ratio is None else target)  # fmt: skip
     tag = "" if u.noise_ratio is None else f"_noise{u.noise_ratio:g}"
+    tag += "_worst" if u.aggregate == "worst" else ""
     out = root / (f"scenes_checked{tag}.json" if a.designs_from else f"scenes{tag}.json")
     out.write_text(json.dumps({"found": {k: {**v, "path": str(v["path"])}
                                          for k, v in found.items()}, "held": held},
@@ -325,6 +343,7 @@ def main() -> None:
         return
     extra = "" if u.store_spp == STORE_SPP else f", stores of {u.store_spp} spp"
     extra += f", still weight {u.still_weight:g}" if u.still_weight else ""
+    extra += ", worst-case aggregate" if u.aggregate == "worst" else ""
     extra += f", checked on family seeds {u.held[0]}-{u.held[-1]}" if a.check_seeds else ""
     extra += "" if u.noise_ratio is None else f", renders to {u.noise_ratio:g}x the sensor's noise"
     extra += ", with the root's centres and Fourier-model designs" if a.baselines else ""

@@ -99,6 +99,7 @@ FLAGS = {
     "light": "--light",
     "objective": "--objective",
     "still_weight": "--still-weight",
+    "aggregate": "--aggregate",
     "held_out": "--held-out",
     "max_still_loss_db": "--max-still-loss",
     "held_passes": "--held-passes",

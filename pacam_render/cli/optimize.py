@@ -11,6 +11,7 @@ from ..lightfield.cell_basis import DEFAULT_CELLS
 from ..limits import PacamWarning
 from ..model.camera import preset
 from ..model.design_file import resolve_design
+from ..optimize.cell_objective import AGGREGATES, WORST_SOFTNESS_DB
 from ..optimize.cell_run import (
     ITERATIONS,
     MAX_LEVELS,
@@ -41,7 +42,7 @@ FOURIER_ONLY = ("depth_range", "n_patterns", "free_radius", "f_number", "r_px", 
 """Flags of the Fourier objective that a search on stores does not take (its camera is the
 stores')."""
 CELLS_FLAGS = ("cells", "light", "starts", "iterations", "objective", "still_weight", "held_out",
-               "max_still_loss", "held_passes")  # fmt: skip
+               "max_still_loss", "held_passes", "aggregate")  # fmt: skip
 SPACE_FLAGS = {"centres": ("positions", "sweeps", "check_seeds"),
                "bitmap": CELLS_FLAGS + ("levels",),
                "discs": CELLS_FLAGS + ("lcos_switching",)}  # fmt: skip
@@ -176,6 +177,13 @@ def _add_bitmap(p) -> None:
         help="with --objective moving+still: the still PSNR's weight w in (moving + w still) "
         f"/ (1 + w), > 0 (default {STILL_WEIGHT:g})",
     )
+    p.add_argument(
+        "--aggregate",
+        metavar="HOW",
+        help=f"with --space bitmap or discs: how the score is pooled over the training stores: "
+        f"{' or '.join(AGGREGATES)} (their mean, default; or the soft minimum, tau "
+        f"{WORST_SOFTNESS_DB:g} dB, of each store's gain over the store's own design)",
+    )
 
 
 def _add_held_out(p) -> None:
@@ -243,7 +251,7 @@ def run(args: argparse.Namespace) -> int:
     if args.lightfield:
         return _run_lightfield(args)
     for name in ("cells", "light", "levels", "positions", "sweeps", "check_seeds", "objective",
-                 "still_weight"):  # fmt: skip
+                 "still_weight", "aggregate"):  # fmt: skip
         if getattr(args, name) is not None:
             raise ParameterError(f"--{name.replace('_', '-')}: only a search with --lightfield "
                                  "takes it")  # fmt: skip
@@ -389,7 +397,7 @@ def _run_bitmap(args: argparse.Namespace, level: float) -> int:
         objective=_or(args.objective, "moving"), still_weight=args.still_weight,
         space=args.space, held_out=tuple(args.held_out or ()),
         max_still_loss_db=args.max_still_loss, held_passes=args.held_passes,
-        lcos_switching_ms=args.lcos_switching,
+        lcos_switching_ms=args.lcos_switching, aggregate=_or(args.aggregate, "mean"),
     )  # fmt: skip
     check_bitmap_problem(problem)  # refused before any output
     out = prepare_out_dir(args.out, args.force)

@@ -24,7 +24,9 @@ w = (1 - 1/C) A + 1/C with an LCoS of contrast C, else A), everything is closed 
                                                columns, unshifted: as score_capture's still)
 
 and the score is P = -10 log10(E / |M|) (dB, white = 1), or with a still weight w > 0 the
-weighted mean (P + w P_s) / (1 + w), P_s = -10 log10(E_s / |N|); the mean over the stores.
+weighted mean (P + w P_s) / (1 + w), P_s = -10 log10(E_s / |N|); pooled over the stores by
+their mean, or by the soft minimum of their gains over their own design
+(:func:`pooled_objectives`).
 The weighted mean is taken in dB, not in squared error: -10 log10 (E E_s^w) / (1 + w) counts a
 relative change of either error alike (a design cannot ignore the still pixels because their
 error is smaller, nor the moving objects because they are fewer pixels), and w = 1 weighs one
@@ -38,7 +40,7 @@ padded window); designs are finally scored by the scorer itself.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -53,6 +55,13 @@ from ..restore.object_score import moving_shapes
 from ..sensor.apply import clean_level
 from ..sensor.model import SensorModel
 
+AGGREGATES = ("mean", "worst")
+"""How a score is pooled over the training stores (:func:`pooled_objectives`): the mean, or
+the soft minimum of each store's gain over its own design."""
+WORST_SOFTNESS_DB = 0.5
+"""tau of the "worst" aggregate's soft minimum (dB): gains that differ by several tau count
+as the smallest alone; within tau they share the gradient (a hard minimum would hop between
+stores from step to step)."""
 SHIFT_PX = 3
 """The restored image is compared with ``sharp`` at the best integer shift along x within
 +-SHIFT_PX (the kernel's origin is the pinhole's; a moving object's restoration is offset)."""
@@ -77,6 +86,8 @@ class CellProblem:
     contrast: float | None
     cells_ij: np.ndarray
     cells: int
+    base_code: np.ndarray | None = None  # (n, G, G) the store's design (the "worst" gains')
+    base_db: dict = field(default_factory=dict)  # still weight -> its objective (dB)
 
 
 def _areas(basis) -> np.ndarray:
@@ -163,7 +174,8 @@ def cell_problem(basis, template, plan, base_code, sensor: str, light_level: flo
     render = flat_sigma(template, rec.render_error.mc_sigma_white_units) ** 2
     B = np.asarray(basis.images, dtype)
     p = CellProblem(B, dt[:, None] * area[None], dt, Qhat, area, None, sharp, mask, still,
-                    pad, noise, render, basis.contrast, basis.cells_ij, basis.cells)  # fmt: skip
+                    pad, noise, render, basis.contrast, basis.cells_ij, basis.cells,
+                    np.asarray(base_code, float))  # fmt: skip
     u = np.asarray(base_code, float)[:, basis.cells_ij[:, 0], basis.cells_ij[:, 1]].T @ dt
     p.S = _prior(p, template, rec.light_factor, u)
     return p
@@ -352,18 +364,66 @@ def _backward(p: CellProblem, w: np.ndarray, f: dict) -> np.ndarray:
     return g_y, g_L * p.lam + p.dt[:, None] * g_u[None, :]
 
 
-def mean_objective(problems, code, grad: bool = True, still_weight: float = 0.0):
-    """The mean over the stores of :func:`objective` (dB) and its gradient."""
-    vals, grads = mean_objectives(problems, np.asarray(code, float)[None], grad, still_weight)
+def pooled_objective(problems, code, grad: bool = True, still_weight: float = 0.0,
+                     aggregate: str = "mean"):  # fmt: skip
+    """:func:`pooled_objectives` of one code: its value (dB) and gradient."""
+    vals, grads = pooled_objectives(problems, np.asarray(code, float)[None], grad, still_weight,
+                                    aggregate)  # fmt: skip
     return float(vals[0]), None if grads is None else grads[0]
 
 
-def mean_objectives(problems, codes, grad: bool = True, still_weight: float = 0.0):
-    """The mean over the stores of :func:`objectives` of S codes: values (S,) and gradients
-    (S, n, G, G) or None."""
+def pooled_objectives(problems, codes, grad: bool = True, still_weight: float = 0.0,
+                      aggregate: str = "mean"):  # fmt: skip
+    """:func:`objectives` of S codes pooled over the stores: values (S,) and gradients
+    (S, n, G, G) or None.
+
+    ``aggregate`` "mean": the mean over the stores. "worst": the soft minimum over the stores
+    of each one's gain over its base design (the code :func:`cell_problem` was given, the
+    store's own), g_i = P_i - b_i, at softness tau = :data:`WORST_SOFTNESS_DB`:
+
+        value = mean_i b_i - tau log mean_i exp(-g_i / tau)
+
+    between mean_i b_i + min_i g_i and the mean objective, equal to it where every store
+    gains alike; its gradient weighs store i's by softmax(-g / tau)_i. Gains, not PSNRs: a
+    scene that is hard for every camera (fine texture, low light) does not take the search.
+    """
+    check_aggregate(aggregate)
     got = [objectives(p, codes, grad, still_weight) for p in problems]
-    vals = np.mean([v for v, _ in got], axis=0)
-    return vals, None if not grad else sum(g for _, g in got) / len(got)
+    V = np.stack([v for v, _ in got])  # (stores, S)
+    if aggregate == "mean":
+        pi = np.full(V.shape, 1.0 / len(problems))
+        vals = V.mean(axis=0)
+    else:
+        b = np.array([base_value(p, still_weight) for p in problems])
+        soft, pi = soft_minimum(V - b[:, None])
+        vals = b.mean() + soft
+    if not grad:
+        return vals, None
+    return vals, sum(w[:, None, None, None] * g for w, (_, g) in zip(pi, got))
+
+
+def soft_minimum(gains) -> tuple[np.ndarray, np.ndarray]:
+    """-tau log mean_i exp(-g_i / tau) over axis 0 of ``gains`` (tau = :data:`WORST_SOFTNESS_DB`)
+    and its weights d/dg_i = softmax(-g / tau)_i (they sum to 1), overflow-safe."""
+    z = -np.asarray(gains, float) / WORST_SOFTNESS_DB
+    m = z.max(axis=0)
+    e = np.exp(z - m)
+    return -WORST_SOFTNESS_DB * (m + np.log(e.mean(axis=0))), e / e.sum(axis=0)
+
+
+def base_value(p: CellProblem, still_weight: float) -> float:
+    """The store's base design's :func:`objective` (dB) at ``still_weight``, kept once."""
+    key = float(still_weight)
+    if key not in p.base_db:
+        p.base_db[key] = float(objectives(p, p.base_code[None], False, key)[0][0])
+    return p.base_db[key]
+
+
+def check_aggregate(aggregate: str) -> str:
+    """``aggregate`` one of :data:`AGGREGATES`."""
+    if aggregate not in AGGREGATES:
+        raise ParameterError(f"`aggregate`: one of {', '.join(AGGREGATES)}, got {aggregate!r}")
+    return aggregate
 
 
 def parts(problems, code) -> tuple[float, float]:

@@ -5,8 +5,9 @@ bitmap (:mod:`.cell_search`), or one disc per pattern window moving in 2-D with 
 store's synthesis of the store's own design (the prototype) and of the found one, and on
 held-out stores (scenes the search never saw) with paired 95 % intervals.
 
-The objective is the mean over the stores of the model's moving-object PSNR, or with
-``objective="moving+still"`` its weighted mean in dB with the still pixels' PSNR
+The objective is the model's moving-object PSNR, or with ``objective="moving+still"`` its
+weighted mean in dB with the still pixels' PSNR, pooled over the stores by ``aggregate``: their
+mean, or ("worst") the soft minimum of each store's gain over the store's own design
 (:mod:`.cell_objective`); the starts are the store's design rasterised on the cells and
 ``starts - 1`` random binary codes (as open as the prototype, drawn from ``seed``). With
 ``light="fixed"`` every code keeps the light factor of the store's design's capture (its disc,
@@ -37,7 +38,7 @@ from ..limits import available_bytes, gib, note
 from ..model.design_file import write_design
 from ..sensor.model import SensorModel
 from .cell_design import bitmap_design, disc_code
-from .cell_objective import cell_problem
+from .cell_objective import cell_problem, check_aggregate
 from .cell_report import SCORES, paired, write_patterns, write_report
 from .cell_search import LIGHT_CHOICES, gradient_search, light_of
 from .cell_select import PROTOTYPE, choose, score_rows, split_passes
@@ -85,6 +86,7 @@ class BitmapProblem:
     max_still_loss_db: float | None = None
     held_passes: int | None = None
     lcos_switching_ms: float | None = None
+    aggregate: str = "mean"
 
     @property
     def weight(self) -> float:
@@ -115,6 +117,7 @@ def check_bitmap_problem(p: BitmapProblem):
     if p.light not in LIGHT_CHOICES:
         raise ParameterError(f"`light`: one of {', '.join(LIGHT_CHOICES)}, got {p.light!r}")
     check_objective(p.objective, p.still_weight)
+    check_aggregate(p.aggregate)
     every = open_stores(RenderedProblem(tuple(p.stores) + tuple(p.held_out), p.sensor,
                                         p.light_level, noise_draws=p.noise_draws, seed=p.seed,
                                         check_seeds=0))  # fmt: skip
@@ -205,7 +208,8 @@ def search_bitmap(p: BitmapProblem, prepared: dict):
         starts[f"random {i}"] = (rng.random(base.shape) < share).astype(float)
     reference = prepared["templates"][0].record.light_factor  # the disc's, not rasterised
     return gradient_search(problems, starts, p.iterations, levels=p.levels, light=p.light,
-                           reference=reference, still_weight=p.weight)  # fmt: skip
+                           reference=reference, still_weight=p.weight,
+                           aggregate=p.aggregate)  # fmt: skip
 
 
 def search_discs(p: BitmapProblem, prepared: dict):
@@ -223,7 +227,8 @@ def search_discs(p: BitmapProblem, prepared: dict):
     starts = {"prototype": base}
     for i in range(1, p.starts):
         starts[f"random {i}"] = random_discs(rng, base, grid)
-    return disc_search(prepared["problems"], starts, grid, p.iterations, p.light, p.weight)
+    return disc_search(prepared["problems"], starts, grid, p.iterations, p.light, p.weight,
+                       p.aggregate)  # fmt: skip
 
 
 def found_design(p: BitmapProblem, prepared: dict) -> dict:

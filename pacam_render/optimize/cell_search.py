@@ -1,6 +1,7 @@
 """Gradient search over cell codes (:mod:`.cell_objective`): a binary LCoS code relaxed to
-[0, 1], climbed with Adam on the mean expected moving-object PSNR over the training stores
-(or its weighted mean with the still pixels', ``still_weight``), then projected to the
+[0, 1], climbed with Adam on the expected moving-object PSNR pooled over the training stores
+(their mean, or the soft minimum of their gains, ``aggregate``; or its weighted mean with the
+still pixels', ``still_weight``), then projected to the
 LCoS's levels.
 
 ``light="free"``: the code is A = 1 / (1 + exp(-theta)), Adam in the logits theta; the total
@@ -24,7 +25,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import ParameterError
-from .cell_objective import check_still_weight, mean_objective, mean_objectives
+from .cell_objective import (
+    check_aggregate,
+    check_still_weight,
+    pooled_objective,
+    pooled_objectives,
+)
 
 LOGIT_CLIP = 4.0
 """A start's logits: a code's 0 and 1 become -4 and +4 (A = 0.018, 0.982), so that a
@@ -142,7 +148,7 @@ def _target(problem, reference) -> float:
     return light_of(problem, reference)
 
 
-def _climb(problems, codes, iterations, step, t0, target, still_weight):
+def _climb(problems, codes, iterations, step, t0, target, still_weight, aggregate):
     """All starts climbed together: the relaxed codes (free light: Adam in logits; fixed:
     projected Adam in the code) and each start's curve."""
     c = np.clip(np.asarray(codes, float), 0.0, 1.0)
@@ -152,7 +158,7 @@ def _climb(problems, codes, iterations, step, t0, target, still_weight):
             return np.stack([project_light(x, problems[0], target) for x in a])
 
         def value_grad(a):
-            return mean_objectives(problems, a, True, still_weight)
+            return pooled_objectives(problems, a, True, still_weight, aggregate)
 
         return adam_lockstep(fixed(c), value_grad, fixed, iterations, step, t0)
     theta = np.where(c >= 0.5, LOGIT_CLIP, -LOGIT_CLIP)  # a binary start
@@ -162,7 +168,7 @@ def _climb(problems, codes, iterations, step, t0, target, still_weight):
 
     def value_grad_logits(t):
         a = 1.0 / (1.0 + np.exp(-t))
-        val, g = mean_objectives(problems, a, True, still_weight)
+        val, g = pooled_objectives(problems, a, True, still_weight, aggregate)
         return val, g * a * (1.0 - a)  # d A / d theta
 
     theta, curves = adam_lockstep(theta, value_grad_logits, lambda t: t, iterations, step, t0)
@@ -180,7 +186,7 @@ def flatten_curves(curves) -> list:
 
 def gradient_search(problems, starts: dict, iterations: int = 200, step: float | None = None,
                     levels: int = 2, light: str = "free", reference=None,
-                    still_weight: float = 0.0) -> CellSearch:  # fmt: skip
+                    still_weight: float = 0.0, aggregate: str = "mean") -> CellSearch:  # fmt: skip
     """Climb from each named start code (n, G, G) in [0, 1]; keep the best projected code.
 
     Parameters
@@ -205,6 +211,8 @@ def gradient_search(problems, starts: dict, iterations: int = 200, step: float |
     still_weight : float
         0: the moving objects' PSNR alone; w > 0: the weighted mean (P + w P_s) / (1 + w) with
         the still pixels' (:func:`~.cell_objective.objective`).
+    aggregate : {"mean", "worst"}
+        How the stores' scores are pooled (:func:`~.cell_objective.pooled_objectives`).
 
     Returns
     -------
@@ -218,6 +226,7 @@ def gradient_search(problems, starts: dict, iterations: int = 200, step: float |
         raise ParameterError("reference: fixed light needs the code whose light it keeps")
     _check_levels(levels)
     sw = check_still_weight(problems, still_weight)
+    check_aggregate(aggregate)
     if not starts:
         raise ParameterError("starts: at least one start code")
     target = None if light == "free" else _target(problems[0], reference)
@@ -226,14 +235,14 @@ def gradient_search(problems, starts: dict, iterations: int = 200, step: float |
     t0 = time.perf_counter()
     names = list(starts)
     relaxed, curves = _climb(problems, np.stack([starts[n] for n in names]), int(iterations),
-                             step, t0, target, sw)  # fmt: skip
+                             step, t0, target, sw, aggregate)  # fmt: skip
     for name, r in zip(names, relaxed):
         proj = project(r, levels) if target is None else project_levels(
             r, problems[0], target, levels)  # fmt: skip
         if not proj.any():
             continue
-        r_db = mean_objective(problems, r, False, sw)[0]
-        p_db = mean_objective(problems, proj, False, sw)[0]
+        r_db = pooled_objective(problems, r, False, sw, aggregate)[0]
+        p_db = pooled_objective(problems, proj, False, sw, aggregate)[0]
         out.append((name, r_db, p_db))
         codes[name] = proj
         if best is None or p_db > best[0]:

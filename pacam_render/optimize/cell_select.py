@@ -7,8 +7,9 @@ out the scorer's per-object shifts, the per-capture prior fit and drawn noise. S
 is the real pipeline's, on the training stores only (the held-out stay unseen), and on passes
 the search did not read where the stores have enough (a search fits its samples' Monte Carlo
 noise: 0.6 of a bitmap's 2.3 dB on its own samples, ``bench_bitmap_design.py``): the score is the
-same aggregate the search climbs (the moving objects' PSNR, mean over the stores, or its
-weighted mean in dB with the still regions'), and with ``max_still_loss_db`` a candidate whose
+same aggregate the search climbs (the moving objects' PSNR, or its weighted mean in dB with
+the still regions', pooled over the stores as the search pools it: their mean, or the soft
+minimum of the gains over the store's design), and with ``max_still_loss_db`` a candidate whose
 still regions lose more than that against the store's design (mean over the stores that show
 still pixels) is not eligible. Where no candidate beats the store's design, it is kept: a
 search never hands back a design worse than its start on what it was trained on."""
@@ -25,6 +26,7 @@ from ..errors import ParameterError
 from ..lightfield.synthesis import synthesize
 from ..model.design_file import write_design
 from .cell_design import design_spec
+from .cell_objective import soft_minimum
 from .cell_report import design_row
 
 PROTOTYPE = "prototype"
@@ -66,6 +68,24 @@ def aggregate(rows: list[dict], still_weight: float) -> tuple[float, float | Non
     return moving, still, (moving + still_weight * still) / (1.0 + still_weight)
 
 
+def worst_value(rows: list[dict], name: str, still_weight: float) -> float:
+    """The "worst" aggregate of design ``name``'s rows, as the search pools its model
+    (:func:`~.cell_objective.pooled_objectives`): the store's design's mean score plus the
+    soft minimum over the stores of ``name``'s gain over it there (stores that score a moving
+    object)."""
+
+    def per_store(design):
+        return {r["where"]: aggregate([r], still_weight)[2] for r in rows
+                if r["design"] == design and r["psnr_moving_db"] is not None}  # fmt: skip
+
+    ref, got = per_store(PROTOTYPE), per_store(name)
+    where = [w for w in ref if w in got]
+    if not where:
+        return -math.inf
+    gains = np.array([got[w] - ref[w] for w in where])
+    return float(np.mean([ref[w] for w in where]) + soft_minimum(gains)[0])
+
+
 def choose(candidates: dict, stores, specs, templates, p, passes=None) -> dict:
     """Score each candidate (name to its CameraDesign) and the store's design on the training
     stores with the real pipeline and choose.
@@ -96,7 +116,7 @@ def choose(candidates: dict, stores, specs, templates, p, passes=None) -> dict:
             paths[name] = Path(tmp) / f"candidate_{i}.toml"
             write_design(paths[name], design, force=True)
         rows = score_rows(p, p.stores, stores, specs, templates, paths, passes)
-    return _pick(rows, [PROTOTYPE, *candidates], p.weight, p.max_still_loss_db)
+    return _pick(rows, [PROTOTYPE, *candidates], p.weight, p.max_still_loss_db, p.aggregate)
 
 
 def score_rows(p, folders, stores, specs, templates, paths: dict, passes=None) -> list[dict]:
@@ -112,11 +132,15 @@ def score_rows(p, folders, stores, specs, templates, paths: dict, passes=None) -
     return rows
 
 
-def _pick(rows: list[dict], names: list[str], weight: float, max_loss: float | None) -> dict:
-    """The eligible design of the best score; the store's design where none beats it."""
+def _pick(rows: list[dict], names: list[str], weight: float, max_loss: float | None,
+          pool: str = "mean") -> dict:  # fmt: skip
+    """The eligible design of the best score (pooled over the stores as the search pooled it,
+    ``pool``); the store's design where none beats it."""
     scores = {}
     for name in names:
         moving, still, value = aggregate([r for r in rows if r["design"] == name], weight)
+        if pool == "worst":
+            value = worst_value(rows, name, weight)
         scores[name] = {"moving_db": moving, "still_db": still, "value_db": value}
     ref = scores[PROTOTYPE]
     for s in scores.values():

@@ -7,15 +7,19 @@ from __future__ import annotations
 import math
 
 from ..lightfield.synthesis import RENDER_NOISE_SHARE
+from .cell_objective import WORST_SOFTNESS_DB
 from .cell_report import SCORES, markdown
 from .cell_select import MIN_SIDE_PASSES, PROTOTYPE
 
 
 def _what(p) -> str:
-    """The objective in words."""
-    if p.objective == "moving":
-        return "moving objects' PSNR"
-    return f"(moving PSNR + {p.weight:g} still PSNR) / {1 + p.weight:g}"
+    """The objective in words, with how it is pooled over the stores."""
+    what = ("moving objects' PSNR" if p.objective == "moving"
+            else f"(moving PSNR + {p.weight:g} still PSNR) / {1 + p.weight:g}")  # fmt: skip
+    if getattr(p, "aggregate", "mean") == "worst":
+        return (f"{what}: the prototype's mean over the stores plus the soft minimum "
+                f"(tau {WORST_SOFTNESS_DB:g} dB) of each store's gain over it")  # fmt: skip
+    return f"{what}, mean over the stores"
 
 
 def _starts(p, m: dict) -> str:
@@ -44,8 +48,9 @@ def _choice_text(p, doc: dict) -> str:
              "the training stores' own samples, which the search read: it may have fitted their "
              f"Monte Carlo noise (give stores of at least {2 * MIN_SIDE_PASSES} passes to "
              "choose on others)")  # fmt: skip
-    line = (f"Chosen with the real pipeline on {where} (the search's score, mean over the "
-            f"stores{rule}): ")  # fmt: skip
+    pooled = ("soft minimum of the gains over the prototype" if getattr(p, "aggregate", "mean")
+              == "worst" else "mean over the stores")  # fmt: skip
+    line = f"Chosen with the real pipeline on {where} (the search's score, {pooled}{rule}): "
     line += "; ".join(f"{k} {v['value_db']:.2f} dB" + ("" if v["eligible"] else " (not eligible)")
                       for k, v in sc.items())  # fmt: skip
     if c["chosen"] == PROTOTYPE:
@@ -96,7 +101,7 @@ def report_text(p, doc: dict) -> str:
     return "\n".join([
         f"# pacam optimize --lightfield --space {p.space} ({p.cells}x{p.cells} cells, light "
         f"{p.light})", "",
-        f"Model objective (mean over {len(p.stores)} store(s), {_what(p)}): found "
+        f"Model objective ({len(p.stores)} store(s), {_what(p)}): found "
         f"{m['found']:.2f} dB; {doc['evaluations']} evaluations in {doc['search_s']:.1f} s "
         f"after {doc['setup_s']:.1f} s of setup. " + _starts(p, m), "",
         markdown(doc["train"], "Scored with the real pipeline on the stores' syntheses"),

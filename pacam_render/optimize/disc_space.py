@@ -28,7 +28,12 @@ import numpy as np
 from ..errors import ParameterError
 from ..model.camera import MIN_OPENING_LCOS_PX
 from .cell_design import cell_centres_mm
-from .cell_objective import check_still_weight, mean_objective, mean_objectives
+from .cell_objective import (
+    check_aggregate,
+    check_still_weight,
+    pooled_objective,
+    pooled_objectives,
+)
 from .cell_search import adam_lockstep, flatten_curves
 
 STEP_CELLS = 0.1
@@ -99,11 +104,12 @@ def project_inside(d: Discs, grid: DiscGrid, free_radius: bool) -> Discs:
 
 
 def disc_objective(problems, d: Discs, grid: DiscGrid, grad: bool = True,
-                   still_weight: float = 0.0):  # fmt: skip
-    """The mean objective (dB) over the stores of the discs' soft code, and its gradient in
-    (centres, R) when ``grad``."""
+                   still_weight: float = 0.0, aggregate: str = "mean"):  # fmt: skip
+    """The objective (dB) of the discs' soft code pooled over the stores
+    (:func:`~.cell_objective.pooled_objectives`), and its gradient in (centres, R) when
+    ``grad``."""
     code, cache = soft_code(d, grid)
-    val, g = mean_objective(problems, code, grad, still_weight)
+    val, g = pooled_objective(problems, code, grad, still_weight, aggregate)
     return val, (None if g is None else code_vjp(g, cache, grid))
 
 
@@ -132,7 +138,7 @@ def random_discs(rng, base: Discs, grid: DiscGrid) -> Discs:
 
 
 def _climb(problems, starts: list, grid: DiscGrid, iterations: int, free: bool, t0: float,
-           still_weight: float):  # fmt: skip
+           still_weight: float, aggregate: str):  # fmt: skip
     """All starts' projected Adam ascent in (centres, R) together (one evaluation of every
     start's soft code per step, :func:`~.cell_search.adam_lockstep`): the climbed discs and
     each start's curve."""
@@ -144,7 +150,7 @@ def _climb(problems, starts: list, grid: DiscGrid, iterations: int, free: bool, 
 
     def value_grad(xs):
         codes, caches = zip(*(soft_code(discs(x), grid) for x in xs))
-        vals, g = mean_objectives(problems, np.stack(codes), True, still_weight)
+        vals, g = pooled_objectives(problems, np.stack(codes), True, still_weight, aggregate)
         out = np.zeros_like(xs)
         for i, (gi, cache) in enumerate(zip(g, caches)):
             gc, gR = code_vjp(gi, cache, grid)
@@ -162,7 +168,8 @@ def _climb(problems, starts: list, grid: DiscGrid, iterations: int, free: bool, 
 
 
 def disc_search(problems, starts: dict, grid: DiscGrid, iterations: int = 200,
-                light: str = "fixed", still_weight: float = 0.0) -> DiscSearch:  # fmt: skip
+                light: str = "fixed", still_weight: float = 0.0,
+                aggregate: str = "mean") -> DiscSearch:  # fmt: skip
     """Climb from each named start (:class:`Discs`); keep the discs of the best model dB.
 
     Parameters
@@ -179,6 +186,8 @@ def disc_search(problems, starts: dict, grid: DiscGrid, iterations: int = 200,
         Whether R stays the starts' (the store design's light) or moves.
     still_weight : float
         The still pixels' weight (:func:`~.cell_objective.objective`); 0 scores moving only.
+    aggregate : {"mean", "worst"}
+        How the stores' scores are pooled (:func:`~.cell_objective.pooled_objectives`).
 
     Returns
     -------
@@ -191,11 +200,12 @@ def disc_search(problems, starts: dict, grid: DiscGrid, iterations: int = 200,
     if not starts:
         raise ParameterError("starts: at least one start")
     sw = check_still_weight(problems, still_weight)
+    check_aggregate(aggregate)
     t0 = time.perf_counter()
     names = list(starts)
     found, curves = _climb(problems, [starts[k] for k in names], grid, int(iterations),
-                           light == "free", t0, sw)  # fmt: skip
-    vals = [disc_objective(problems, d, grid, False, sw)[0] for d in found]
+                           light == "free", t0, sw, aggregate)  # fmt: skip
+    vals = [disc_objective(problems, d, grid, False, sw, aggregate)[0] for d in found]
     best = int(np.argmax(vals))
     rows = flatten_curves(curves)
     return DiscSearch(found[best], vals[best], list(zip(names, vals)), rows,

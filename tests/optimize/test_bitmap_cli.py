@@ -87,6 +87,8 @@ def test_grey_levels_from_the_command_line(store, tmp_path):
             "--still-weight: a finite number > 0",
         ),
         (["--objective", "moving"], "--objective: only a search with --space bitmap"),
+        (["--space", "bitmap", "--aggregate", "max"], "--aggregate: one of mean, worst, got"),
+        (["--aggregate", "worst"], "--aggregate: only a search with --space bitmap"),
     ],
 )
 def test_bad_bitmap_flags_are_one_line_before_any_work(store, tmp_path, capsys, extra, words):

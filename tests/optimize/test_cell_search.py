@@ -139,14 +139,14 @@ def test_a_store_with_no_still_pixel_scores_its_moving_objects_only(setup):
     moving PSNR alone in the mean; with no such pixel in any store the weight is refused."""
     from dataclasses import replace as dc_replace
 
-    from pacam_render.optimize.cell_objective import mean_objective
+    from pacam_render.optimize.cell_objective import pooled_objective
 
     _, _, base, problem = setup
     bare = dc_replace(problem, still=np.zeros_like(problem.still))
     w = 0.5
     moving, still = parts([problem], base)
     bare_moving = objective(bare, base, False)[0]
-    got = mean_objective([problem, bare], base, False, w)[0]
+    got = pooled_objective([problem, bare], base, False, w)[0]
     assert got == pytest.approx(((moving + w * still) / (1 + w) + bare_moving) / 2)
     assert parts([problem, bare], base)[1] == pytest.approx(still)  # the still stores' mean
     with pytest.raises(ParameterError, match="no store's window shows a still pixel"):
@@ -165,3 +165,37 @@ def test_several_codes_at_once_are_each_code_alone(setup):
     for code, v, g in zip(codes, vals, grads):
         v1, g1 = objective(problem, code, True, 0.5)
         assert v == pytest.approx(v1, rel=1e-12) and np.allclose(g, g1, rtol=1e-9, atol=1e-12)
+
+
+def test_the_worst_aggregate_is_the_soft_minimum_of_the_gains_and_its_gradient_fd(setup):
+    """The "worst" aggregate (:func:`pooled_objectives`): equal to the mean where every store
+    gains alike (the same store twice), between mean_b + min gain and the mean otherwise, and
+    its gradient central finite differences on a random grey code over two different stores
+    (the second's truth dimmed, so its gains differ)."""
+    import dataclasses
+
+    from pacam_render.optimize.cell_objective import WORST_SOFTNESS_DB, pooled_objective
+
+    _, basis, _, problem = setup
+    other = dataclasses.replace(problem, sharp=problem.sharp * 0.8, base_db={})
+    rng = np.random.default_rng(5)
+    code = rng.uniform(0.05, 0.95, (basis.n_patterns, G, G))
+    same = [problem, dataclasses.replace(problem, base_db={})]
+    assert pooled_objective(same, code, False, aggregate="worst")[0] == pytest.approx(
+        objective(problem, code, False)[0], abs=1e-9)  # fmt: skip
+    pair = [problem, other]
+    v, g = pooled_objective(pair, code, aggregate="worst")
+    vals = np.array([objective(q, code, False)[0] for q in pair])
+    b = np.array([objective(q, q.base_code, False)[0] for q in pair])
+    assert b.mean() + (vals - b).min() - 1e-9 <= v <= vals.mean() + 1e-9
+    tau = WORST_SOFTNESS_DB
+    assert v == pytest.approx(b.mean() - tau * np.log(np.mean(np.exp(-(vals - b) / tau))))
+    h = 1e-5
+    for _ in range(3):
+        d = rng.normal(size=code.shape) * 0.1
+        up = pooled_objective(pair, code + h * d, False, aggregate="worst")[0]
+        down = pooled_objective(pair, code - h * d, False, aggregate="worst")[0]
+        fd = (up - down) / (2 * h)
+        assert abs(np.sum(g * d) - fd) <= 1e-3 * abs(fd) + 1e-9, (np.sum(g * d), fd)
+    with pytest.raises(ParameterError, match="aggregate`: one of mean, worst"):
+        gradient_search(pair, {"x": code}, iterations=1, aggregate="max")

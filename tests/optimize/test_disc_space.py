@@ -181,6 +181,27 @@ def test_the_choice_keeps_the_best_eligible_design_or_the_prototype():
     assert _pick(tie, ["prototype", "from x"], 0.0, None)["chosen"] == "prototype"
 
 
+def test_the_worst_choice_takes_the_smallest_gain_not_the_mean():
+    """With the "worst" aggregate the choice pools as the search does: the prototype's mean
+    plus the soft minimum of the gains store by store. A design that gains 2 dB on one store
+    and loses 1 on the other wins on the mean and loses to one that gains 0.3 on both."""
+    from pacam_render.optimize.cell_objective import WORST_SOFTNESS_DB
+    from pacam_render.optimize.cell_select import _pick
+
+    rows = [_row("prototype", "a", 20.0, None), _row("prototype", "b", 18.0, None),
+            _row("from x", "a", 22.0, None), _row("from x", "b", 17.0, None),
+            _row("from y", "a", 20.3, None), _row("from y", "b", 18.3, None)]  # fmt: skip
+    names = ["prototype", "from x", "from y"]
+    assert _pick(rows, names, 0.0, None)["chosen"] == "from x"
+    got = _pick(rows, names, 0.0, None, "worst")
+    assert got["chosen"] == "from y"
+    tau = WORST_SOFTNESS_DB
+    assert got["scores"]["from y"]["value_db"] == pytest.approx(19.3)  # equal gains: 19 + 0.3
+    x = 19.0 - tau * np.log((np.exp(-2.0 / tau) + np.exp(1.0 / tau)) / 2)  # closed form
+    assert got["scores"]["from x"]["value_db"] == pytest.approx(x)
+    assert got["scores"]["from x"]["moving_db"] == pytest.approx(19.5)  # the table: the mean
+
+
 def test_open_times_with_a_switching_lcos_are_the_blend_s_closed_form():
     """Four windows of 2 ms, t_s = 1 ms: a window's code loses, on average, 0.5 ms of its own
     first ms to the previous code and is still shown 0.5 ms into the next window; window 0
