@@ -78,14 +78,15 @@ STORE_SPP = 256
 
 
 def search(root: Path, folders, cells: int, starts: int, iterations: int,
-           still_weight: float = 0.0, aggregate: str = "mean") -> dict:  # fmt: skip
+           still_weight: float = 0.0, aggregate: str = "mean", focus_mm=()) -> dict:  # fmt: skip
     """One bitmap search on ``folders``: its best candidate on the unread passes written as a
     design file, its gain there over the store's design, what the choice kept, seconds."""
     t0 = time.perf_counter()
     p = BitmapProblem(tuple(folders), bbd.SENSOR, bbd.LEVEL, cells, "fixed", starts,
                       iterations, noise_draws=2,
                       objective="moving+still" if still_weight else "moving",
-                      still_weight=still_weight or None, aggregate=aggregate)  # fmt: skip
+                      still_weight=still_weight or None, aggregate=aggregate,
+                      focus_mm=tuple(focus_mm))  # fmt: skip
     opened = check_bitmap_problem(p)
     prepared = prepare_bitmap(p, opened)
     f = chosen_design(p, prepared, opened, found_design(p, prepared))
@@ -94,6 +95,7 @@ def search(root: Path, folders, cells: int, starts: int, iterations: int,
     scores = f["choice"]["scores"]
     best = max((k for k in scores if k != PROTOTYPE), key=lambda k: scores[k]["value_db"])
     tags = ("_still" if still_weight else "") + ("_worst" if aggregate == "worst" else "")
+    tags += "_focus" if focus_mm else ""
     path = root / f"bitmap_n{len(folders)}_g{cells}{tags}.toml"
     write_design(path, f["candidates"][best], True)
     out = {"path": path, "best": best, "chosen": f["choice"]["chosen"],
@@ -163,6 +165,7 @@ class Setup:
     still_weight: float = 0.0
     noise_ratio: float | None = None
     aggregate: str = "mean"
+    focus_mm: tuple = ()
 
     @property
     def objective(self) -> str:
@@ -175,6 +178,10 @@ class Setup:
             return (f"{what}, pooled over the stores as the soft minimum (tau "
                     f"{WORST_SOFTNESS_DB:g} dB) of the gains over the prototype")  # fmt: skip
         return f"{what}, mean over the stores"
+
+
+def _focus_words(u: Setup) -> str:
+    return "the store's and " + ", ".join(f"{f:g}" for f in u.focus_mm) + " mm"
 
 
 def _found(root: Path, u: Setup, designs_from: list | None, only: list | None):
@@ -197,8 +204,9 @@ def _found(root: Path, u: Setup, designs_from: list | None, only: list | None):
         for g in u.grids:
             name = f"bitmap {g}x{g}, {n} scenes" + (", moving+still" if u.still_weight else "")
             name += ", worst case" if u.aggregate == "worst" else ""
+            name += f", focus searched ({_focus_words(u)})" if u.focus_mm else ""
             found[name] = search(root, folders[:n], g, u.starts, u.iters, u.still_weight,
-                                 u.aggregate)  # fmt: skip
+                                 u.aggregate, u.focus_mm)  # fmt: skip
             print(f"{name}: {found[name]}", flush=True)
     return found, t_store
 
@@ -301,6 +309,13 @@ def main() -> None:
         help="check the root's best centres and Fourier-model designs too",
     )
     ap.add_argument(
+        "--focus",
+        type=float,
+        nargs="+",
+        metavar="MM",
+        help="further focus distances each search tries (pacam optimize --focus)",
+    )
+    ap.add_argument(
         "--aggregate",
         default="mean",
         help=f"how a search pools the stores: {' or '.join(AGGREGATES)} (pacam optimize's)",
@@ -314,7 +329,7 @@ def main() -> None:
         u = replace(u, held=tuple(a.check_seeds))
     if a.aggregate not in AGGREGATES:
         ap.error(f"--aggregate must be one of {', '.join(AGGREGATES)}, got {a.aggregate!r}")
-    u = replace(u, aggregate=a.aggregate)
+    u = replace(u, aggregate=a.aggregate, focus_mm=tuple(a.focus or ()))
     if a.only and not a.designs_from:
         ap.error("--only picks among --designs-from's designs; give --designs-from too")
     if a.noise_ratio is not None:
@@ -333,6 +348,7 @@ def main() -> None:
                      None if u.noise_ratio is None else target)  # fmt: skip
     tag = "" if u.noise_ratio is None else f"_noise{u.noise_ratio:g}"
     tag += "_worst" if u.aggregate == "worst" else ""
+    tag += "_focus" if u.focus_mm else ""
     out = root / (f"scenes_checked{tag}.json" if a.designs_from else f"scenes{tag}.json")
     out.write_text(json.dumps({"found": {k: {**v, "path": str(v["path"])}
                                          for k, v in found.items()}, "held": held},
@@ -344,6 +360,7 @@ def main() -> None:
     extra = "" if u.store_spp == STORE_SPP else f", stores of {u.store_spp} spp"
     extra += f", still weight {u.still_weight:g}" if u.still_weight else ""
     extra += ", worst-case aggregate" if u.aggregate == "worst" else ""
+    extra += f", focus searched ({_focus_words(u)})" if u.focus_mm else ""
     extra += f", checked on family seeds {u.held[0]}-{u.held[-1]}" if a.check_seeds else ""
     extra += "" if u.noise_ratio is None else f", renders to {u.noise_ratio:g}x the sensor's noise"
     extra += ", with the root's centres and Fourier-model designs" if a.baselines else ""

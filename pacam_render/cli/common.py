@@ -100,6 +100,7 @@ FLAGS = {
     "objective": "--objective",
     "still_weight": "--still-weight",
     "aggregate": "--aggregate",
+    "focus_mm": "--focus",
     "held_out": "--held-out",
     "max_still_loss_db": "--max-still-loss",
     "held_passes": "--held-passes",

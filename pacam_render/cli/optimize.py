@@ -42,7 +42,7 @@ FOURIER_ONLY = ("depth_range", "n_patterns", "free_radius", "f_number", "r_px", 
 """Flags of the Fourier objective that a search on stores does not take (its camera is the
 stores')."""
 CELLS_FLAGS = ("cells", "light", "starts", "iterations", "objective", "still_weight", "held_out",
-               "max_still_loss", "held_passes", "aggregate")  # fmt: skip
+               "max_still_loss", "held_passes", "aggregate", "focus")  # fmt: skip
 SPACE_FLAGS = {"centres": ("positions", "sweeps", "check_seeds"),
                "bitmap": CELLS_FLAGS + ("levels",),
                "discs": CELLS_FLAGS + ("lcos_switching",)}  # fmt: skip
@@ -184,6 +184,15 @@ def _add_bitmap(p) -> None:
         f"{' or '.join(AGGREGATES)} (their mean, default; or the soft minimum, tau "
         f"{WORST_SOFTNESS_DB:g} dB, of each store's gain over the store's own design)",
     )
+    p.add_argument(
+        "--focus",
+        type=float,
+        nargs="+",
+        metavar="MM",
+        help="with --space bitmap or discs: further focus distances to search at, mm, each "
+        "from the store's design refocused there (within the stores' margin); the written "
+        "design keeps the focus it was found at (default: the store design's focus only)",
+    )
 
 
 def _add_held_out(p) -> None:
@@ -251,7 +260,7 @@ def run(args: argparse.Namespace) -> int:
     if args.lightfield:
         return _run_lightfield(args)
     for name in ("cells", "light", "levels", "positions", "sweeps", "check_seeds", "objective",
-                 "still_weight", "aggregate"):  # fmt: skip
+                 "still_weight", "aggregate", "focus"):  # fmt: skip
         if getattr(args, name) is not None:
             raise ParameterError(f"--{name.replace('_', '-')}: only a search with --lightfield "
                                  "takes it")  # fmt: skip
@@ -398,6 +407,7 @@ def _run_bitmap(args: argparse.Namespace, level: float) -> int:
         space=args.space, held_out=tuple(args.held_out or ()),
         max_still_loss_db=args.max_still_loss, held_passes=args.held_passes,
         lcos_switching_ms=args.lcos_switching, aggregate=_or(args.aggregate, "mean"),
+        focus_mm=tuple(args.focus or ()),
     )  # fmt: skip
     check_bitmap_problem(problem)  # refused before any output
     out = prepare_out_dir(args.out, args.force)

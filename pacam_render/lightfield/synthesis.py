@@ -226,12 +226,18 @@ def _shear(store: Store, plan) -> float:
             f"the design's lens (fov {plan.cam.fov_deg:g} deg, R_max {plan.cam.R_max_mm:g} mm) "
             f"is not the store's ({info.fov_deg:g} deg, {info.lens_radius_mm:g} mm)"
         )
-    focus = plan.sensor_params()["focus_distance"]
-    k = geo.shear_px_per_mm(info.f_px, info.focus_mm, focus)
-    need = geo.margin_px(k, plan.cam.R_max_mm)
+    return refocus_shear(store, plan.sensor_params()["focus_distance"], plan.cam.R_max_mm)
+
+
+def refocus_shear(store: Store, focus_mm: float, R_max_mm: float) -> float:
+    """k (px/mm) of a camera focused at ``focus_mm`` against the store's, refused (naming the
+    margin it needs) where its lens of radius ``R_max_mm`` refocuses beyond the store's margin."""
+    info = store.manifest.camera
+    k = geo.shear_px_per_mm(info.f_px, info.focus_mm, focus_mm)
+    need = geo.margin_px(k, R_max_mm)
     if need > info.margin_px:
         raise ParameterError(
-            f"the design focuses at {focus:g} mm, {need} px of refocus from the store's "
+            f"the design focuses at {focus_mm:g} mm, {need} px of refocus from the store's "
             f"{info.focus_mm:g} mm, beyond its margin of {info.margin_px} px: render the "
             f"store with margin_px >= {need}"
         )

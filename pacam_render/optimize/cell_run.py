@@ -15,14 +15,16 @@ not the disc rasterised on the cells)."""
 
 from __future__ import annotations
 
+import gc
 import math
+import tempfile
 import time
 from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 
-from ..errors import ParameterError, check_integer
+from ..errors import ParameterError, check_integer, check_positive
 from ..exposure.plan import plan_capture
 from ..lightfield.cell_basis import (
     CELL_CHOICES,
@@ -33,12 +35,12 @@ from ..lightfield.cell_basis import (
     lens_cells,
 )
 from ..lightfield.store import Store
-from ..lightfield.synthesis import synthesize
+from ..lightfield.synthesis import refocus_shear, synthesize
 from ..limits import available_bytes, gib, note
 from ..model.design_file import write_design
 from ..sensor.model import SensorModel
-from .cell_design import bitmap_design, disc_code
-from .cell_objective import cell_problem, check_aggregate
+from .cell_design import bitmap_design, design_spec, disc_code
+from .cell_objective import base_value, cell_problem, check_aggregate
 from .cell_report import SCORES, paired, write_patterns, write_report
 from .cell_search import LIGHT_CHOICES, gradient_search, light_of
 from .cell_select import PROTOTYPE, choose, score_rows, split_passes
@@ -87,6 +89,9 @@ class BitmapProblem:
     held_passes: int | None = None
     lcos_switching_ms: float | None = None
     aggregate: str = "mean"
+    focus_mm: tuple[float, ...] = ()
+    """Further focus distances (mm) the search tries (:func:`found_over_focus`); empty: the
+    store design's own focus only."""
 
     @property
     def weight(self) -> float:
@@ -129,6 +134,7 @@ def check_bitmap_problem(p: BitmapProblem):
         raise ParameterError("lcos_switching_ms: only the discs space (the plugin switches "
                              "discs, not bitmaps)")  # fmt: skip
     cam = plan_capture(store_spec(stores[0], p)).cam  # checks lcos_switching_ms
+    check_focus(p, stores, cam)
     try:
         display_px(cam.R_max_mm, cam.lcos_pitch_mm, p.cells)
     except ParameterError as exc:
@@ -166,8 +172,9 @@ def store_spec(store, p: BitmapProblem):
     return replace(base_spec(store), lcos_switching_ms=p.lcos_switching_ms)
 
 
-def prepare_bitmap(p: BitmapProblem, stores, progress: bool = False) -> dict:
-    """The stores' bases, templates (their design's syntheses) and objective terms.
+def prepare_bitmap(p: BitmapProblem, stores, progress: bool = False, specs=None) -> dict:
+    """The stores' bases, templates (their design's syntheses, or ``specs``') and objective
+    terms.
 
     Returns
     -------
@@ -176,7 +183,7 @@ def prepare_bitmap(p: BitmapProblem, stores, progress: bool = False) -> dict:
         rasterised), ``problems`` and ``setup_s``.
     """
     t0 = time.perf_counter()
-    specs = [store_spec(s, p) for s in stores]
+    specs = [store_spec(s, p) for s in stores] if specs is None else specs
     plan = plan_capture(specs[0])
     base = disc_code(plan, p.cells)
     search, choice = split_passes(p, stores)
@@ -254,6 +261,75 @@ def found_design(p: BitmapProblem, prepared: dict) -> dict:
                 curve=[list(x) for x in s.rows], evaluations=s.evaluations)  # fmt: skip
 
 
+def check_focus(p: BitmapProblem, stores, cam) -> None:
+    """Each of ``p.focus_mm`` finite, > 0 and once, and within every store's refocus margin
+    for the lens ``cam``'s (:func:`~..lightfield.synthesis.refocus_shear`)."""
+    for f in p.focus_mm:
+        check_positive("focus_mm", f, "mm")
+    if len(set(map(float, p.focus_mm))) != len(p.focus_mm):
+        raise ParameterError(f"focus_mm: each focus once, got {list(p.focus_mm)}")
+    for f in p.focus_mm:
+        for s in stores:
+            refocus_shear(s, float(f), cam.R_max_mm)
+
+
+def refocused_specs(specs, plan, focus_mm: float, folder: Path) -> list:
+    """``specs`` with ``plan``'s design (its discs, opening, windows and exposure) focused at
+    ``focus_mm``, through a design file in ``folder`` (the road a user's design takes)."""
+    d = plan.design.with_(width_px=plan.full.width_px, height_px=plan.full.height_px,
+                          pattern_centres_mm=tuple(map(tuple, plan.design.pattern_centres_xy_mm())),
+                          focus_distance_mm=float(focus_mm), quoted_a_i_px_per_ms2=None,
+                          name=f"the store's design focused at {focus_mm:g} mm")  # fmt: skip
+    path = folder / f"focus_{float(focus_mm):g}.toml"
+    write_design(path, d, force=True)
+    return [design_spec(s, path) for s in specs]
+
+
+def found_over_focus(p: BitmapProblem, stores, prepared: dict, progress: bool = False) -> dict:
+    """:func:`found_design` at the store design's focus (``prepared``) and, one after another
+    (one focus's bases in memory at a time), at each of ``p.focus_mm`` from the store's design
+    refocused there: every focus's candidates together, named "START @ F mm" (no suffix
+    without ``p.focus_mm``). A "worst" search at another focus measures its gains against
+    the store's design at its own focus, as the choice does."""
+    f = found_design(p, prepared)
+    if not p.focus_mm:
+        return f
+    own = [(prepared["plan"].cam.focus_distance_mm, f)]
+    with tempfile.TemporaryDirectory(prefix="pacam-focus-") as tmp:
+        for mm in p.focus_mm:
+            specs = refocused_specs(prepared["specs"], prepared["plan"], mm, Path(tmp))
+            r = prepare_bitmap(p, stores, progress, specs)
+            for q, ref in zip(r["problems"], prepared["problems"]):
+                q.base_db[p.weight] = base_value(ref, p.weight)
+            own.append((float(mm), found_design(p, r)))
+            del r
+            gc.collect()
+    return _merge_focus(own)
+
+
+def _merge_focus(found: list) -> dict:
+    """(focus mm, :func:`found_design`'s dict) pairs as one dict of every focus's candidates,
+    each name suffixed with its focus; the curves one after another."""
+    out = dict(candidates={}, codes={}, curve=[], evaluations=0,
+               model_db={"found": -math.inf, "relaxed": -math.inf, "starts": []})  # fmt: skip
+    for mm, f in found:
+        tag = f" @ {mm:.0f} mm"
+        out["candidates"].update({k + tag: v for k, v in f["candidates"].items()})
+        out["codes"].update({k + tag: v for k, v in f["codes"].items()})
+        m = f["model_db"]
+        out["model_db"]["found"] = max(out["model_db"]["found"], m["found"])
+        out["model_db"]["relaxed"] = max(out["model_db"]["relaxed"], m["relaxed"])
+        out["model_db"]["starts"] += [[s[0] + tag, *s[1:]] for s in m["starts"]]
+        if "R_mm" in m:
+            out["model_db"].setdefault("R_mm", {}).update(
+                {k + tag: v for k, v in m["R_mm"].items()}
+            )
+        n, t = len(out["curve"]), out["curve"][-1][1] if out["curve"] else 0.0
+        out["curve"] += [[n + row[0], t + row[1], *row[2:]] for row in f["curve"]]
+        out["evaluations"] += f["evaluations"]
+    return out
+
+
 def chosen_design(p: BitmapProblem, prepared: dict, stores, f: dict) -> dict:
     """:func:`~.cell_select.choose` on ``f``'s candidates: adds ``choice`` (its result),
     ``design`` and ``code`` (the chosen one's; the store's design, as discs and rasterised,
@@ -295,7 +371,7 @@ def run_bitmap_optimize(p: BitmapProblem, out: Path, force: bool, progress: bool
     stores = check_bitmap_problem(p)
     r = prepare_bitmap(p, stores, progress)
     check_still_loss(p, r["problems"])
-    f = chosen_design(p, r, stores, found_design(p, r))
+    f = chosen_design(p, r, stores, found_over_focus(p, stores, r, progress))
     path = out / "design.toml"
     write_design(path, f["design"], force)
     name = f"found {p.space}" if f["choice"]["chosen"] != PROTOTYPE else "kept prototype"
@@ -313,6 +389,7 @@ def run_bitmap_optimize(p: BitmapProblem, out: Path, force: bool, progress: bool
                            "prototype_capture": r["templates"][0].record.light_factor,
                            "found": light_of(r["problems"][0], f["code"])}}  # fmt: skip
     doc["store_noise"] = _store_noise(p, r["templates"])
+    doc["design_focus_mm"] = float(f["design"].focus_distance_mm)
     write_report(out, doc, force, report_text(p, doc))
     write_patterns(out / "patterns.png", f["code"], name, force)
     return doc

@@ -95,6 +95,17 @@ def _held_text(doc: dict) -> list[str]:
     return out
 
 
+def _focus_text(p, doc: dict) -> str:
+    """Where the search focused, and the written design's focus."""
+    if not getattr(p, "focus_mm", ()):
+        return ""
+    at = ", ".join(f"{f:g}" for f in p.focus_mm)
+    return (
+        f" Searched at the store design's focus and at {at} mm (each from the store's "
+        f"design refocused there); design.toml focuses at {doc['design_focus_mm']:.0f} mm."
+    )
+
+
 def report_text(p, doc: dict) -> str:
     """report.md."""
     m = doc["model_db"]
@@ -103,7 +114,7 @@ def report_text(p, doc: dict) -> str:
         f"{p.light})", "",
         f"Model objective ({len(p.stores)} store(s), {_what(p)}): found "
         f"{m['found']:.2f} dB; {doc['evaluations']} evaluations in {doc['search_s']:.1f} s "
-        f"after {doc['setup_s']:.1f} s of setup. " + _starts(p, m), "",
+        f"after {doc['setup_s']:.1f} s of setup. " + _starts(p, m) + _focus_text(p, doc), "",
         markdown(doc["train"], "Scored with the real pipeline on the stores' syntheses"),
         _choice_text(p, doc), "",
         _noise_text(p, doc), "",

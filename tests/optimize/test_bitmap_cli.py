@@ -89,6 +89,10 @@ def test_grey_levels_from_the_command_line(store, tmp_path):
         (["--objective", "moving"], "--objective: only a search with --space bitmap"),
         (["--space", "bitmap", "--aggregate", "max"], "--aggregate: one of mean, worst, got"),
         (["--aggregate", "worst"], "--aggregate: only a search with --space bitmap"),
+        (["--space", "bitmap", "--focus", "100000"], "px of refocus from the store"),
+        (["--space", "bitmap", "--focus", "-5"], "--focus must be > 0 mm, got -5"),
+        (["--space", "bitmap", "--focus", "900", "900"], "--focus: each focus once"),
+        (["--focus", "900"], "--focus: only a search with --space bitmap"),
     ],
 )
 def test_bad_bitmap_flags_are_one_line_before_any_work(store, tmp_path, capsys, extra, words):

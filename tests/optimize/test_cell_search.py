@@ -18,6 +18,8 @@ from pacam_render.optimize.cell_design import bitmap_design_spec, disc_code
 from pacam_render.optimize.cell_objective import cell_problem, objective, parts
 from pacam_render.optimize.cell_search import gradient_search, project
 
+pytestmark = pytest.mark.render  # every test renders a small store
+
 SPEC = CaptureSpec.geometric(scene="train", width=1280, height=960, crop=(440, 400, 48, 32),
                              mode="coded", spp=4, passes=2, seed=7)  # fmt: skip
 G = 8
