@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import time
 import warnings
+from contextlib import nullcontext
 from dataclasses import replace
 from pathlib import Path
 
@@ -336,13 +337,13 @@ def _render_plan(plan: CapturePlan, description, run: Run, truth, target, keep: 
     steps_plan = {"windows": exp.windows, "target": None if target is None else target.to_json()}
     parts = resume_parts(plan.key(), scene, desc, steps_plan, versions(), variant)
     store = Checkpoint(None if run.partial_dir is None else Path(run.partial_dir), parts)
-    prog = integrate(exp, spec, run, store, target, record, f"{spec.mode} {spec.scene}")
+    with exp.animator or nullcontext():  # back to t = 0 however it ends (SceneAnimator)
+        prog = integrate(exp, spec, run, store, target, record, f"{spec.mode} {spec.scene}")
     render_s = time.perf_counter() - t_start + prog.seconds_before  # earlier sessions' too
     if not run.pilot_only:  # a pilot stops short of its target by design
         _note_samples(spec, exp, prog, target)
-    if exp.moving:  # back to t = 0 for the ground truth
+    if exp.moving:  # the whole exposure's window for the ground truth
         sensor.configure(time_window=None)
-        exp.animator.set_time(0.0)
     if run.pilot_only or keep or truth:  # what is done stays on disk until it is not needed
         store.save(prog.state(), prog.arrays())
     truth = truth and not run.pilot_only

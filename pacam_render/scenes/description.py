@@ -286,7 +286,19 @@ class SceneAnimator:
     no error accumulates), other shapes through ``<id>.to_world``. A static scene never
     touches the parameters; ``n_updates`` counts ``params.update()`` calls (each rebuilds the
     BVH). The scene starts at t = 0.
+
+    Used as a context manager, it puts the shapes back at t = 0 when the block ends, however
+    it ends: a description loaded from a scene file shares its mesh objects with every scene
+    loaded from it (:func:`~pacam_render.scenes.files.load_scene_file`), so a render that
+    stops with the meshes moved would leave the next scene (its truth, a store's truth) posed
+    at the wrong time.
     """
+
+    def __enter__(self) -> SceneAnimator:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.set_time(0.0)
 
     def __init__(self, scene, description: SceneDescription):
         self.motions = {k: description.motions[k] for k in description.moving_ids}

@@ -201,3 +201,32 @@ def test_design_fit_range_scales_with_beta_and_flags_fast_objects():
     levin = object_fit(layers, {"1": "a", "2": "b"}, cam, "levin")
     assert levin["b"]["range_px_per_ms"] == pytest.approx(rng) and not levin["b"]["too_fast"]
     assert levin["a"]["r_px"] == pytest.approx(0.0, abs=1e-9)  # Levin's lens is on the object
+
+
+def test_an_interrupted_capture_leaves_a_scene_file_s_meshes_at_t_0(tmp_path):
+    """A scene file's description shares its mesh objects with every scene it loads
+    (``load_scene_file``): a capture stopped mid-exposure must put them back at t = 0
+    (``SceneAnimator``'s exit), or the next scene loaded from it (a truth render, a store's)
+    shows the objects where the stop left them. Reference: the same file loaded afresh."""
+
+    import mitsuba as mi
+
+    from pacam_render.exposure.integrate import CaptureInterrupted
+    from pacam_render.scenes import load_scene
+
+    spec = CaptureSpec.geometric(scene="family:occluders:0", width=1280, height=960, grey=True,
+                                 crop=(661, 449, 64, 32), spp=4, passes=2, seed=1)  # fmt: skip
+    desc = load_scene(spec.scene)
+
+    def meshes(d):
+        p = mi.traverse(d.load())
+        return {k: np.array(p[k]) for k in p.keys() if k.endswith("vertex_positions")}
+
+    with pytest.raises(CaptureInterrupted):
+        render_capture(spec, progress=False, description=desc,
+                       stop_after_steps=3, partial_dir=tmp_path / "partial")  # fmt: skip
+    got, fresh = meshes(desc), meshes(load_scene(spec.scene))
+    moving = [k for k in got if k.split(".")[0] in desc.moving_ids]
+    assert moving, list(got)
+    for k in moving:
+        np.testing.assert_allclose(got[k], fresh[k], atol=1e-4, err_msg=k)
