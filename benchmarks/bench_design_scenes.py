@@ -52,6 +52,7 @@ from pacam_render.optimize.cell_design import design_spec  # noqa: E402
 from pacam_render.optimize.cell_objective import AGGREGATES, WORST_SOFTNESS_DB  # noqa: E402
 from pacam_render.optimize.cell_report import design_row, paired, summary  # noqa: E402
 from pacam_render.optimize.cell_run import (  # noqa: E402
+    CELL_SPACES,
     BitmapProblem,
     check_bitmap_problem,
     chosen_design,
@@ -78,7 +79,8 @@ STORE_SPP = 256
 
 
 def search(root: Path, folders, cells: int, starts: int, iterations: int,
-           still_weight: float = 0.0, aggregate: str = "mean", focus_mm=()) -> dict:  # fmt: skip
+           still_weight: float = 0.0, aggregate: str = "mean", focus_mm=(),
+           space: str = "bitmap") -> dict:  # fmt: skip
     """One bitmap search on ``folders``: its best candidate on the unread passes written as a
     design file, its gain there over the store's design, what the choice kept, seconds."""
     t0 = time.perf_counter()
@@ -86,7 +88,7 @@ def search(root: Path, folders, cells: int, starts: int, iterations: int,
                       iterations, noise_draws=2,
                       objective="moving+still" if still_weight else "moving",
                       still_weight=still_weight or None, aggregate=aggregate,
-                      focus_mm=tuple(focus_mm))  # fmt: skip
+                      focus_mm=tuple(focus_mm), space=space)  # fmt: skip
     opened = check_bitmap_problem(p)
     prepared = prepare_bitmap(p, opened)
     f = chosen_design(p, prepared, opened, found_design(p, prepared))
@@ -96,7 +98,7 @@ def search(root: Path, folders, cells: int, starts: int, iterations: int,
     best = max((k for k in scores if k != PROTOTYPE), key=lambda k: scores[k]["value_db"])
     tags = ("_still" if still_weight else "") + ("_worst" if aggregate == "worst" else "")
     tags += "_focus" if focus_mm else ""
-    path = root / f"bitmap_n{len(folders)}_g{cells}{tags}.toml"
+    path = root / f"{space}_n{len(folders)}_g{cells}{tags}.toml"
     write_design(path, f["candidates"][best], True)
     out = {"path": path, "best": best, "chosen": f["choice"]["chosen"],
            "train_gain_db": scores[best]["value_db"] - scores[PROTOTYPE]["value_db"],
@@ -166,6 +168,7 @@ class Setup:
     noise_ratio: float | None = None
     aggregate: str = "mean"
     focus_mm: tuple = ()
+    space: str = "bitmap"
 
     @property
     def objective(self) -> str:
@@ -202,11 +205,11 @@ def _found(root: Path, u: Setup, designs_from: list | None, only: list | None):
     found = {}
     for n in u.counts:
         for g in u.grids:
-            name = f"bitmap {g}x{g}, {n} scenes" + (", moving+still" if u.still_weight else "")
+            name = f"{u.space} {g}x{g}, {n} scenes" + (", moving+still" if u.still_weight else "")
             name += ", worst case" if u.aggregate == "worst" else ""
             name += f", focus searched ({_focus_words(u)})" if u.focus_mm else ""
             found[name] = search(root, folders[:n], g, u.starts, u.iters, u.still_weight,
-                                 u.aggregate, u.focus_mm)  # fmt: skip
+                                 u.aggregate, u.focus_mm, u.space)  # fmt: skip
             print(f"{name}: {found[name]}", flush=True)
     return found, t_store
 
@@ -251,7 +254,7 @@ def _train_text(found: dict, u: Setup, t_store, sources) -> str:
     return (f"train: the first N of family seeds {TRAIN_SEEDS[0]}-9, 20-41 (N in {u.counts}), "
             f"128x64 windows at each scene's largest occlusion, grey stores spp {u.store_spp} x "
             f"{bbd.STORE_PASSES} passes ({t_store:.0f} s; the searched passes' render noise "
-            f"{noise} the sensor's); bitmap search on the G x G cells (G in {u.grids}), fixed "
+            f"{noise} the sensor's); {u.space} search on the G x G cells (G in {u.grids}), fixed "
             f"light, {u.objective}, {u.starts} starts x {u.iters} Adam steps, reading 2 "
             "passes; its best candidate on the other 2 is checked (train gain: its margin over "
             "the store's design there; choice kept: what pacam optimize would write)")  # fmt: skip
@@ -309,6 +312,11 @@ def main() -> None:
         help="check the root's best centres and Fourier-model designs too",
     )
     ap.add_argument(
+        "--space",
+        default="bitmap",
+        help=f"what the searches move: {' or '.join(CELL_SPACES)} (pacam optimize --space)",
+    )
+    ap.add_argument(
         "--focus",
         type=float,
         nargs="+",
@@ -329,7 +337,9 @@ def main() -> None:
         u = replace(u, held=tuple(a.check_seeds))
     if a.aggregate not in AGGREGATES:
         ap.error(f"--aggregate must be one of {', '.join(AGGREGATES)}, got {a.aggregate!r}")
-    u = replace(u, aggregate=a.aggregate, focus_mm=tuple(a.focus or ()))
+    if a.space not in CELL_SPACES:
+        ap.error(f"--space must be one of {', '.join(CELL_SPACES)}, got {a.space!r}")
+    u = replace(u, aggregate=a.aggregate, focus_mm=tuple(a.focus or ()), space=a.space)
     if a.only and not a.designs_from:
         ap.error("--only picks among --designs-from's designs; give --designs-from too")
     if a.noise_ratio is not None:
@@ -349,6 +359,7 @@ def main() -> None:
     tag = "" if u.noise_ratio is None else f"_noise{u.noise_ratio:g}"
     tag += "_worst" if u.aggregate == "worst" else ""
     tag += "_focus" if u.focus_mm else ""
+    tag += "" if u.space == "bitmap" else f"_{u.space}"
     out = root / (f"scenes_checked{tag}.json" if a.designs_from else f"scenes{tag}.json")
     out.write_text(json.dumps({"found": {k: {**v, "path": str(v["path"])}
                                          for k, v in found.items()}, "held": held},
@@ -361,6 +372,7 @@ def main() -> None:
     extra += f", still weight {u.still_weight:g}" if u.still_weight else ""
     extra += ", worst-case aggregate" if u.aggregate == "worst" else ""
     extra += f", focus searched ({_focus_words(u)})" if u.focus_mm else ""
+    extra += "" if u.space == "bitmap" else f", --space {u.space}"
     extra += f", checked on family seeds {u.held[0]}-{u.held[-1]}" if a.check_seeds else ""
     extra += "" if u.noise_ratio is None else f", renders to {u.noise_ratio:g}x the sensor's noise"
     extra += ", with the root's centres and Fourier-model designs" if a.baselines else ""
