@@ -56,7 +56,7 @@ from pacam_render.optimize.cell_run import (  # noqa: E402
     BitmapProblem,
     check_bitmap_problem,
     chosen_design,
-    found_design,
+    found_over_focus,
     prepare_bitmap,
 )
 from pacam_render.optimize.cell_select import PROTOTYPE  # noqa: E402
@@ -91,7 +91,7 @@ def search(root: Path, folders, cells: int, starts: int, iterations: int,
                       focus_mm=tuple(focus_mm), space=space)  # fmt: skip
     opened = check_bitmap_problem(p)
     prepared = prepare_bitmap(p, opened)
-    f = chosen_design(p, prepared, opened, found_design(p, prepared))
+    f = chosen_design(p, prepared, opened, found_over_focus(p, opened, prepared))
     model = SensorModel.from_preset(bbd.SENSOR)
     noise = [store_noise(t, model, bbd.LEVEL, bbd.SENSOR)[0] for t in prepared["templates"]]
     scores = f["choice"]["scores"]
