@@ -339,6 +339,8 @@ def main() -> None:
         ap.error(f"--aggregate must be one of {', '.join(AGGREGATES)}, got {a.aggregate!r}")
     if a.space not in CELL_SPACES:
         ap.error(f"--space must be one of {', '.join(CELL_SPACES)}, got {a.space!r}")
+    if any(not 0 < f < float("inf") for f in a.focus or ()):
+        ap.error(f"--focus: focus distances finite and > 0 (mm), got {a.focus}")
     u = replace(u, aggregate=a.aggregate, focus_mm=tuple(a.focus or ()), space=a.space)
     if a.only and not a.designs_from:
         ap.error("--only picks among --designs-from's designs; give --designs-from too")

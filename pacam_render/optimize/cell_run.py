@@ -294,17 +294,17 @@ def found_over_focus(p: BitmapProblem, stores, prepared: dict, progress: bool = 
     f = found_design(p, prepared)
     if not p.focus_mm:
         return f
-    own = [(prepared["plan"].cam.focus_distance_mm, f)]
+    per_focus = [(prepared["plan"].cam.focus_distance_mm, f)]
     with tempfile.TemporaryDirectory(prefix="pacam-focus-") as tmp:
         for mm in p.focus_mm:
             specs = refocused_specs(prepared["specs"], prepared["plan"], mm, Path(tmp))
             r = prepare_bitmap(p, stores, progress, specs)
             for q, ref in zip(r["problems"], prepared["problems"]):
                 q.base_db[p.weight] = base_value(ref, p.weight)
-            own.append((float(mm), found_design(p, r)))
+            per_focus.append((float(mm), found_design(p, r)))
             del r
             gc.collect()
-    return _merge_focus(own)
+    return _merge_focus(per_focus)
 
 
 def _merge_focus(found: list) -> dict:

@@ -16,7 +16,7 @@ def _what(p) -> str:
     """The objective in words, with how it is pooled over the stores."""
     what = ("moving objects' PSNR" if p.objective == "moving"
             else f"(moving PSNR + {p.weight:g} still PSNR) / {1 + p.weight:g}")  # fmt: skip
-    if getattr(p, "aggregate", "mean") == "worst":
+    if p.aggregate == "worst":
         return (f"{what}: the prototype's mean over the stores plus the soft minimum "
                 f"(tau {WORST_SOFTNESS_DB:g} dB) of each store's gain over it")  # fmt: skip
     return f"{what}, mean over the stores"
@@ -48,8 +48,8 @@ def _choice_text(p, doc: dict) -> str:
              "the training stores' own samples, which the search read: it may have fitted their "
              f"Monte Carlo noise (give stores of at least {2 * MIN_SIDE_PASSES} passes to "
              "choose on others)")  # fmt: skip
-    pooled = ("soft minimum of the gains over the prototype" if getattr(p, "aggregate", "mean")
-              == "worst" else "mean over the stores")  # fmt: skip
+    pooled = ("soft minimum of the gains over the prototype" if p.aggregate == "worst"
+              else "mean over the stores")  # fmt: skip
     line = f"Chosen with the real pipeline on {where} (the search's score, {pooled}{rule}): "
     line += "; ".join(f"{k} {v['value_db']:.2f} dB" + ("" if v["eligible"] else " (not eligible)")
                       for k, v in sc.items())  # fmt: skip
@@ -97,7 +97,7 @@ def _held_text(doc: dict) -> list[str]:
 
 def _focus_text(p, doc: dict) -> str:
     """Where the search focused, and the written design's focus."""
-    if not getattr(p, "focus_mm", ()):
+    if not p.focus_mm:
         return ""
     at = ", ".join(f"{f:g}" for f in p.focus_mm)
     return (

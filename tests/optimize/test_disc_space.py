@@ -202,6 +202,21 @@ def test_the_worst_choice_takes_the_smallest_gain_not_the_mean():
     assert got["scores"]["from x"]["moving_db"] == pytest.approx(19.5)  # the table: the mean
 
 
+def test_the_soft_minimum_is_its_closed_form_at_extreme_gains():
+    """Gains far apart (1000 tau) and huge (1e6 dB): no overflow; the soft minimum is the
+    smallest gain plus tau log 2 (the mean of exp(0) and exp(-1000)), its weights (1, 0);
+    equal gains give the gain itself and equal weights."""
+    from pacam_render.optimize.cell_objective import WORST_SOFTNESS_DB, soft_minimum
+
+    tau = WORST_SOFTNESS_DB
+    for g in (-1e6, 0.0, 1e6):
+        v, w = soft_minimum(np.array([g, g + 1000 * tau]))
+        assert np.isfinite(v) and v == pytest.approx(g + tau * np.log(2), abs=1e-6 * max(1, abs(g)))
+        assert w == pytest.approx([1.0, 0.0])
+    v, w = soft_minimum(np.full(4, 3.0))
+    assert v == pytest.approx(3.0) and w == pytest.approx([0.25] * 4)
+
+
 def test_open_times_with_a_switching_lcos_are_the_blend_s_closed_form():
     """Four windows of 2 ms, t_s = 1 ms: a window's code loses, on average, 0.5 ms of its own
     first ms to the previous code and is still shown 0.5 ms into the next window; window 0
